@@ -1,0 +1,12 @@
+# All third-party packages come from Debian 12 (see scripts/install-deps.sh).
+find_package(Threads REQUIRED)
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs features2d calib3d)
+find_package(Ceres REQUIRED)
+# Only the PCL components we use: 'io' would drag VTK and MPI in on Debian.
+find_package(PCL REQUIRED COMPONENTS common filters kdtree search)
+find_package(spdlog REQUIRED)
+find_package(nlohmann_json 3 REQUIRED)
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
+find_package(GTest REQUIRED)

@@ -1,0 +1,46 @@
+#pragma once
+// Identifiers that cross threads and the network are values that carry their client.
+// Counters live on the map objects that hand them out, never in statics.
+#include <cstdint>
+#include <functional>
+#include <ostream>
+
+namespace cslam {
+
+using ClientId = std::uint16_t;
+
+// A typed (client, sequence) pair. Tag keeps KeyFrameId and MapPointId apart.
+template <typename Tag>
+struct ClientSeqId {
+  ClientId client = 0;
+  std::uint32_t seq = 0;
+
+  friend bool operator==(ClientSeqId a, ClientSeqId b) { return a.client == b.client && a.seq == b.seq; }
+  friend bool operator!=(ClientSeqId a, ClientSeqId b) { return !(a == b); }
+  friend bool operator<(ClientSeqId a, ClientSeqId b) {
+    return a.client != b.client ? a.client < b.client : a.seq < b.seq;
+  }
+  std::uint64_t packed() const { return (std::uint64_t(client) << 32) | seq; }
+  friend std::ostream& operator<<(std::ostream& os, ClientSeqId id) {
+    return os << Tag::prefix << id.client << ":" << id.seq;
+  }
+};
+
+struct KeyFrameTag { static constexpr const char* prefix = "kf"; };
+struct MapPointTag { static constexpr const char* prefix = "mp"; };
+struct FrameTag { static constexpr const char* prefix = "f"; };
+
+using KeyFrameId = ClientSeqId<KeyFrameTag>;
+using MapPointId = ClientSeqId<MapPointTag>;
+using FrameId = ClientSeqId<FrameTag>;
+
+}  // namespace cslam
+
+namespace std {
+template <typename Tag>
+struct hash<cslam::ClientSeqId<Tag>> {
+  size_t operator()(cslam::ClientSeqId<Tag> id) const noexcept {
+    return std::hash<std::uint64_t>()(id.packed());
+  }
+};
+}  // namespace std

@@ -1,0 +1,123 @@
+#include "eval/trajectory_eval.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/SVD>
+
+#include "core/error.h"
+#include "io/tum_dataset.h"
+
+namespace cslam {
+
+Alignment parse_alignment(const std::string& text) {
+  if (text == "none") return Alignment::kNone;
+  if (text == "se3") return Alignment::kSE3;
+  if (text == "sim3") return Alignment::kSim3;
+  throw ConfigError("unknown alignment '" + text + "' (use se3, sim3 or none)");
+}
+
+UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst, bool with_scale) {
+  UmeyamaResult r;
+  const size_t n = src.size();
+  if (n < 3 || dst.size() != n) return r;
+  Eigen::Vector3d mu_s = Eigen::Vector3d::Zero(), mu_d = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    mu_s += src[i];
+    mu_d += dst[i];
+  }
+  mu_s /= double(n);
+  mu_d /= double(n);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  double var_s = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d a = src[i] - mu_s, b = dst[i] - mu_d;
+    cov += b * a.transpose();
+    var_s += a.squaredNorm();
+  }
+  cov /= double(n);
+  var_s /= double(n);
+  if (var_s < 1e-12) return r;
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) S(2, 2) = -1;
+  const Eigen::Matrix3d R = svd.matrixU() * S * svd.matrixV().transpose();
+  const double s = with_scale ? (svd.singularValues().asDiagonal() * S).trace() / var_s : 1.0;
+  const Eigen::Vector3d t = mu_d - s * R * mu_s;
+  r.ok = std::isfinite(s) && s > 0;
+  r.T_dst_src = Sim3(Eigen::Quaterniond(R), t, s);
+  double sq = 0;
+  for (size_t i = 0; i < n; ++i) sq += (r.T_dst_src * src[i] - dst[i]).squaredNorm();
+  r.rmse = std::sqrt(sq / double(n));
+  return r;
+}
+
+std::vector<std::pair<int, int>> associate_trajectories(const Trajectory& gt, const Trajectory& est, double max_dt) {
+  std::vector<double> a, b;
+  for (const auto& p : gt) a.push_back(p.timestamp);
+  for (const auto& p : est) b.push_back(p.timestamp);
+  // associate_timestamps needs sorted input; trajectories of several clients may not be.
+  std::vector<int> ia(a.size()), ib(b.size());
+  for (size_t i = 0; i < ia.size(); ++i) ia[i] = int(i);
+  for (size_t i = 0; i < ib.size(); ++i) ib[i] = int(i);
+  std::stable_sort(ia.begin(), ia.end(), [&](int x, int y) { return a[x] < a[y]; });
+  std::stable_sort(ib.begin(), ib.end(), [&](int x, int y) { return b[x] < b[y]; });
+  std::vector<double> sa, sb;
+  for (int i : ia) sa.push_back(a[i]);
+  for (int i : ib) sb.push_back(b[i]);
+  std::vector<std::pair<int, int>> out;
+  for (const auto& [i, j] : associate_timestamps(sa, sb, max_dt)) out.emplace_back(ia[i], ib[j]);
+  return out;
+}
+
+AteResult compute_ate(const Trajectory& gt, const Trajectory& est, Alignment align, double max_dt) {
+  auto pairs = associate_trajectories(gt, est, max_dt);
+  if (pairs.size() < 3)
+    throw InputError("ATE", "only " + std::to_string(pairs.size()) +
+                                " poses associate between ground truth and estimate (need >= 3; check timestamps and --max-dt)");
+  std::sort(pairs.begin(), pairs.end(), [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
+  std::vector<Eigen::Vector3d> src, dst;
+  for (const auto& [i, j] : pairs) {
+    dst.push_back(gt[i].T_world_cam.translation());
+    src.push_back(est[j].T_world_cam.translation());
+  }
+  AteResult r;
+  if (align != Alignment::kNone) {
+    const auto u = umeyama(src, dst, align == Alignment::kSim3);
+    if (!u.ok) throw InputError("ATE", "alignment failed: the estimate's positions are degenerate (all identical?)");
+    r.T_gt_est = u.T_dst_src;
+  }
+  for (size_t k = 0; k < src.size(); ++k) {
+    r.errors.push_back((r.T_gt_est * src[k] - dst[k]).norm());
+    r.timestamps.push_back(est[pairs[k].second].timestamp);
+  }
+  r.stats = compute_stats(r.errors);
+  return r;
+}
+
+RpeResult compute_rpe(const Trajectory& gt, const Trajectory& est, double delta_s, double max_dt) {
+  auto pairs = associate_trajectories(gt, est, max_dt);
+  std::sort(pairs.begin(), pairs.end(), [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
+  std::vector<double> terr, rerr;
+  size_t j = 0;
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    const double target = est[pairs[i].second].timestamp + delta_s;
+    if (j < i) j = i;
+    while (j + 1 < pairs.size() && est[pairs[j + 1].second].timestamp <= target) ++j;
+    // j is the last pose at or before target; pick the closer of j and j+1.
+    size_t best = j;
+    if (j + 1 < pairs.size() &&
+        std::abs(est[pairs[j + 1].second].timestamp - target) < std::abs(est[pairs[j].second].timestamp - target))
+      best = j + 1;
+    if (best <= i || std::abs(est[pairs[best].second].timestamp - target) > std::max(max_dt, 0.5 * delta_s)) continue;
+    const SE3 dg = gt[pairs[i].first].T_world_cam.inverse() * gt[pairs[best].first].T_world_cam;
+    const SE3 de = est[pairs[i].second].T_world_cam.inverse() * est[pairs[best].second].T_world_cam;
+    const SE3 err = dg.inverse() * de;
+    terr.push_back(err.translation().norm());
+    rerr.push_back(err.rotation_angle() * 180.0 / M_PI);
+  }
+  if (terr.empty()) throw InputError("RPE", "no pose pairs " + std::to_string(delta_s) + " s apart associate with ground truth");
+  return {compute_stats(terr), compute_stats(rerr)};
+}
+
+}  // namespace cslam

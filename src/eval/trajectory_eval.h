@@ -1,0 +1,45 @@
+#pragma once
+// Absolute and relative trajectory error against ground truth (as evo's APE/RPE, translation in m).
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "eval/stats.h"
+#include "geometry/se3.h"
+#include "io/trajectory_io.h"
+
+namespace cslam {
+
+enum class Alignment { kNone, kSE3, kSim3 };
+Alignment parse_alignment(const std::string& text);  // "none" | "se3" | "sim3"; throws ConfigError
+
+// Least-squares similarity (Umeyama 1991) mapping src onto dst: dst ~ s R src + t.
+// With with_scale = false, s = 1. Needs at least 3 non-degenerate points; returns false otherwise.
+struct UmeyamaResult {
+  bool ok = false;
+  Sim3 T_dst_src;
+  double rmse = 0;
+};
+UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst, bool with_scale);
+
+// Index pairs (gt, est) associated by nearest timestamp within max_dt, each pose used once.
+std::vector<std::pair<int, int>> associate_trajectories(const Trajectory& gt, const Trajectory& est, double max_dt);
+
+struct AteResult {
+  ErrorStats stats;
+  Sim3 T_gt_est;                        // alignment applied to the estimate
+  std::vector<double> timestamps;       // estimate's timestamps of associated poses
+  std::vector<double> errors;           // per associated pose, metres
+};
+// Throws InputError (source "ATE") if fewer than 3 poses associate.
+AteResult compute_ate(const Trajectory& gt, const Trajectory& est, Alignment align, double max_dt = 0.02);
+
+struct RpeResult {
+  ErrorStats translation;  // metres
+  ErrorStats rotation;     // degrees
+};
+// Pairs (i, j) of estimate poses with t_j - t_i closest to delta_s (within max_dt); errors of the
+// relative motion against ground truth. Throws InputError if no pair is found.
+RpeResult compute_rpe(const Trajectory& gt, const Trajectory& est, double delta_s, double max_dt = 0.02);
+
+}  // namespace cslam

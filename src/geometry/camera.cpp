@@ -1,0 +1,106 @@
+#include "geometry/camera.h"
+
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+
+#include "core/error.h"
+
+namespace cslam {
+
+bool PinholeCamera::has_distortion() const {
+  for (double d : dist)
+    if (d != 0.0) return true;
+  return false;
+}
+
+void PinholeCamera::validate() const {
+  auto finite_pos = [](double v) { return std::isfinite(v) && v > 0; };
+  if (!finite_pos(fx) || !finite_pos(fy)) throw ConfigError("camera '" + name + "': focal lengths must be positive");
+  if (!std::isfinite(cx) || !std::isfinite(cy)) throw ConfigError("camera '" + name + "': principal point is not finite");
+  if (width <= 0 || height <= 0) throw ConfigError("camera '" + name + "': image size must be positive");
+  if (!finite_pos(depth_factor)) throw ConfigError("camera '" + name + "': depth_factor must be positive");
+  if (!finite_pos(depth_scale_correction)) throw ConfigError("camera '" + name + "': depth_scale_correction must be positive");
+  for (double d : dist)
+    if (!std::isfinite(d)) throw ConfigError("camera '" + name + "': distortion coefficient is not finite");
+}
+
+Eigen::Vector2d PinholeCamera::distort_pixel(const Eigen::Vector2d& undistorted) const {
+  const double x = (undistorted.x() - cx) / fx, y = (undistorted.y() - cy) / fy;
+  const double k1 = dist[0], k2 = dist[1], p1 = dist[2], p2 = dist[3], k3 = dist[4];
+  const double r2 = x * x + y * y;
+  const double radial = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2;
+  const double xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x);
+  const double yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y;
+  return {fx * xd + cx, fy * yd + cy};
+}
+
+void PinholeCamera::undistort_pixels(std::vector<Eigen::Vector2d>& pixels) const {
+  if (!has_distortion() || pixels.empty()) return;
+  cv::Mat pts(static_cast<int>(pixels.size()), 1, CV_64FC2);
+  for (size_t i = 0; i < pixels.size(); ++i) pts.at<cv::Vec2d>(static_cast<int>(i)) = {pixels[i].x(), pixels[i].y()};
+  cv::Matx33d K(fx, 0, cx, 0, fy, cy, 0, 0, 1);
+  cv::Mat D(1, 5, CV_64F);
+  for (int i = 0; i < 5; ++i) D.at<double>(i) = dist[i];
+  cv::Mat out;
+  cv::undistortPoints(pts, out, K, D, cv::noArray(), K);
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const cv::Vec2d p = out.at<cv::Vec2d>(static_cast<int>(i));
+    pixels[i] = {p[0], p[1]};
+  }
+}
+
+Eigen::Vector2d PinholeCamera::undistort_pixel(const Eigen::Vector2d& distorted) const {
+  std::vector<Eigen::Vector2d> one{distorted};
+  undistort_pixels(one);
+  return one[0];
+}
+
+std::array<double, 4> PinholeCamera::undistorted_bounds() const {
+  if (!has_distortion()) return {0.0, double(width), 0.0, double(height)};
+  std::vector<Eigen::Vector2d> corners{{0, 0}, {double(width), 0}, {0, double(height)}, {double(width), double(height)}};
+  undistort_pixels(corners);
+  return {std::min(corners[0].x(), corners[2].x()), std::max(corners[1].x(), corners[3].x()),
+          std::min(corners[0].y(), corners[1].y()), std::max(corners[2].y(), corners[3].y())};
+}
+
+PinholeCamera camera_tum_fr1() {
+  PinholeCamera c;
+  c.name = "tum1";
+  c.fx = 517.306408; c.fy = 516.469215; c.cx = 318.643040; c.cy = 255.313989;
+  c.dist = {0.262383, -0.953104, -0.005358, 0.002628, 1.163314};
+  return c;
+}
+
+PinholeCamera camera_tum_fr2(bool depth_correction) {
+  PinholeCamera c;
+  c.name = depth_correction ? "tum2-corrected" : "tum2";
+  c.fx = 520.908620; c.fy = 521.007327; c.cx = 325.141442; c.cy = 249.701764;
+  c.dist = {0.231222, -0.784899, -0.003257, -0.000105, 0.917205};
+  if (depth_correction) c.depth_scale_correction = 1.031;
+  return c;
+}
+
+PinholeCamera camera_tum_fr3() {
+  PinholeCamera c;
+  c.name = "tum3";
+  c.fx = 535.4; c.fy = 539.2; c.cx = 320.1; c.cy = 247.6;
+  return c;
+}
+
+PinholeCamera camera_preset(const std::string& name) {
+  if (name == "tum1" || name == "fr1") return camera_tum_fr1();
+  if (name == "tum2" || name == "fr2") return camera_tum_fr2(false);
+  if (name == "tum2-corrected") return camera_tum_fr2(true);
+  if (name == "tum3" || name == "fr3") return camera_tum_fr3();
+  if (name == "synthetic") {
+    // fr1-like intrinsics without distortion: the default of the synthetic generator.
+    PinholeCamera c = camera_tum_fr1();
+    c.name = "synthetic";
+    c.dist = {0, 0, 0, 0, 0};
+    return c;
+  }
+  throw ConfigError("unknown camera preset '" + name + "' (use tum1, tum2, tum2-corrected, tum3, synthetic or a file)");
+}
+
+}  // namespace cslam

@@ -1,0 +1,56 @@
+#pragma once
+// Pinhole camera with radial-tangential (k1 k2 p1 p2 k3) distortion, image size and depth factor.
+#include <array>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace cslam {
+
+struct PinholeCamera {
+  double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;
+  // Distortion coefficients in OpenCV order: k1 k2 p1 p2 k3.
+  std::array<double, 5> dist{0, 0, 0, 0, 0};
+  int width = 640, height = 480;
+  // Raw depth value per metre (TUM: 5000 -> 1 unit = 0.2 mm).
+  double depth_factor = 5000.0;
+  // Multiplicative correction applied after dividing by depth_factor (fr2: 1.031 is sometimes used).
+  double depth_scale_correction = 1.0;
+  std::string name = "custom";
+
+  bool has_distortion() const;
+  // Throws ConfigError if any value is impossible (non-positive focal, size, depth factor, NaN).
+  void validate() const;
+
+  // Undistorted normalized/pixel conversions.
+  Eigen::Vector2d project(const Eigen::Vector3d& p_cam) const {
+    return {fx * p_cam.x() / p_cam.z() + cx, fy * p_cam.y() / p_cam.z() + cy};
+  }
+  Eigen::Vector3d unproject(double u, double v, double depth) const {
+    return {(u - cx) / fx * depth, (v - cy) / fy * depth, depth};
+  }
+  bool in_image(double u, double v, double border = 0.0) const {
+    return u >= border && v >= border && u < width - border && v < height - border;
+  }
+  // Metric depth from a raw 16-bit depth value (0 = no measurement -> 0).
+  double depth_from_raw(std::uint16_t raw) const { return raw == 0 ? 0.0 : raw / depth_factor * depth_scale_correction; }
+
+  // Applies the distortion model to an undistorted pixel (for rendering / tests).
+  Eigen::Vector2d distort_pixel(const Eigen::Vector2d& undistorted) const;
+  // Removes distortion from pixel coordinates (iterative, OpenCV-compatible). In-place on xy pairs.
+  void undistort_pixels(std::vector<Eigen::Vector2d>& pixels) const;
+  Eigen::Vector2d undistort_pixel(const Eigen::Vector2d& distorted) const;
+
+  // Bounds of the undistorted image (min_u, max_u, min_v, max_v), used to lay out feature grids.
+  std::array<double, 4> undistorted_bounds() const;
+};
+
+// Presets for the TUM RGB-D cameras (colour camera, as published with the benchmark).
+PinholeCamera camera_tum_fr1();
+PinholeCamera camera_tum_fr2(bool depth_correction = false);
+PinholeCamera camera_tum_fr3();
+// "tum1" | "tum2" | "tum2-corrected" | "tum3" | "synthetic" -> preset; throws ConfigError otherwise.
+PinholeCamera camera_preset(const std::string& name);
+
+}  // namespace cslam

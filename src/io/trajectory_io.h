@@ -1,0 +1,28 @@
+#pragma once
+// Trajectories in the TUM format: one line per pose, "timestamp x y z qx qy qz qw",
+// camera-to-world (T_world_cam), '#' comments allowed.
+#include <string>
+#include <vector>
+
+#include "geometry/se3.h"
+
+namespace cslam {
+
+struct StampedPose {
+  double timestamp = 0;
+  SE3 T_world_cam;
+};
+using Trajectory = std::vector<StampedPose>;
+
+// Throws InputError naming file and line on a malformed line, a non-finite value or a
+// zero quaternion. Quaternions are normalised.
+Trajectory read_tum_trajectory(const std::string& path);
+// Writes atomically (temp file + rename). Throws InputError if the file cannot be written,
+// std::invalid_argument on a non-finite pose.
+void write_tum_trajectory(const std::string& path, const Trajectory& trajectory, const std::string& header = "");
+std::string format_tum_line(const StampedPose& pose);
+
+// Sorts by timestamp (stable), e.g. to merge pose lists of several clients.
+void sort_by_time(Trajectory& trajectory);
+
+}  // namespace cslam

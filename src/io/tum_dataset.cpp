@@ -1,0 +1,119 @@
+#include "io/tum_dataset.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/error.h"
+#include "io/text_table.h"
+
+namespace fs = std::filesystem;
+
+namespace cslam {
+
+namespace {
+
+std::vector<TimedFile> read_file_list(const std::string& root, const std::string& name) {
+  const std::string path = (fs::path(root) / name).string();
+  std::vector<TimedFile> out;
+  for_each_text_row(path, [&](int line, const std::vector<std::string>& tok) {
+    if (tok.size() != 2) throw InputError(path, line, "expected 'timestamp path', got " + std::to_string(tok.size()) + " values");
+    TimedFile f;
+    f.timestamp = parse_double(tok[0], path, line, "timestamp");
+    f.path = (fs::path(root) / tok[1]).string();
+    if (!out.empty() && f.timestamp <= out.back().timestamp)
+      throw InputError(path, line, "timestamps must increase");
+    out.push_back(f);
+  });
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>& a, const std::vector<double>& b,
+                                                      double max_dt) {
+  // Candidate pairs within max_dt, accepted greedily by increasing |dt|; both lists are sorted,
+  // so a window scan finds the candidates.
+  struct Cand { double dt; int i, j; };
+  std::vector<Cand> cands;
+  size_t start = 0;
+  for (int i = 0; i < int(a.size()); ++i) {
+    while (start < b.size() && b[start] < a[i] - max_dt) ++start;
+    for (size_t j = start; j < b.size() && b[j] <= a[i] + max_dt; ++j) cands.push_back({std::abs(a[i] - b[j]), i, int(j)});
+  }
+  std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) {
+    return x.dt != y.dt ? x.dt < y.dt : (x.i != y.i ? x.i < y.i : x.j < y.j);
+  });
+  std::vector<char> used_a(a.size(), 0), used_b(b.size(), 0);
+  std::vector<std::pair<int, int>> out;
+  for (const auto& c : cands) {
+    if (used_a[c.i] || used_b[c.j]) continue;
+    used_a[c.i] = used_b[c.j] = 1;
+    out.emplace_back(c.i, c.j);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+TumDataset open_tum_dataset(const std::string& root, double max_dt) {
+  if (!fs::is_directory(root)) throw InputError(root, "dataset folder not found");
+  TumDataset ds;
+  ds.root = root;
+  ds.rgb = read_file_list(root, "rgb.txt");
+  ds.depth = read_file_list(root, "depth.txt");
+  std::vector<double> ta, tb;
+  for (const auto& f : ds.rgb) ta.push_back(f.timestamp);
+  for (const auto& f : ds.depth) tb.push_back(f.timestamp);
+  for (const auto& [i, j] : associate_timestamps(ta, tb, max_dt)) {
+    RgbdPair p;
+    p.rgb_time = ds.rgb[i].timestamp;
+    p.depth_time = ds.depth[j].timestamp;
+    p.rgb_path = ds.rgb[i].path;
+    p.depth_path = ds.depth[j].path;
+    p.index = int(ds.pairs.size());
+    ds.pairs.push_back(p);
+  }
+  const fs::path gt = fs::path(root) / "groundtruth.txt";
+  if (fs::exists(gt)) ds.groundtruth = read_tum_trajectory(gt.string());
+  return ds;
+}
+
+std::vector<RgbdPair> select_range(const std::vector<RgbdPair>& pairs, int first, int last) {
+  if (first < 1 || last > int(pairs.size()) || first > last)
+    throw std::out_of_range("frame range [" + std::to_string(first) + ", " + std::to_string(last) +
+                            "] is outside [1, " + std::to_string(pairs.size()) + "]");
+  return std::vector<RgbdPair>(pairs.begin() + (first - 1), pairs.begin() + last);
+}
+
+std::pair<int, int> parse_range(const std::string& text, int count) {
+  const auto colon = text.find(':');
+  if (colon == std::string::npos) throw ConfigError("range '" + text + "' must be 'a:b' (1-based, inclusive)");
+  auto parse = [&](const std::string& s, int fallback) {
+    if (s.empty()) return fallback;
+    size_t used = 0;
+    int v = 0;
+    try {
+      v = std::stoi(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != s.size()) throw ConfigError("range '" + text + "' is not 'a:b' with whole numbers");
+    return v;
+  };
+  return {parse(text.substr(0, colon), 1), parse(text.substr(colon + 1), count)};
+}
+
+RgbdImages load_rgbd(const RgbdPair& pair) {
+  RgbdImages im;
+  im.bgr = cv::imread(pair.rgb_path, cv::IMREAD_COLOR);
+  if (im.bgr.empty()) throw InputError(pair.rgb_path, "cannot read RGB image");
+  im.depth = cv::imread(pair.depth_path, cv::IMREAD_ANYDEPTH);
+  if (im.depth.empty()) throw InputError(pair.depth_path, "cannot read depth image");
+  if (im.depth.type() != CV_16UC1) throw InputError(pair.depth_path, "depth image must be 16-bit single channel");
+  return im;
+}
+
+}  // namespace cslam

@@ -1,0 +1,55 @@
+#pragma once
+// Reader for the TUM RGB-D layout: rgb.txt, depth.txt ("timestamp relative/path", '#' comments),
+// optional groundtruth.txt, images as PNG or JPEG (RGB) and 16-bit PNG (depth).
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "io/trajectory_io.h"
+
+namespace cslam {
+
+struct TimedFile {
+  double timestamp = 0;
+  std::string path;  // absolute (root joined with the listed relative path)
+};
+
+struct RgbdPair {
+  double rgb_time = 0, depth_time = 0;
+  std::string rgb_path, depth_path;
+  // Index of the pair in the full associated list, 0-based.
+  int index = 0;
+};
+
+struct TumDataset {
+  std::string root;
+  std::vector<TimedFile> rgb, depth;
+  std::vector<RgbdPair> pairs;         // associated RGB-D pairs, time-ordered
+  std::optional<Trajectory> groundtruth;  // if groundtruth.txt exists
+};
+
+// Reads the lists and associates RGB and depth by nearest timestamp (|dt| <= max_dt, each image
+// used once, greedy by smallest difference as TUM's associate.py). Throws InputError on a missing
+// folder/file or a malformed line.
+TumDataset open_tum_dataset(const std::string& root, double max_dt = 0.02);
+
+// Associates two timestamp lists; returns index pairs (i in a, j in b), sorted by a's time.
+std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>& a, const std::vector<double>& b,
+                                                      double max_dt);
+
+// Frames [first, last], 1-based inclusive as in the paper; throws std::out_of_range if empty or
+// outside [1, pairs.size()].
+std::vector<RgbdPair> select_range(const std::vector<RgbdPair>& pairs, int first, int last);
+// Parses "a:b" (also "a:" = to the end); throws ConfigError on malformed text.
+std::pair<int, int> parse_range(const std::string& text, int count);
+
+struct RgbdImages {
+  cv::Mat bgr;    // CV_8UC3
+  cv::Mat depth;  // CV_16UC1 raw values
+};
+// Loads both images; throws InputError naming the file if unreadable or of the wrong type.
+RgbdImages load_rgbd(const RgbdPair& pair);
+
+}  // namespace cslam

@@ -1,0 +1,82 @@
+#pragma once
+// The collaborative SLAM system as the server and the offline runner see it: clients register,
+// frames are submitted per client, snapshots are read at any time, outputs are written at the end.
+// The network layer only decodes packets and calls this; it never touches SLAM internals.
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "io/trajectory_io.h"
+#include "system/rgbd_frame.h"
+#include "system/system_config.h"
+
+namespace cslam {
+
+enum class TrackingState { kNotInitialized, kTracking, kLost };
+const char* to_string(TrackingState s);
+
+struct ClientSnapshot {
+  ClientId id = 0;
+  std::string name;
+  TrackingState tracking = TrackingState::kNotInitialized;
+  std::uint64_t frames_submitted = 0, frames_processed = 0, frames_rejected = 0;
+  std::size_t queue_depth = 0;
+  int keyframes = 0, map_points = 0;
+  int group = -1;  // fused group id (clients in one group share a frame); own id if unfused
+  SE3 T_world_cam;  // current pose in the group frame
+  double last_timestamp = 0;
+};
+
+struct FusionEvent {
+  double wall_time_s = 0;  // seconds since system start
+  ClientId client_a = 0, client_b = 0;
+  int group = -1;
+  int inliers = 0;
+  double duration_ms = 0;
+  std::string kind = "fusion";  // "fusion" or "loop"
+};
+
+struct SystemSnapshot {
+  double uptime_s = 0;
+  std::vector<ClientSnapshot> clients;
+  std::vector<FusionEvent> events;
+};
+
+class ClientPipeline;
+
+class CollaborativeSystem {
+ public:
+  explicit CollaborativeSystem(SystemConfig config);
+  ~CollaborativeSystem();  // finishes and joins every thread
+  CollaborativeSystem(const CollaborativeSystem&) = delete;
+  CollaborativeSystem& operator=(const CollaborativeSystem&) = delete;
+
+  // Registers a client (or re-registers the same one after a reconnect: its map is kept).
+  // Throws std::invalid_argument if the id is known with a different camera.
+  void add_client(const ClientInfo& info);
+  bool has_client(ClientId id) const;
+
+  // Queues a frame for its client's SLAM worker; blocks while that queue is full (back-pressure).
+  // Returns false if the system is finishing or the client is unknown. Frames whose images
+  // contradict the client's camera are rejected (counted) here.
+  bool submit(RgbdFrame frame);
+
+  // One consistent view of every client (one call, one lock).
+  SystemSnapshot snapshot() const;
+
+  // Processes every queued frame, stops the workers and the fusion thread. Idempotent.
+  void finish();
+
+  // Per-client trajectories, each in the frame of its fused group.
+  std::map<ClientId, Trajectory> trajectories() const;
+  // Writes client_K.txt, fused_G.txt and stats.json into dir (created if needed).
+  void write_outputs(const std::string& dir) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace cslam

@@ -1,0 +1,19 @@
+#pragma once
+// Configuration of the collaborative system as plain structs with defaults.
+#include <cstddef>
+#include <string>
+
+namespace cslam {
+
+struct SystemConfig {
+  // Frames queued per client before submit() blocks the producer.
+  std::size_t client_queue_capacity = 8;
+  // Vocabulary file for BoW (empty: the project's default vocabulary).
+  std::string vocabulary_path;
+  // Map-fusion check rate (Hz).
+  double fusion_rate_hz = 2.0;
+  // Run the SLAM stages (false: only count frames and record timestamps, for network tests).
+  bool run_slam = true;
+};
+
+}  // namespace cslam
