@@ -27,7 +27,8 @@ const char* to_string(TrackingState s) {
 // identity pose; the interface stays the same.)
 class ClientPipeline {
  public:
-  ClientPipeline(const ClientInfo& info, std::size_t capacity) : info_(info), queue_(capacity) {
+  ClientPipeline(const ClientInfo& info, const SystemConfig& config)
+      : info_(info), config_(config), queue_(config.client_queue_capacity) {
     thread_ = std::thread([this] { run(); });
   }
   ~ClientPipeline() { finish(); }
@@ -62,16 +63,20 @@ class ClientPipeline {
  private:
   void run() {
     while (auto frame = queue_.pop()) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      trajectory_.push_back({frame->timestamp, SE3()});
-      ++snapshot_.frames_processed;
-      snapshot_.tracking = TrackingState::kTracking;
-      snapshot_.last_timestamp = frame->timestamp;
-      snapshot_.group = info_.id;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        trajectory_.push_back({frame->timestamp, SE3()});
+        ++snapshot_.frames_processed;
+        snapshot_.tracking = TrackingState::kTracking;
+        snapshot_.last_timestamp = frame->timestamp;
+        snapshot_.group = info_.id;
+      }
+      if (config_.on_frame_done) config_.on_frame_done(frame->client, frame->seq);
     }
   }
 
   const ClientInfo info_;
+  const SystemConfig& config_;
   BoundedQueue<RgbdFrame> queue_;
   mutable std::mutex mutex_;
   ClientSnapshot snapshot_;
@@ -109,7 +114,7 @@ void CollaborativeSystem::add_client(const ClientInfo& info) {
       throw std::invalid_argument("client " + std::to_string(info.id) + " re-registered with a different camera");
     return;
   }
-  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config.client_queue_capacity));
+  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config));
   logger("system")->info("client {} ('{}') registered, camera {} {}x{}", info.id, info.name, info.camera.name,
                          info.camera.width, info.camera.height);
 }

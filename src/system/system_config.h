@@ -1,7 +1,11 @@
 #pragma once
 // Configuration of the collaborative system as plain structs with defaults.
 #include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <string>
+
+#include "core/ids.h"
 
 namespace cslam {
 
@@ -14,6 +18,10 @@ struct SystemConfig {
   double fusion_rate_hz = 2.0;
   // Run the SLAM stages (false: only count frames and record timestamps, for network tests).
   bool run_slam = true;
+  // Called from a client's worker thread after each frame has been consumed (processed or
+  // rejected), e.g. so the network layer can hand the client a flow-control credit back.
+  // Must be cheap and must not call back into the system.
+  std::function<void(ClientId client, std::uint64_t seq)> on_frame_done;
 };
 
 }  // namespace cslam
