@@ -1,0 +1,70 @@
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "geometry/camera.h"
+#include "geometry/camera_io.h"
+
+using namespace cslam;
+
+TEST(Camera, ProjectUnprojectRoundTrip) {
+  const PinholeCamera c = camera_tum_fr1();
+  const Eigen::Vector3d p(0.31, -0.22, 1.7);
+  const Eigen::Vector2d uv = c.project(p);
+  EXPECT_LT((c.unproject(uv.x(), uv.y(), p.z()) - p).norm(), 1e-12);
+  // Hand-computed: u = fx * x / z + cx.
+  EXPECT_NEAR(uv.x(), 517.306408 * 0.31 / 1.7 + 318.643040, 1e-9);
+}
+
+TEST(Camera, DistortUndistortRoundTrip) {
+  const PinholeCamera c = camera_tum_fr1();
+  for (double u : {20.0, 160.0, 320.0, 600.0})
+    for (double v : {15.0, 240.0, 470.0}) {
+      const Eigen::Vector2d d = c.distort_pixel({u, v});
+      const Eigen::Vector2d back = c.undistort_pixel(d);
+      EXPECT_LT((back - Eigen::Vector2d(u, v)).norm(), 0.05) << u << "," << v;
+    }
+  const auto b = c.undistorted_bounds();
+  EXPECT_LT(b[0], b[1]);
+  EXPECT_LT(b[2], b[3]);
+}
+
+TEST(Camera, PresetsAndValidation) {
+  EXPECT_NEAR(camera_preset("tum2-corrected").depth_scale_correction, 1.031, 1e-12);
+  EXPECT_THROW(camera_preset("nope"), ConfigError);
+  PinholeCamera bad = camera_tum_fr3();
+  bad.fx = -1;
+  EXPECT_THROW(bad.validate(), ConfigError);
+  EXPECT_NEAR(camera_tum_fr1().depth_from_raw(5000), 1.0, 1e-12);
+  EXPECT_EQ(camera_tum_fr1().depth_from_raw(0), 0.0);
+}
+
+TEST(Camera, FileRoundTripYamlAndJson) {
+  const auto dir = std::filesystem::temp_directory_path();
+  for (const char* ext : {".yaml", ".json"}) {
+    const std::string path = (dir / (std::string("cslam_cam_test") + ext)).string();
+    save_camera_file(camera_tum_fr1(), path);
+    const PinholeCamera c = load_camera_file(path);
+    EXPECT_DOUBLE_EQ(c.fx, camera_tum_fr1().fx);
+    EXPECT_DOUBLE_EQ(c.dist[4], camera_tum_fr1().dist[4]);
+    EXPECT_EQ(c.width, 640);
+    std::filesystem::remove(path);
+  }
+}
+
+TEST(Camera, FileErrors) {
+  const auto path = (std::filesystem::temp_directory_path() / "cslam_cam_bad.yaml").string();
+  {
+    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\nfoo: 1\n";
+  }
+  EXPECT_THROW(load_camera_file(path), InputError);  // unknown key
+  {
+    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\nwidth: 640\nheight: 480\n";
+  }
+  EXPECT_THROW(load_camera_file(path), InputError);  // missing cy
+  EXPECT_THROW(load_camera_file("/nonexistent/cam.yaml"), InputError);
+  std::filesystem::remove(path);
+}

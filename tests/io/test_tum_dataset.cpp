@@ -1,0 +1,103 @@
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/test_data.h"
+#include "core/error.h"
+#include "io/tum_dataset.h"
+
+using namespace cslam;
+namespace fs = std::filesystem;
+
+namespace {
+fs::path make_temp_dir(const std::string& name) {
+  fs::path d = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+}  // namespace
+
+TEST(Association, NearestUniqueWithinThreshold) {
+  const std::vector<double> a{1.00, 1.033, 1.066, 1.10, 2.0};
+  const std::vector<double> b{1.005, 1.030, 1.031, 1.075, 1.5};
+  const auto pairs = associate_timestamps(a, b, 0.02);
+  // 1.00-1.005, 1.033-1.031 (closer than 1.030), 1.066-1.075; 1.10 and 2.0 have no partner left.
+  ASSERT_EQ(pairs.size(), 3u);
+  EXPECT_EQ(pairs[0], std::make_pair(0, 0));
+  EXPECT_EQ(pairs[1], std::make_pair(1, 2));
+  EXPECT_EQ(pairs[2], std::make_pair(2, 3));
+}
+
+TEST(Range, OneBasedInclusive) {
+  std::vector<RgbdPair> pairs(10);
+  for (int i = 0; i < 10; ++i) pairs[i].index = i;
+  const auto r = select_range(pairs, 3, 5);
+  ASSERT_EQ(r.size(), 3u);
+  EXPECT_EQ(r.front().index, 2);
+  EXPECT_EQ(r.back().index, 4);
+  EXPECT_THROW(select_range(pairs, 0, 5), std::out_of_range);
+  EXPECT_THROW(select_range(pairs, 4, 11), std::out_of_range);
+  EXPECT_EQ(parse_range("3:", 10), std::make_pair(3, 10));
+  EXPECT_EQ(parse_range("2:7", 10), std::make_pair(2, 7));
+  EXPECT_THROW(parse_range("2-7", 10), ConfigError);
+}
+
+TEST(TumDataset, ReadsSmallDatasetPngAndJpg) {
+  const fs::path d = make_temp_dir("cslam_ds");
+  fs::create_directories(d / "rgb");
+  fs::create_directories(d / "depth");
+  cv::Mat rgb(48, 64, CV_8UC3, cv::Scalar(10, 200, 30)), depth(48, 64, CV_16UC1, cv::Scalar(5000));
+  cv::imwrite((d / "rgb/1.png").string(), rgb);
+  cv::imwrite((d / "rgb/2.jpg").string(), rgb);
+  cv::imwrite((d / "depth/1.png").string(), depth);
+  cv::imwrite((d / "depth/2.png").string(), depth);
+  std::ofstream(d / "rgb.txt") << "# rgb\n1.000 rgb/1.png\n1.033 rgb/2.jpg\n";
+  std::ofstream(d / "depth.txt") << "# depth\n1.001 depth/1.png\n1.040 depth/2.png\n";
+  std::ofstream(d / "groundtruth.txt") << "# gt\n1.0 0 0 0 0 0 0 1\n";
+  const auto ds = open_tum_dataset(d.string());
+  ASSERT_EQ(ds.pairs.size(), 2u);
+  ASSERT_TRUE(ds.groundtruth.has_value());
+  EXPECT_EQ(ds.groundtruth->size(), 1u);
+  for (const auto& p : ds.pairs) {
+    const auto im = load_rgbd(p);
+    EXPECT_EQ(im.bgr.type(), CV_8UC3);
+    EXPECT_EQ(im.depth.at<uint16_t>(0, 0), 5000);
+  }
+  fs::remove_all(d);
+}
+
+TEST(TumDataset, BadInputNamesFileAndLine) {
+  const fs::path d = make_temp_dir("cslam_ds_bad");
+  EXPECT_THROW(open_tum_dataset((d / "missing").string()), InputError);
+  std::ofstream(d / "rgb.txt") << "# rgb\n1.000 rgb/1.png\nabc rgb/2.png\n";
+  std::ofstream(d / "depth.txt") << "1.0 depth/1.png\n";
+  try {
+    open_tum_dataset(d.string());
+    FAIL() << "malformed line accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("rgb.txt:3"), std::string::npos) << e.what();
+  }
+  std::ofstream(d / "rgb.txt") << "1.000 rgb/1.png\n";
+  RgbdPair p = open_tum_dataset(d.string()).pairs.at(0);
+  EXPECT_THROW(load_rgbd(p), InputError);  // image does not exist
+  fs::remove_all(d);
+}
+
+TEST(TumDataset, RealSequence) {
+  CSLAM_REQUIRE_TUM_RPY();
+  const auto ds = open_tum_dataset(test::tum_rpy_dir());
+  EXPECT_EQ(ds.rgb.size(), 723u);
+  EXPECT_EQ(ds.depth.size(), 722u);
+  // The sequence's README: about 694 associated pairs.
+  EXPECT_GE(ds.pairs.size(), 680u);
+  EXPECT_LE(ds.pairs.size(), 722u);
+  ASSERT_TRUE(ds.groundtruth.has_value());
+  EXPECT_GT(ds.groundtruth->size(), 2000u);
+  for (const auto& p : ds.pairs) EXPECT_LE(std::abs(p.rgb_time - p.depth_time), 0.02);
+  const auto im = load_rgbd(ds.pairs.front());
+  EXPECT_EQ(im.bgr.cols, 640);
+  EXPECT_EQ(im.depth.rows, 480);
+}
