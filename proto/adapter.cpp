@@ -1,0 +1,191 @@
+#include "proto/adapter.h"
+
+#include <cmath>
+
+namespace cslam::wire {
+
+Encoding to_wire(RgbCodec codec) {
+  switch (codec) {
+    case RgbCodec::kRaw: return RGB_RAW_BGR8;
+    case RgbCodec::kJpeg: return RGB_JPEG;
+    case RgbCodec::kPng: return RGB_PNG;
+  }
+  return ENCODING_UNSPECIFIED;
+}
+
+Encoding to_wire(DepthCodec codec) {
+  switch (codec) {
+    case DepthCodec::kRaw: return DEPTH_RAW_U16LE;
+    case DepthCodec::kPng: return DEPTH_PNG16;
+    case DepthCodec::kRvl: return DEPTH_RVL;
+    case DepthCodec::kZstdDelta: return DEPTH_ZSTD_DELTA;
+  }
+  return ENCODING_UNSPECIFIED;
+}
+
+namespace {
+
+bool rgb_codec_from_wire(Encoding e, RgbCodec* out) {
+  switch (e) {
+    case RGB_RAW_BGR8: *out = RgbCodec::kRaw; return true;
+    case RGB_JPEG: *out = RgbCodec::kJpeg; return true;
+    case RGB_PNG: *out = RgbCodec::kPng; return true;
+    default: return false;
+  }
+}
+
+bool depth_codec_from_wire(Encoding e, DepthCodec* out) {
+  switch (e) {
+    case DEPTH_RAW_U16LE: *out = DepthCodec::kRaw; return true;
+    case DEPTH_PNG16: *out = DepthCodec::kPng; return true;
+    case DEPTH_RVL: *out = DepthCodec::kRvl; return true;
+    case DEPTH_ZSTD_DELTA: *out = DepthCodec::kZstdDelta; return true;
+    default: return false;
+  }
+}
+
+void check_size(const Image& image, const PinholeCamera& camera, const char* what, const std::string& source) {
+  if (image.width() != std::uint32_t(camera.width) || image.height() != std::uint32_t(camera.height))
+    throw WireError(ERROR_SIZE_MISMATCH, source,
+                    std::string(what) + " image is " + std::to_string(image.width()) + "x" +
+                        std::to_string(image.height()) + " but the hello announced " + std::to_string(camera.width) +
+                        "x" + std::to_string(camera.height));
+}
+
+}  // namespace
+
+Hello to_hello(const ClientInfo& info) {
+  Hello h;
+  h.set_version(kProtocolVersion);
+  h.set_client_id(info.id);
+  h.set_name(info.name);
+  CameraIntrinsics* c = h.mutable_camera();
+  const PinholeCamera& cam = info.camera;
+  c->set_fx(cam.fx);
+  c->set_fy(cam.fy);
+  c->set_cx(cam.cx);
+  c->set_cy(cam.cy);
+  for (double d : cam.dist) c->add_distortion(d);
+  c->set_width(std::uint32_t(cam.width));
+  c->set_height(std::uint32_t(cam.height));
+  c->set_depth_factor(cam.depth_factor);
+  c->set_depth_scale_correction(cam.depth_scale_correction);
+  c->set_name(cam.name);
+  return h;
+}
+
+ClientInfo from_hello(const Hello& hello, const std::string& source) {
+  if (hello.version() != kProtocolVersion)
+    throw WireError(ERROR_BAD_VERSION, source,
+                    "protocol version " + std::to_string(hello.version()) + ", server speaks " +
+                        std::to_string(int(kProtocolVersion)));
+  if (hello.client_id() > 0xffff) throw WireError(ERROR_BAD_HELLO, source, "client id above 65535");
+  if (!hello.has_camera()) throw WireError(ERROR_BAD_HELLO, source, "hello without camera");
+  const CameraIntrinsics& c = hello.camera();
+  if (c.distortion_size() != 0 && c.distortion_size() != 5)
+    throw WireError(ERROR_BAD_HELLO, source, "distortion must have 0 or 5 coefficients");
+  if (c.width() == 0 || c.height() == 0 || c.width() > std::uint32_t(kMaxImageSide) ||
+      c.height() > std::uint32_t(kMaxImageSide))
+    throw WireError(ERROR_BAD_HELLO, source, "camera size out of range");
+  ClientInfo info;
+  info.id = ClientId(hello.client_id());
+  info.name = hello.name();
+  PinholeCamera& cam = info.camera;
+  cam.fx = c.fx();
+  cam.fy = c.fy();
+  cam.cx = c.cx();
+  cam.cy = c.cy();
+  for (int i = 0; i < c.distortion_size(); ++i) cam.dist[std::size_t(i)] = c.distortion(i);
+  cam.width = int(c.width());
+  cam.height = int(c.height());
+  cam.depth_factor = c.depth_factor();
+  cam.depth_scale_correction = c.depth_scale_correction() == 0.0 ? 1.0 : c.depth_scale_correction();
+  cam.name = c.name().empty() ? "client" + std::to_string(info.id) : c.name();
+  for (double d : cam.dist)
+    if (!std::isfinite(d)) throw WireError(ERROR_BAD_HELLO, source, "non-finite distortion coefficient");
+  try {
+    cam.validate();
+  } catch (const std::exception& e) {
+    throw WireError(ERROR_BAD_HELLO, source, std::string("invalid camera: ") + e.what());
+  }
+  return info;
+}
+
+void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, RgbdFrame* out) {
+  out->set_client_id(frame.client);
+  out->set_seq(frame.seq);
+  out->set_timestamp(frame.timestamp);
+  const Bytes rgb = encode_rgb(frame.bgr, options);
+  const Bytes depth = encode_depth(frame.depth, options);
+  Image* r = out->mutable_rgb();
+  r->set_width(std::uint32_t(frame.bgr.cols));
+  r->set_height(std::uint32_t(frame.bgr.rows));
+  r->set_encoding(to_wire(options.rgb));
+  r->set_data(rgb.data(), rgb.size());
+  Image* d = out->mutable_depth();
+  d->set_width(std::uint32_t(frame.depth.cols));
+  d->set_height(std::uint32_t(frame.depth.rows));
+  d->set_encoding(to_wire(options.depth));
+  d->set_data(depth.data(), depth.size());
+}
+
+cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source) {
+  RgbCodec rgb_codec;
+  DepthCodec depth_codec;
+  if (!frame.has_rgb() || !frame.has_depth()) throw WireError(ERROR_MALFORMED, source, "frame without rgb or depth image");
+  if (!rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec))
+    throw WireError(ERROR_UNKNOWN_ENCODING, source,
+                    "unknown RGB encoding " + std::to_string(int(frame.rgb().encoding())));
+  if (!depth_codec_from_wire(frame.depth().encoding(), &depth_codec))
+    throw WireError(ERROR_UNKNOWN_ENCODING, source,
+                    "unknown depth encoding " + std::to_string(int(frame.depth().encoding())));
+  check_size(frame.rgb(), camera, "RGB", source);
+  check_size(frame.depth(), camera, "depth", source);
+  if (!std::isfinite(frame.timestamp())) throw WireError(ERROR_MALFORMED, source, "non-finite timestamp");
+  cslam::RgbdFrame out;
+  out.client = ClientId(frame.client_id());
+  out.seq = frame.seq();
+  out.timestamp = frame.timestamp();
+  const std::string& rgb = frame.rgb().data();
+  const std::string& depth = frame.depth().data();
+  try {
+    out.bgr = decode_rgb(rgb_codec, reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), camera.width,
+                         camera.height, source + " rgb");
+    out.depth = decode_depth(depth_codec, reinterpret_cast<const std::uint8_t*>(depth.data()), depth.size(),
+                             camera.width, camera.height, source + " depth");
+  } catch (const WireError&) {
+    throw;
+  } catch (const InputError& e) {
+    throw WireError(ERROR_CORRUPT_IMAGE, e.source(), e.what());
+  }
+  return out;
+}
+
+ClientMessage parse_client_message(const void* data, std::size_t size, const std::string& source) {
+  ClientMessage m;
+  if (size > std::size_t(INT32_MAX) || !m.ParseFromArray(data, int(size)))
+    throw WireError(ERROR_MALFORMED, source, "not a cslam ClientMessage (" + std::to_string(size) + " bytes)");
+  if (m.body_case() == ClientMessage::BODY_NOT_SET)
+    throw WireError(ERROR_MALFORMED, source, "ClientMessage without body");
+  return m;
+}
+
+ServerMessage parse_server_message(const void* data, std::size_t size, const std::string& source) {
+  ServerMessage m;
+  if (size > std::size_t(INT32_MAX) || !m.ParseFromArray(data, int(size)) ||
+      m.body_case() == ServerMessage::BODY_NOT_SET)
+    throw WireError(ERROR_MALFORMED, source, "not a cslam ServerMessage (" + std::to_string(size) + " bytes)");
+  return m;
+}
+
+const char* body_name(const ClientMessage& message) {
+  switch (message.body_case()) {
+    case ClientMessage::kHello: return "hello";
+    case ClientMessage::kFrame: return "frame";
+    case ClientMessage::kGoodbye: return "goodbye";
+    case ClientMessage::kHeartbeat: return "heartbeat";
+    default: return "empty";
+  }
+}
+
+}  // namespace cslam::wire

@@ -1,0 +1,48 @@
+#pragma once
+// The one place that knows both the wire schema (cslam.proto) and the SLAM library's types.
+// Server and client both convert through here; src/ never sees protobuf.
+#include <string>
+
+#include "cslam.pb.h"
+#include "codec/image_codec.h"
+#include "core/error.h"
+#include "system/rgbd_frame.h"
+
+namespace cslam::wire {
+
+constexpr ProtocolVersion kProtocolVersion = PROTOCOL_VERSION_1;
+
+// A bad packet: one-line message naming its source, plus the code the server replies with.
+class WireError : public InputError {
+ public:
+  WireError(ErrorCode code, const std::string& source, const std::string& message)
+      : InputError(source, message), code_(code) {}
+  ErrorCode code() const { return code_; }
+
+ private:
+  ErrorCode code_;
+};
+
+Encoding to_wire(RgbCodec codec);
+Encoding to_wire(DepthCodec codec);
+
+// Hello <-> ClientInfo. from_hello throws WireError (ERROR_BAD_VERSION / ERROR_BAD_HELLO).
+Hello to_hello(const ClientInfo& info);
+ClientInfo from_hello(const Hello& hello, const std::string& source);
+
+// Encodes a frame's images with the given codecs into `out` (reused to avoid reallocations).
+void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, RgbdFrame* out);
+
+// Checks encodings and sizes against the client's camera, then decodes both images.
+// Throws WireError: ERROR_UNKNOWN_ENCODING, ERROR_SIZE_MISMATCH or ERROR_CORRUPT_IMAGE.
+cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source);
+
+// Parses one ZeroMQ message body; throws WireError(ERROR_MALFORMED) on bytes that are not a
+// ClientMessage with a body.
+ClientMessage parse_client_message(const void* data, std::size_t size, const std::string& source);
+// Parses a server reply; throws WireError(ERROR_MALFORMED).
+ServerMessage parse_server_message(const void* data, std::size_t size, const std::string& source);
+
+const char* body_name(const ClientMessage& message);
+
+}  // namespace cslam::wire

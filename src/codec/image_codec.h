@@ -1,0 +1,52 @@
+#pragma once
+// Image codecs for sending RGB-D frames over the network (no network code here).
+// RGB: raw BGR8 / JPEG (quality option) / PNG. Depth (16-bit): raw / PNG / RVL / zstd of a
+// delta-coded image. Every depth codec is lossless. Decoders check everything they read and
+// throw InputError naming the source on bad bytes; they never trust sizes found in the data.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace cslam {
+
+enum class RgbCodec { kRaw, kJpeg, kPng };
+enum class DepthCodec { kRaw, kPng, kRvl, kZstdDelta };
+
+struct CodecOptions {
+  RgbCodec rgb = RgbCodec::kJpeg;
+  DepthCodec depth = DepthCodec::kZstdDelta;
+  int jpeg_quality = 90;    // 1..100
+  int png_compression = 1;  // 0..9 (OpenCV/zlib level); 1 is fast and close to the best size
+  int zstd_level = 1;       // zstd level for kZstdDelta
+  // Throws ConfigError on an out-of-range value.
+  void validate() const;
+};
+
+const char* to_string(RgbCodec codec);
+const char* to_string(DepthCodec codec);
+// "raw" | "jpeg" | "png"; throws ConfigError otherwise. "jpeg90" sets quality too (see parse_codecs).
+RgbCodec parse_rgb_codec(const std::string& name);
+// "raw" | "png" | "rvl" | "zstd"; throws ConfigError otherwise.
+DepthCodec parse_depth_codec(const std::string& name);
+
+using Bytes = std::vector<std::uint8_t>;
+
+// bgr: CV_8UC3. Throws std::invalid_argument on a wrong image type.
+Bytes encode_rgb(const cv::Mat& bgr, const CodecOptions& options);
+// depth: CV_16UC1. Throws std::invalid_argument on a wrong image type.
+Bytes encode_depth(const cv::Mat& depth, const CodecOptions& options);
+
+// Decodes into an image of exactly width x height (CV_8UC3 / CV_16UC1). Throws InputError(source, ...)
+// if the bytes are corrupt, truncated or of another size than announced.
+cv::Mat decode_rgb(RgbCodec codec, const std::uint8_t* data, std::size_t size, int width, int height,
+                   const std::string& source);
+cv::Mat decode_depth(DepthCodec codec, const std::uint8_t* data, std::size_t size, int width, int height,
+                     const std::string& source);
+
+// Largest image side a decoder accepts (guards against absurd sizes in headers and messages).
+constexpr int kMaxImageSide = 8192;
+
+}  // namespace cslam
