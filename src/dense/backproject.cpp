@@ -1,0 +1,58 @@
+#include "dense/backproject.h"
+
+#include <algorithm>
+#include <cstdint>
+
+namespace cslam {
+
+RayTable::RayTable(const PinholeCamera& camera) : camera_(camera) {
+  camera_.validate();
+  const int w = camera_.width, h = camera_.height;
+  std::vector<Eigen::Vector2d> px;
+  px.reserve(size_t(w) * size_t(h));
+  for (int v = 0; v < h; ++v)
+    for (int u = 0; u < w; ++u) px.emplace_back(u, v);
+  camera_.undistort_pixels(px);  // no-op without distortion
+  rays_.resize(2 * px.size());
+  for (size_t i = 0; i < px.size(); ++i) {
+    const float x = float((px[i].x() - camera_.cx) / camera_.fx), y = float((px[i].y() - camera_.cy) / camera_.fy);
+    rays_[2 * i] = x;
+    rays_[2 * i + 1] = y;
+    max_r2_ = std::max(max_r2_, x * x + y * y);
+  }
+}
+
+bool RayTable::matches(const PinholeCamera& o) const {
+  const auto& c = camera_;
+  return c.fx == o.fx && c.fy == o.fy && c.cx == o.cx && c.cy == o.cy && c.dist == o.dist && c.width == o.width &&
+         c.height == o.height;
+}
+
+std::size_t backproject(const cv::Mat& bgr, const cv::Mat& depth, const RayTable& rays, const SE3& T_world_cam,
+                        const BackprojectParams& params, ColoredCloud& out) {
+  const PinholeCamera& cam = rays.camera();
+  const Eigen::Matrix3f R = T_world_cam.R().cast<float>();
+  const Eigen::Vector3f t = T_world_cam.translation().cast<float>();
+  const float scale = float(cam.depth_scale_correction / cam.depth_factor);
+  const float zmin = float(params.min_depth), zmax = float(params.max_depth);
+  const int stride = std::max(1, params.stride);
+  const size_t before = out.size();
+  out.reserve(before + size_t(cam.width / stride + 1) * size_t(cam.height / stride + 1));
+  for (int v = 0; v < cam.height; v += stride) {
+    const std::uint16_t* drow = depth.ptr<std::uint16_t>(v);
+    const cv::Vec3b* crow = bgr.ptr<cv::Vec3b>(v);
+    for (int u = 0; u < cam.width; u += stride) {
+      const std::uint16_t raw = drow[u];
+      if (raw == 0) continue;
+      const float z = raw * scale;
+      if (z < zmin || z > zmax) continue;
+      const float* r = rays.ray(u, v);
+      out.points.push_back(R * Eigen::Vector3f(r[0] * z, r[1] * z, z) + t);
+      const cv::Vec3b& c = crow[u];
+      out.colors.push_back({c[2], c[1], c[0]});
+    }
+  }
+  return out.size() - before;
+}
+
+}  // namespace cslam

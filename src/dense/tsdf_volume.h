@@ -1,0 +1,60 @@
+#pragma once
+// Truncated signed distance volume in a voxel hash: blocks of 8^3 voxels allocated where
+// surfaces are observed, stored in a hash map keyed by block coordinates. Each voxel keeps a
+// weighted running average of the truncated SDF (in units of the truncation, [-1, 1]) and of
+// the colour. extract_mesh() runs marching cubes over the blocks.
+#include <array>
+#include <cstdint>
+#include <unordered_map>
+
+#include <opencv2/core.hpp>
+
+#include "cloud/point_cloud.h"
+#include "dense/backproject.h"
+#include "dense/dense_config.h"
+#include "geometry/se3.h"
+
+namespace cslam {
+
+struct TsdfVoxel {
+  float sdf = 1.0f;     // truncated signed distance / truncation: > 0 in front of the surface
+  float weight = 0.0f;  // 0 = never observed
+  std::uint8_t r = 0, g = 0, b = 0;
+};
+
+struct TsdfIntegrateStats {
+  std::size_t blocks_touched = 0, blocks_allocated = 0;
+};
+
+class TsdfVolume {
+ public:
+  static constexpr int kBlockSide = 8;
+  struct Block {
+    std::array<TsdfVoxel, kBlockSide * kBlockSide * kBlockSide> voxels;
+  };
+
+  explicit TsdfVolume(TsdfConfig config);  // throws ConfigError on impossible values
+
+  // Fuses one registered RGB-D frame (images of the ray table's camera size).
+  TsdfIntegrateStats integrate(const cv::Mat& bgr, const cv::Mat& depth, const RayTable& rays, const SE3& T_world_cam,
+                               double min_depth, double max_depth);
+
+  // Marching cubes at sdf = 0 over observed voxels; vertices shared between cubes; colours
+  // interpolated. Cubes straddling an observed/unobserved border or a +1/-1 jump (occlusion
+  // edge, not a surface) make no triangles.
+  TriangleMesh extract_mesh() const;
+
+  std::size_t block_count() const { return blocks_.size(); }
+  std::size_t memory_bytes() const { return blocks_.size() * (sizeof(Block) + 32); }
+  const TsdfConfig& config() const { return config_; }
+  // Voxel at global voxel coordinates, or nullptr if its block is not allocated.
+  const TsdfVoxel* voxel(const Eigen::Vector3i& v) const;
+
+ private:
+  Block& block_at(std::uint64_t key);
+
+  TsdfConfig config_;
+  std::unordered_map<std::uint64_t, Block> blocks_;
+};
+
+}  // namespace cslam
