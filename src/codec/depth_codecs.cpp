@@ -1,5 +1,7 @@
 #include "codec/depth_codecs.h"
 
+#include <algorithm>
+
 #include <zstd.h>
 
 #include "core/error.h"
@@ -110,22 +112,96 @@ void rvl_decode(const std::uint8_t* data, std::size_t size, std::uint16_t* pixel
   }
 }
 
+namespace {
+
+// Predicts a valid pixel's value rank from its causal neighbours that are valid (not holes):
+// the LOCO-I / JPEG-LS median edge detector when left (a), upper (b) and upper-left (c) are all
+// valid, else the one valid of a/b (or their mean), else the last valid rank seen (`last`).
+inline std::int32_t predict(const std::uint16_t* row, const std::uint8_t* row_valid, const std::uint16_t* above,
+                            const std::uint8_t* above_valid, int x, std::int32_t last) {
+  const bool va = x > 0 && row_valid[x - 1];
+  const bool vb = above && above_valid[x];
+  const bool vc = above && x > 0 && above_valid[x - 1];
+  if (va && vb) {
+    const std::int32_t a = row[x - 1], b = above[x];
+    if (!vc) return (a + b) / 2;
+    const std::int32_t c = above[x - 1];
+    if (c >= std::max(a, b)) return std::min(a, b);
+    if (c <= std::min(a, b)) return std::max(a, b);
+    return a + b - c;
+  }
+  if (va) return row[x - 1];
+  if (vb) return above[x];
+  return last;
+}
+
+void put_u32(std::vector<std::uint8_t>& out, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) out.push_back(std::uint8_t(v >> (8 * i)));
+}
+
+inline std::uint16_t zigzag16(std::int32_t residual) {
+  const auto r = std::int16_t(std::uint16_t(residual));
+  return std::uint16_t((std::uint16_t(r) << 1) ^ std::uint16_t(r >> 15));
+}
+inline std::uint16_t unzigzag16(std::uint16_t z) { return std::uint16_t((z >> 1) ^ std::uint16_t(-(z & 1))); }
+
+}  // namespace
+
+// Layout before zstd:
+//   u32 T; T sorted distinct non-zero depth values (u16 LE, delta-coded);
+//   n bytes hole mask (1 = valid, 0 = no measurement);
+//   m low bytes then m high bytes of the zig-zag prediction residuals of the valid pixels' value
+//   ranks (m = number of valid pixels, raster order).
+// Kinect-style depth has few distinct values (quantised disparity), so ranks are much smoother
+// than raw depth units; holes are coded apart so their edges do not produce large residuals.
 std::vector<std::uint8_t> zstd_delta_encode(const std::uint16_t* pixels, int width, int height, int level) {
   const std::size_t n = std::size_t(width) * std::size_t(height);
-  std::vector<std::uint8_t> planes(2 * n);
+  std::vector<std::uint8_t> used(65536, 0);
+  for (std::size_t i = 0; i < n; ++i) used[pixels[i]] = 1;
+  std::vector<std::uint16_t> rank(65536, 0), table;
+  for (std::uint32_t v = 1; v < 65536; ++v)
+    if (used[v]) {
+      rank[v] = std::uint16_t(table.size());
+      table.push_back(std::uint16_t(v));
+    }
+  std::vector<std::uint8_t> payload;
+  payload.reserve(4 + 2 * table.size() + 3 * n);
+  put_u32(payload, std::uint32_t(table.size()));
+  std::uint16_t previous = 0;
+  for (std::uint16_t v : table) {
+    const std::uint16_t d = std::uint16_t(v - previous);
+    payload.push_back(std::uint8_t(d & 0xff));
+    payload.push_back(std::uint8_t(d >> 8));
+    previous = v;
+  }
+  std::vector<std::uint16_t> ranks(n);
+  std::vector<std::uint8_t> valid(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    valid[i] = pixels[i] != 0;
+    ranks[i] = rank[pixels[i]];
+  }
+  payload.insert(payload.end(), valid.begin(), valid.end());
+  std::vector<std::uint8_t> low(n), high(n);
+  std::size_t m = 0;
+  std::int32_t last = 0;
   for (int y = 0; y < height; ++y) {
-    const std::uint16_t* row = pixels + std::size_t(y) * width;
+    const std::size_t o = std::size_t(y) * width;
+    const std::uint16_t* row = ranks.data() + o;
+    const std::uint8_t* row_valid = valid.data() + o;
+    const std::uint16_t* above = y > 0 ? row - width : nullptr;
+    const std::uint8_t* above_valid = y > 0 ? row_valid - width : nullptr;
     for (int x = 0; x < width; ++x) {
-      const std::uint16_t pred = x > 0 ? row[x - 1] : (y > 0 ? row[x - width] : 0);
-      const auto residual = std::int16_t(std::uint16_t(row[x] - pred));
-      const auto z = std::uint16_t((std::uint16_t(residual) << 1) ^ std::uint16_t(residual >> 15));
-      const std::size_t i = std::size_t(y) * width + x;
-      planes[i] = std::uint8_t(z & 0xff);
-      planes[n + i] = std::uint8_t(z >> 8);
+      if (!row_valid[x]) continue;
+      const std::uint16_t z = zigzag16(std::int32_t(row[x]) - predict(row, row_valid, above, above_valid, x, last));
+      low[m] = std::uint8_t(z & 0xff);
+      high[m++] = std::uint8_t(z >> 8);
+      last = row[x];
     }
   }
-  std::vector<std::uint8_t> out(ZSTD_compressBound(planes.size()));
-  const std::size_t written = ZSTD_compress(out.data(), out.size(), planes.data(), planes.size(), level);
+  payload.insert(payload.end(), low.begin(), low.begin() + std::ptrdiff_t(m));
+  payload.insert(payload.end(), high.begin(), high.begin() + std::ptrdiff_t(m));
+  std::vector<std::uint8_t> out(ZSTD_compressBound(payload.size()));
+  const std::size_t written = ZSTD_compress(out.data(), out.size(), payload.data(), payload.size(), level);
   if (ZSTD_isError(written)) throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(written));
   out.resize(written);
   return out;
@@ -136,21 +212,57 @@ void zstd_delta_decode(const std::uint8_t* data, std::size_t size, std::uint16_t
   const std::size_t n = std::size_t(width) * std::size_t(height);
   const unsigned long long announced = ZSTD_getFrameContentSize(data, size);
   if (announced == ZSTD_CONTENTSIZE_ERROR) throw InputError(source, "zstd depth: not a zstd frame");
-  if (announced != ZSTD_CONTENTSIZE_UNKNOWN && announced != 2 * n)
-    throw InputError(source, "zstd depth: content size " + std::to_string(announced) + " does not match " +
-                                 std::to_string(width) + "x" + std::to_string(height));
-  std::vector<std::uint8_t> planes(2 * n);
-  const std::size_t got = ZSTD_decompress(planes.data(), planes.size(), data, size);
+  const std::size_t max_payload = 4 + 2 * 65535 + 3 * n;
+  if (announced == ZSTD_CONTENTSIZE_UNKNOWN || announced > max_payload || announced < 4 + n)
+    throw InputError(source, "zstd depth: content size does not fit a " + std::to_string(width) + "x" +
+                                 std::to_string(height) + " image");
+  std::vector<std::uint8_t> payload(announced);
+  const std::size_t got = ZSTD_decompress(payload.data(), payload.size(), data, size);
   if (ZSTD_isError(got)) throw InputError(source, std::string("zstd depth: ") + ZSTD_getErrorName(got));
-  if (got != planes.size()) throw InputError(source, "zstd depth: decoded size does not match the image size");
+  if (got != payload.size()) throw InputError(source, "zstd depth: decoded size differs from the announced size");
+  const std::uint32_t table_size =
+      std::uint32_t(payload[0]) | (std::uint32_t(payload[1]) << 8) | (std::uint32_t(payload[2]) << 16) | (std::uint32_t(payload[3]) << 24);
+  if (table_size > 65535 || 4 + 2 * std::size_t(table_size) + n > payload.size())
+    throw InputError(source, "zstd depth: value table larger than the data");
+  std::vector<std::uint16_t> table(table_size);
+  std::uint32_t value = 0;
+  for (std::uint32_t k = 0; k < table_size; ++k) {
+    const std::uint32_t d = std::uint32_t(payload[4 + 2 * k] | (payload[5 + 2 * k] << 8));
+    value += d;
+    if (d == 0 || value > 65535) throw InputError(source, "zstd depth: value table not strictly increasing");
+    table[k] = std::uint16_t(value);
+  }
+  const std::uint8_t* valid = payload.data() + 4 + 2 * std::size_t(table_size);
+  std::size_t m = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (valid[i] > 1) throw InputError(source, "zstd depth: corrupt hole mask");
+    m += valid[i];
+  }
+  if (4 + 2 * std::size_t(table_size) + n + 2 * m != payload.size() || (m > 0 && table_size == 0))
+    throw InputError(source, "zstd depth: residual count does not match the hole mask");
+  const std::uint8_t* low = valid + n;
+  const std::uint8_t* high = low + m;
+  std::vector<std::uint16_t> ranks(n, 0);
+  std::int32_t last = 0;
+  std::size_t k = 0;
   for (int y = 0; y < height; ++y) {
-    std::uint16_t* row = pixels + std::size_t(y) * width;
+    const std::size_t o = std::size_t(y) * width;
+    std::uint16_t* row = ranks.data() + o;
+    const std::uint8_t* row_valid = valid + o;
+    const std::uint16_t* above = y > 0 ? row - width : nullptr;
+    const std::uint8_t* above_valid = y > 0 ? row_valid - width : nullptr;
     for (int x = 0; x < width; ++x) {
-      const std::size_t i = std::size_t(y) * width + x;
-      const std::uint16_t z = std::uint16_t(planes[i] | (planes[n + i] << 8));
-      const auto residual = std::uint16_t((z >> 1) ^ std::uint16_t(-(z & 1)));
-      const std::uint16_t pred = x > 0 ? row[x - 1] : (y > 0 ? row[x - width] : 0);
-      row[x] = std::uint16_t(pred + residual);
+      if (!row_valid[x]) {
+        pixels[o + x] = 0;
+        continue;
+      }
+      const std::uint16_t z = std::uint16_t(low[k] | (high[k] << 8));
+      ++k;
+      const std::uint16_t r = std::uint16_t(predict(row, row_valid, above, above_valid, x, last) + unzigzag16(z));
+      if (r >= table_size) throw InputError(source, "zstd depth: value rank outside the table");
+      row[x] = r;
+      last = r;
+      pixels[o + x] = table[r];
     }
   }
 }

@@ -1,0 +1,188 @@
+#include "client/frame_sender.h"
+
+#include "core/log.h"
+
+namespace cslam::client {
+
+namespace {
+
+auto log() { return logger("client"); }
+
+std::chrono::milliseconds to_ms(double seconds) { return std::chrono::milliseconds(long(seconds * 1000.0)); }
+
+}  // namespace
+
+FrameSender::FrameSender(SenderConfig config) : config_(std::move(config)), context_(1) {
+  config_.codecs.validate();
+  config_.info.camera.validate();
+}
+
+FrameSender::~FrameSender() = default;
+
+void FrameSender::open_socket() {
+  socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
+  socket_->set(zmq::sockopt::linger, 2000);  // let a goodbye leave before close
+  socket_->set(zmq::sockopt::sndtimeo, int(config_.reply_timeout_s * 1000));
+  socket_->connect(config_.server);
+}
+
+void FrameSender::connect() {
+  open_socket();
+  welcomed_ = false;
+  wire::ClientMessage hello;
+  *hello.mutable_hello() = wire::to_hello(config_.info);
+  send_message(hello);
+  const auto deadline = Clock::now() + to_ms(config_.reply_timeout_s);
+  while (!welcomed_) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    if (left.count() <= 0)
+      throw ConnectionError("client " + std::to_string(config_.info.id) + ": no welcome from " + config_.server +
+                            " within " + std::to_string(config_.reply_timeout_s) + " s");
+    handle_reply(left);
+  }
+}
+
+void FrameSender::reconnect() {
+  for (int attempt = 1;; ++attempt) {
+    ++stats_.reconnects;
+    log()->warn("client {}: reconnecting to {} (attempt {})", config_.info.id, config_.server, attempt);
+    try {
+      connect();
+      return;
+    } catch (const ConnectionError&) {
+      if (attempt >= config_.max_reconnects) throw;
+    }
+  }
+}
+
+wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) const {
+  wire::RgbdFrame out;
+  wire::to_wire_frame(frame, config_.codecs, &out);
+  return out;
+}
+
+std::size_t FrameSender::send_frame(const RgbdFrame& frame) {
+  wire::RgbdFrame encoded = encode(frame);
+  return send_encoded(encoded);
+}
+
+std::size_t FrameSender::send_encoded(wire::RgbdFrame& frame) {
+  if (!socket_) throw std::logic_error("FrameSender: send before connect()");
+  wait_for_credit();
+  frame.set_client_id(config_.info.id);
+  frame.set_seq(++seq_);
+  wire::ClientMessage message;
+  message.mutable_frame()->Swap(&frame);
+  const std::string body = message.SerializeAsString();
+  message.mutable_frame()->Swap(&frame);  // hand the caller's buffers back
+  if (!socket_->send(zmq::buffer(body), zmq::send_flags::none))
+    throw ConnectionError("client " + std::to_string(config_.info.id) + ": send timed out");
+  --credits_;
+  ++in_flight_;
+  ++stats_.frames_sent;
+  stats_.bytes_sent += body.size();
+  return body.size();
+}
+
+void FrameSender::wait_for_credit() {
+  while (credits_ == 0) {
+    const auto now = Clock::now();
+    if (now - last_reply_ > to_ms(config_.reply_timeout_s)) {
+      reconnect();
+      continue;
+    }
+    if (now - last_heartbeat_ >= to_ms(config_.heartbeat_interval_s)) {
+      wire::ClientMessage hb;
+      hb.mutable_heartbeat()->set_client_id(config_.info.id);
+      send_message(hb);
+      ++stats_.heartbeats;
+      last_heartbeat_ = now;
+    }
+    handle_reply(to_ms(config_.heartbeat_interval_s));
+  }
+}
+
+void FrameSender::keep_alive(double timeout_s) {
+  const auto deadline = Clock::now() + to_ms(timeout_s);
+  while (Clock::now() < deadline) {
+    const auto now = Clock::now();
+    if (now - last_heartbeat_ >= to_ms(config_.heartbeat_interval_s)) {
+      wire::ClientMessage hb;
+      hb.mutable_heartbeat()->set_client_id(config_.info.id);
+      send_message(hb);
+      ++stats_.heartbeats;
+      last_heartbeat_ = now;
+    }
+    handle_reply(std::min(to_ms(config_.heartbeat_interval_s),
+                          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now)));
+  }
+}
+
+bool FrameSender::goodbye(double timeout_s) {
+  if (!socket_) return false;
+  const auto deadline = Clock::now() + to_ms(timeout_s);
+  while (in_flight_ > 0 && Clock::now() < deadline)
+    handle_reply(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+  const bool all_acked = in_flight_ == 0;
+  if (!all_acked)
+    log()->warn("client {}: {} frame(s) not acknowledged before goodbye", config_.info.id, in_flight_);
+  wire::ClientMessage bye;
+  bye.mutable_goodbye()->set_client_id(config_.info.id);
+  bye.mutable_goodbye()->set_frames_sent(stats_.frames_sent);
+  send_message(bye);
+  socket_.reset();  // linger delivers the goodbye
+  return all_acked;
+}
+
+void FrameSender::send_message(const wire::ClientMessage& message) {
+  const std::string body = message.SerializeAsString();
+  if (!socket_->send(zmq::buffer(body), zmq::send_flags::none))
+    throw ConnectionError("client " + std::to_string(config_.info.id) + ": send timed out");
+}
+
+bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
+  zmq::pollitem_t item{socket_->handle(), 0, ZMQ_POLLIN, 0};
+  zmq::poll(&item, 1, timeout);
+  if (!(item.revents & ZMQ_POLLIN)) return false;
+  zmq::message_t reply;
+  if (!socket_->recv(reply, zmq::recv_flags::dontwait)) return false;
+  last_reply_ = Clock::now();
+  const std::string source = "reply from " + config_.server;
+  const wire::ServerMessage m = wire::parse_server_message(reply.data(), reply.size(), source);
+  switch (m.body_case()) {
+    case wire::ServerMessage::kWelcome: {
+      const wire::Welcome& w = m.welcome();
+      window_ = w.window();
+      credits_ = w.credits();
+      in_flight_ = w.window() >= w.credits() ? w.window() - w.credits() : 0;
+      seq_ = std::max(seq_, w.last_seq());
+      welcomed_ = true;
+      log()->info("client {}: {} session at {}, window {}, {} credits, last seq {}", config_.info.id,
+                  w.resumed() ? "resumed" : "new", config_.server, w.window(), w.credits(), w.last_seq());
+      break;
+    }
+    case wire::ServerMessage::kAck:
+      credits_ += m.ack().credits();
+      if (in_flight_ > 0) --in_flight_;
+      ++stats_.acks;
+      break;
+    case wire::ServerMessage::kError: {
+      const wire::Error& e = m.error();
+      const std::string code = wire::ErrorCode_Name(e.code());
+      ++stats_.errors[code];
+      credits_ += e.credits();
+      if (e.seq() != 0 && in_flight_ > 0) --in_flight_;
+      log()->warn("client {}: server error {} for seq {}: {}", config_.info.id, code, e.seq(), e.message());
+      if (e.code() == wire::ERROR_BAD_VERSION || e.code() == wire::ERROR_BAD_HELLO ||
+          e.code() == wire::ERROR_SHUTTING_DOWN)
+        throw ConnectionError("client " + std::to_string(config_.info.id) + ": server refused: " + e.message());
+      if (e.code() == wire::ERROR_NOT_REGISTERED && welcomed_) reconnect();
+      break;
+    }
+    case wire::ServerMessage::kHeartbeatAck: break;
+    default: break;
+  }
+  return true;
+}
+
+}  // namespace cslam::client

@@ -1,0 +1,93 @@
+#pragma once
+// Client library: what a robot program links to stream its RGB-D frames to cslam-server.
+//   FrameSender sender(config);   // config.info: client id, name, camera
+//   sender.connect();             // hello -> welcome (credits)
+//   sender.send_frame(frame);     // encodes, waits for a credit, sends
+//   sender.goodbye();             // waits for the last acks, says goodbye
+// Flow control: at most `window` frames are unacknowledged; send_frame() blocks (sending
+// heartbeats) until the server hands a credit back. A silent server triggers a reconnect that
+// resumes the session (same client id, sequence numbers continue).
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+
+#include <zmq.hpp>
+
+#include "codec/image_codec.h"
+#include "proto/adapter.h"
+#include "system/rgbd_frame.h"
+
+namespace cslam::client {
+
+struct SenderConfig {
+  std::string server = "tcp://127.0.0.1:5555";
+  ClientInfo info;
+  CodecOptions codecs;
+  double reply_timeout_s = 10.0;       // no reply for this long while waiting -> reconnect
+  double heartbeat_interval_s = 1.0;   // heartbeats while waiting for credits
+  int max_reconnects = 3;              // consecutive failed attempts before giving up
+};
+
+struct SenderStats {
+  std::uint64_t frames_sent = 0, bytes_sent = 0, acks = 0, heartbeats = 0, reconnects = 0;
+  std::map<std::string, std::uint64_t> errors;  // server error code name -> count
+};
+
+// The server refused us or stopped answering.
+class ConnectionError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class FrameSender {
+ public:
+  explicit FrameSender(SenderConfig config);
+  ~FrameSender();
+  FrameSender(const FrameSender&) = delete;
+  FrameSender& operator=(const FrameSender&) = delete;
+
+  // Sends the hello and waits for the welcome. Throws ConnectionError on refusal or timeout.
+  void connect();
+  // Drops the socket and connects again with the same client id (session resumed).
+  void reconnect();
+
+  // Encodes the frame's images with config.codecs (the frame's client/seq are ignored: the
+  // sender stamps its own id and the next sequence number).
+  wire::RgbdFrame encode(const RgbdFrame& frame) const;
+  // Waits for a credit, stamps id + seq, sends. Returns the message size in bytes.
+  std::size_t send_encoded(wire::RgbdFrame& frame);
+  std::size_t send_frame(const RgbdFrame& frame);
+
+  // Handles replies for up to timeout_s (heartbeats if due), for robots that are idle a while.
+  void keep_alive(double timeout_s);
+  // Waits (up to timeout_s) until every sent frame is acknowledged, then says goodbye.
+  // Returns false if some acks did not arrive in time (goodbye is sent anyway).
+  bool goodbye(double timeout_s = 30.0);
+
+  std::uint32_t credits() const { return credits_; }
+  std::uint32_t in_flight() const { return in_flight_; }
+  std::uint32_t window() const { return window_; }
+  std::uint64_t last_seq() const { return seq_; }
+  const SenderStats& stats() const { return stats_; }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  void open_socket();
+  void send_message(const wire::ClientMessage& message);
+  // Receives and handles one reply if any arrives within timeout; returns true if one did.
+  bool handle_reply(std::chrono::milliseconds timeout);
+  void wait_for_credit();
+
+  SenderConfig config_;
+  zmq::context_t context_;
+  std::unique_ptr<zmq::socket_t> socket_;
+  std::uint32_t credits_ = 0, in_flight_ = 0, window_ = 0;
+  std::uint64_t seq_ = 0;
+  bool welcomed_ = false;
+  Clock::time_point last_reply_, last_heartbeat_;
+  SenderStats stats_;
+};
+
+}  // namespace cslam::client

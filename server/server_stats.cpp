@@ -1,0 +1,69 @@
+#include "server/server_stats.h"
+
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "eval/stats.h"
+
+namespace cslam::server {
+
+std::uint64_t ClientNetStats::dropped_total() const {
+  std::uint64_t n = 0;
+  for (const auto& [reason, count] : dropped) n += count;
+  return n;
+}
+
+std::vector<std::string> ServerStats::progress_lines(const SystemSnapshot& snapshot, double elapsed_s) {
+  std::vector<std::string> lines;
+  for (const ClientSnapshot& c : snapshot.clients) {
+    const ClientNetStats& net = clients_[c.id];
+    auto& [last_processed, last_bytes] = last_processed_bytes_[c.id];
+    const double dt = elapsed_s > 0 ? elapsed_s : 1.0;
+    const double fps = double(c.frames_processed - last_processed) / dt;
+    const double mbps = double(net.bytes_received - last_bytes) / dt / 1e6;
+    last_processed = c.frames_processed;
+    last_bytes = net.bytes_received;
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "client %u: received %llu processed %llu dropped %llu queue %zu | %.1f fps %.2f MB/s | %s",
+                  unsigned(c.id), (unsigned long long)net.frames_accepted, (unsigned long long)c.frames_processed,
+                  (unsigned long long)net.dropped_total(), c.queue_depth, fps, mbps, to_string(c.tracking));
+    lines.emplace_back(buf);
+  }
+  return lines;
+}
+
+std::string ServerStats::to_json(const SystemSnapshot& snapshot, double wall_s) const {
+  nlohmann::json j;
+  j["wall_s"] = wall_s;
+  j["bytes_received"] = total_bytes_;
+  j["unattributed"] = unattributed_;
+  j["transport_events"] = transport_;
+  std::vector<double> all_ms;
+  j["clients"] = nlohmann::json::array();
+  for (const auto& [id, net] : clients_) {
+    nlohmann::json c;
+    c["id"] = id;
+    c["frames_accepted"] = net.frames_accepted;
+    c["bytes_received"] = net.bytes_received;
+    c["messages"] = net.messages;
+    c["heartbeats"] = net.heartbeats;
+    c["reconnects"] = net.reconnects;
+    c["timeouts"] = net.timeouts;
+    c["goodbyes"] = net.goodbyes;
+    c["dropped"] = net.dropped;
+    c["dropped_total"] = net.dropped_total();
+    for (const ClientSnapshot& s : snapshot.clients)
+      if (s.id == id) c["frames_processed"] = s.frames_processed;
+    const Summary t = summarize(net.decode_dispatch_ms);
+    c["decode_dispatch_ms"] = {{"n", t.n}, {"median", t.median}, {"mean", t.mean}, {"min", t.min}, {"max", t.max}, {"p95", t.p95}};
+    all_ms.insert(all_ms.end(), net.decode_dispatch_ms.begin(), net.decode_dispatch_ms.end());
+    j["clients"].push_back(c);
+  }
+  const Summary t = summarize(all_ms);
+  j["decode_dispatch_ms"] = {{"n", t.n}, {"median", t.median}, {"mean", t.mean}, {"min", t.min}, {"max", t.max}, {"p95", t.p95}};
+  return j.dump(2);
+}
+
+}  // namespace cslam::server

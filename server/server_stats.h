@@ -1,0 +1,50 @@
+#pragma once
+// Network-side statistics of cslam-server: per-client frames accepted/dropped (by reason), bytes,
+// decode+dispatch times; packets that could not be attributed to a client. Owned by the receiving
+// thread; logged periodically and written to network_stats.json at the end.
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/ids.h"
+#include "system/collaborative_system.h"
+
+namespace cslam::server {
+
+struct ClientNetStats {
+  std::uint64_t frames_accepted = 0, bytes_received = 0, messages = 0;
+  std::uint64_t heartbeats = 0, reconnects = 0, timeouts = 0, goodbyes = 0;
+  std::map<std::string, std::uint64_t> dropped;  // reason -> count (decode errors, duplicates, ...)
+  std::vector<double> decode_dispatch_ms;        // per accepted frame: parse + decode + submit
+  std::uint64_t dropped_total() const;
+};
+
+class ServerStats {
+ public:
+  ClientNetStats& client(ClientId id) { return clients_[id]; }
+  // A packet from a peer with no session (random bytes before hello, ...).
+  void count_unattributed(const std::string& reason) { ++unattributed_[reason]; }
+  // A connection closed by a peer or dropped by ZeroMQ (e.g. a message over ZMQ_MAXMSGSIZE).
+  void count_transport_event(const std::string& event) { ++transport_[event]; }
+  void add_bytes(std::uint64_t bytes) { total_bytes_ += bytes; }
+
+  // One log line per client since the previous call: frames received/processed/dropped, fps, MB/s.
+  std::vector<std::string> progress_lines(const SystemSnapshot& snapshot, double elapsed_s);
+
+  // Everything as JSON text (written to network_stats.json).
+  std::string to_json(const SystemSnapshot& snapshot, double wall_s) const;
+
+  const std::map<ClientId, ClientNetStats>& clients() const { return clients_; }
+  const std::map<std::string, std::uint64_t>& unattributed() const { return unattributed_; }
+  const std::map<std::string, std::uint64_t>& transport() const { return transport_; }
+
+ private:
+  std::map<ClientId, ClientNetStats> clients_;
+  std::map<std::string, std::uint64_t> unattributed_, transport_;
+  std::uint64_t total_bytes_ = 0;
+  // Counters at the previous progress line, for rates.
+  std::map<ClientId, std::pair<std::uint64_t, std::uint64_t>> last_processed_bytes_;
+};
+
+}  // namespace cslam::server

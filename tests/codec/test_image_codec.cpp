@@ -1,0 +1,171 @@
+// Round trips, losslessness and bad input for every image codec.
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "codec/image_codec.h"
+#include "core/error.h"
+
+namespace cslam {
+namespace {
+
+cv::Mat random_bgr(int w, int h, unsigned seed) {
+  cv::Mat im(h, w, CV_8UC3);
+  cv::RNG rng(seed);
+  rng.fill(im, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(im, im, cv::Size(5, 5), 1.5);  // some structure, like a real image
+  return im;
+}
+
+// Smooth depth ramps with holes (0) and a few far outliers: what Kinect depth looks like.
+cv::Mat random_depth(int w, int h, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> noise(-3, 3), hole(0, 19);
+  cv::Mat d(h, w, CV_16UC1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      int v = 4000 + 20 * x + 7 * y + noise(rng);
+      if (hole(rng) == 0) v = 0;
+      if (x == w / 2 && y == h / 2) v = 65535;
+      d.at<std::uint16_t>(y, x) = std::uint16_t(v);
+    }
+  return d;
+}
+
+struct RgbCase { RgbCodec codec; bool lossless; };
+class RgbCodecTest : public ::testing::TestWithParam<RgbCase> {};
+
+TEST_P(RgbCodecTest, RoundTripKeepsSizeAndContent) {
+  const cv::Mat im = random_bgr(64, 48, 1);
+  CodecOptions o;
+  o.rgb = GetParam().codec;
+  o.jpeg_quality = 95;
+  const Bytes bytes = encode_rgb(im, o);
+  const cv::Mat back = decode_rgb(o.rgb, bytes.data(), bytes.size(), 64, 48, "test");
+  ASSERT_EQ(back.type(), CV_8UC3);
+  ASSERT_EQ(back.cols, 64);
+  ASSERT_EQ(back.rows, 48);
+  if (GetParam().lossless) {
+    EXPECT_EQ(cv::norm(im, back, cv::NORM_INF), 0.0);
+  } else {
+    EXPECT_LT(cv::norm(im, back, cv::NORM_L1) / double(im.total() * 3), 4.0);
+  }
+}
+
+TEST_P(RgbCodecTest, WrongAnnouncedSizeIsRejected) {
+  const cv::Mat im = random_bgr(64, 48, 2);
+  CodecOptions o;
+  o.rgb = GetParam().codec;
+  const Bytes bytes = encode_rgb(im, o);
+  EXPECT_THROW(decode_rgb(o.rgb, bytes.data(), bytes.size(), 32, 48, "test"), InputError);
+  EXPECT_THROW(decode_rgb(o.rgb, bytes.data(), bytes.size(), 64, 0, "test"), InputError);
+}
+
+TEST_P(RgbCodecTest, TruncatedOrGarbageIsRejectedOrDecodesToTheRightSize) {
+  const cv::Mat im = random_bgr(64, 48, 3);
+  CodecOptions o;
+  o.rgb = GetParam().codec;
+  const Bytes bytes = encode_rgb(im, o);
+  for (std::size_t keep : {std::size_t(0), std::size_t(3), bytes.size() / 4, bytes.size() / 2}) {
+    try {
+      const cv::Mat back = decode_rgb(o.rgb, bytes.data(), keep, 64, 48, "test");
+      // libjpeg fills a truncated scan with grey; the size must still be right.
+      EXPECT_EQ(back.cols, 64);
+      EXPECT_EQ(back.rows, 48);
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("test"), std::string::npos);
+    }
+  }
+  const Bytes garbage(500, 0xab);
+  EXPECT_THROW(decode_rgb(o.rgb, garbage.data(), garbage.size(), 64, 48, "test"), InputError);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllRgb, RgbCodecTest,
+                         ::testing::Values(RgbCase{RgbCodec::kRaw, true}, RgbCase{RgbCodec::kJpeg, false},
+                                           RgbCase{RgbCodec::kPng, true}),
+                         [](const auto& info) { return std::string(to_string(info.param.codec)); });
+
+class DepthCodecTest : public ::testing::TestWithParam<DepthCodec> {};
+
+TEST_P(DepthCodecTest, IsLossless) {
+  for (unsigned seed : {1u, 2u, 3u}) {
+    const cv::Mat d = random_depth(64 + int(seed), 48, seed);
+    CodecOptions o;
+    o.depth = GetParam();
+    const Bytes bytes = encode_depth(d, o);
+    const cv::Mat back = decode_depth(o.depth, bytes.data(), bytes.size(), d.cols, d.rows, "test");
+    ASSERT_EQ(back.type(), CV_16UC1);
+    EXPECT_EQ(cv::norm(d, back, cv::NORM_INF), 0.0) << "seed " << seed;
+  }
+}
+
+TEST_P(DepthCodecTest, EdgeCasesAllZeroAllMaxAndOnePixel) {
+  CodecOptions o;
+  o.depth = GetParam();
+  for (const cv::Mat& d : {cv::Mat(cv::Mat::zeros(48, 64, CV_16UC1)), cv::Mat(48, 64, CV_16UC1, cv::Scalar(65535)),
+                           cv::Mat(1, 1, CV_16UC1, cv::Scalar(1234))}) {
+    const Bytes bytes = encode_depth(d, o);
+    const cv::Mat back = decode_depth(o.depth, bytes.data(), bytes.size(), d.cols, d.rows, "test");
+    EXPECT_EQ(cv::norm(d, back, cv::NORM_INF), 0.0);
+  }
+}
+
+TEST(DepthCodecs, CompressedCodecsShrinkSmoothDepth) {
+  const cv::Mat d = random_depth(160, 120, 4);
+  for (DepthCodec c : {DepthCodec::kPng, DepthCodec::kRvl, DepthCodec::kZstdDelta}) {
+    CodecOptions o;
+    o.depth = c;
+    EXPECT_LT(encode_depth(d, o).size(), d.total() * 2 * 3 / 4) << to_string(c);
+  }
+}
+
+TEST_P(DepthCodecTest, TruncatedDataIsRejected) {
+  const cv::Mat d = random_depth(64, 48, 5);
+  CodecOptions o;
+  o.depth = GetParam();
+  const Bytes bytes = encode_depth(d, o);
+  EXPECT_THROW(decode_depth(o.depth, bytes.data(), bytes.size() / 2, 64, 48, "test"), InputError);
+  EXPECT_THROW(decode_depth(o.depth, bytes.data(), 0, 64, 48, "test"), InputError);
+  EXPECT_THROW(decode_depth(o.depth, bytes.data(), bytes.size(), 64, 47, "test"), InputError);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllDepth, DepthCodecTest,
+                         ::testing::Values(DepthCodec::kRaw, DepthCodec::kPng, DepthCodec::kRvl, DepthCodec::kZstdDelta),
+                         [](const auto& info) { return std::string(to_string(info.param)); });
+
+TEST(CodecNames, ParseAndPrintRoundTrip) {
+  for (auto c : {RgbCodec::kRaw, RgbCodec::kJpeg, RgbCodec::kPng}) EXPECT_EQ(parse_rgb_codec(to_string(c)), c);
+  for (auto c : {DepthCodec::kRaw, DepthCodec::kPng, DepthCodec::kRvl, DepthCodec::kZstdDelta})
+    EXPECT_EQ(parse_depth_codec(to_string(c)), c);
+  EXPECT_THROW(parse_rgb_codec("webp"), ConfigError);
+  EXPECT_THROW(parse_depth_codec("jpeg"), ConfigError);
+}
+
+TEST(CodecOptions, RejectsOutOfRangeValues) {
+  CodecOptions o;
+  EXPECT_NO_THROW(o.validate());
+  o.jpeg_quality = 0;
+  EXPECT_THROW(o.validate(), ConfigError);
+  o = CodecOptions();
+  o.zstd_level = 40;
+  EXPECT_THROW(o.validate(), ConfigError);
+}
+
+TEST(CodecDefaults, DepthIsLosslessByDefault) {
+  const CodecOptions o;
+  EXPECT_NE(o.depth, DepthCodec::kRaw);  // compressed...
+  const cv::Mat d = random_depth(64, 48, 9);
+  const Bytes bytes = encode_depth(d, o);
+  EXPECT_EQ(cv::norm(d, decode_depth(o.depth, bytes.data(), bytes.size(), 64, 48, "t"), cv::NORM_INF), 0.0);  // ...and lossless
+}
+
+TEST(EncodeRejectsWrongTypes, ThrowsInvalidArgument) {
+  const CodecOptions o;
+  EXPECT_THROW(encode_rgb(cv::Mat(4, 4, CV_8UC1), o), std::invalid_argument);
+  EXPECT_THROW(encode_depth(cv::Mat(4, 4, CV_8UC3), o), std::invalid_argument);
+  EXPECT_THROW(encode_depth(cv::Mat(), o), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace cslam
