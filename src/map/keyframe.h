@@ -1,0 +1,95 @@
+#pragma once
+// KeyFrame and MapPoint. Their immutable parts (ids, FrameData) can be read freely; every
+// mutable member is guarded by the owning Map's mutex (shared for reads, unique for writes).
+// Graph links between keyframes are raw pointers that the Map removes before a keyframe is
+// erased; ownership lives in the Map's tables (and in trajectory records, for culled keyframes).
+#include <map>
+#include <memory>
+#include <set>
+#include <vector>
+
+#include "core/ids.h"
+#include "geometry/se3.h"
+#include "map/frame_data.h"
+
+namespace cslam {
+
+class KeyFrame;
+
+class MapPoint {
+ public:
+  MapPoint(MapPointId id, const Eigen::Vector3d& position, KeyFrame* reference, cv::Vec3b color)
+      : id(id), position(position), reference(reference), color(color) {}
+
+  const MapPointId id;
+  Eigen::Vector3d position;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  Descriptor descriptor{};
+  double min_distance = 0, max_distance = 0;
+  std::map<KeyFrame*, int> observations;  // keyframe -> keypoint index
+  int num_obs = 0;                         // stereo/RGB-D observations count twice (ORB-SLAM2)
+  KeyFrame* reference = nullptr;
+  int visible = 1, found = 1;
+  bool bad = false;
+  std::shared_ptr<MapPoint> replaced;  // set when fused into another point
+  cv::Vec3b color;
+  std::uint32_t first_keyframe_seq = 0;
+
+  double found_ratio() const { return double(found) / double(visible); }
+  bool in_keyframe(KeyFrame* kf) const { return observations.count(kf) > 0; }
+  // Level at which a keypoint of this point would be detected from `distance`.
+  int predict_level(double distance, const ScalePyramid& pyramid) const {
+    return pyramid.predict_level(distance, max_distance);
+  }
+  double min_valid_distance() const { return 0.8 * min_distance; }
+  double max_valid_distance() const { return 1.2 * max_distance; }
+};
+using MapPointPtr = std::shared_ptr<MapPoint>;
+
+class KeyFrame {
+ public:
+  KeyFrame(KeyFrameId id, std::shared_ptr<const FrameData> data, const SE3& T_cam_world)
+      : id(id), data(std::move(data)), T_cam_world(T_cam_world), map_points(this->data->size()) {}
+
+  const KeyFrameId id;
+  const std::shared_ptr<const FrameData> data;
+
+  SE3 T_cam_world;
+  std::vector<MapPointPtr> map_points;  // per keypoint, null if none
+
+  // Covisibility: weight = number of shared map points.
+  std::map<KeyFrame*, int> connections;
+  std::vector<std::pair<int, KeyFrame*>> ordered_connections;  // weight descending
+  // Spanning tree and loop edges.
+  std::shared_ptr<KeyFrame> parent;
+  std::set<KeyFrame*> children;
+  std::set<KeyFrame*> loop_edges;
+  bool first_connection = true;
+
+  bool bad = false;
+  int no_erase = 0;           // > 0 while loop closing / fusion use it (culling is deferred)
+  bool erase_requested = false;
+  SE3 T_cam_parent;           // valid once bad: pose relative to its parent
+
+  SE3 T_world_cam() const { return T_cam_world.inverse(); }
+  Eigen::Vector3d center() const { return T_world_cam().translation(); }
+  double timestamp() const { return data->timestamp; }
+
+  std::vector<KeyFrame*> best_covisibles(std::size_t n) const;
+  std::vector<KeyFrame*> covisibles() const;
+  std::vector<KeyFrame*> covisibles_with_weight(int min_weight) const;
+  int weight(KeyFrame* other) const;
+  // Map points observed by at least min_obs keyframes.
+  int tracked_map_points(int min_obs) const;
+  std::set<MapPoint*> map_point_set() const;
+  int index_of(const MapPoint* mp) const;
+  // Median depth of its map points in this camera.
+  double scene_median_depth() const;
+  // Keypoints near (u, v) within r, for projection searches.
+  std::vector<int> features_in_area(double u, double v, double r, int min_level = -1, int max_level = -1) const {
+    return data->grid.features_in_area(u, v, r, min_level, max_level);
+  }
+};
+using KeyFramePtr = std::shared_ptr<KeyFrame>;
+
+}  // namespace cslam

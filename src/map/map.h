@@ -1,0 +1,83 @@
+#pragma once
+// One map of one client: owns its keyframes and map points, the covisibility graph, the
+// spanning tree and its keyframe database. Not a singleton: each client has its own maps.
+// Locking: `mutex` guards every mutable member of the map, its keyframes and its points.
+// Methods marked [unique] require the caller to hold mutex exclusively, [shared] at least shared.
+#include <atomic>
+#include <memory>
+#include <shared_mutex>
+#include <unordered_map>
+#include <vector>
+
+#include "bow/keyframe_database.h"
+#include "map/keyframe.h"
+
+namespace cslam {
+
+// Hands out ids for one client; shared by every map the client starts (so ids never repeat).
+class IdAllocator {
+ public:
+  explicit IdAllocator(ClientId client) : client_(client) {}
+  KeyFrameId next_keyframe() { return {client_, next_kf_++}; }
+  MapPointId next_map_point() { return {client_, next_mp_++}; }
+  FrameId next_frame() { return {client_, next_frame_++}; }
+  ClientId client() const { return client_; }
+
+ private:
+  ClientId client_;
+  std::atomic<std::uint32_t> next_kf_{0}, next_mp_{0}, next_frame_{0};
+};
+
+class Map {
+ public:
+  Map(ClientId client, int index, std::shared_ptr<IdAllocator> ids) : client_(client), index_(index), ids_(std::move(ids)) {}
+
+  ClientId client() const { return client_; }
+  int index() const { return index_; }
+  IdAllocator& ids() { return *ids_; }
+
+  mutable std::shared_mutex mutex;
+  KeyFrameDatabase database;
+
+  // [unique]
+  void add_keyframe(const KeyFramePtr& kf);
+  void add_map_point(const MapPointPtr& mp);
+  // [shared]
+  std::vector<KeyFramePtr> keyframes() const;
+  std::vector<MapPointPtr> map_points() const;
+  KeyFramePtr keyframe(KeyFrameId id) const;
+  std::size_t num_keyframes() const { return keyframes_.size(); }
+  std::size_t num_map_points() const { return map_points_.size(); }
+  KeyFramePtr origin() const { return origin_; }
+  KeyFramePtr shared(KeyFrame* kf) const;  // the owning pointer of a keyframe in this map
+
+  // Graph operations [unique].
+  static void add_observation(KeyFrame* kf, int index, const MapPointPtr& mp);
+  void erase_observation(KeyFrame* kf, const MapPointPtr& mp);
+  void set_map_point_bad(const MapPointPtr& mp);
+  // Moves all observations of `from` to `into` and marks `from` bad (replaced).
+  void replace_map_point(const MapPointPtr& from, const MapPointPtr& into);
+  void update_connections(KeyFrame* kf);
+  // Culls a keyframe: repairs the spanning tree, drops its observations, removes it from the
+  // tables and the database. Deferred while no_erase > 0.
+  void set_keyframe_bad(KeyFrame* kf);
+  // Recomputes a point's normal, distance bounds (from its reference keyframe) and descriptor.
+  void update_map_point(MapPoint* mp) const;
+
+  // Monotone counter of structural changes (loop corrections, fusions) for consumers to notice.
+  std::uint64_t big_change_index() const { return big_changes_; }
+  void note_big_change() { ++big_changes_; }
+
+ private:
+  void erase_keyframe_from_tables(KeyFrame* kf);
+
+  ClientId client_;
+  int index_;
+  std::shared_ptr<IdAllocator> ids_;
+  std::unordered_map<KeyFrameId, KeyFramePtr> keyframes_;
+  std::unordered_map<MapPointId, MapPointPtr> map_points_;
+  KeyFramePtr origin_;
+  std::uint64_t big_changes_ = 0;
+};
+
+}  // namespace cslam

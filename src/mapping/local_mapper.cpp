@@ -1,0 +1,207 @@
+#include "mapping/local_mapper.h"
+
+#include <shared_mutex>
+
+#include "core/stopwatch.h"
+#include "match/projection_search.h"
+
+namespace cslam {
+
+LocalMapper::LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, bool threaded)
+    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded) {
+  if (threaded_) thread_ = std::thread([this] { run(); });
+}
+
+LocalMapper::~LocalMapper() { finish(); }
+
+void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    queue_.push_back(kf);
+    idle_ = false;
+  }
+  abort_ba_ = true;
+  queue_cv_.notify_one();
+}
+
+std::size_t LocalMapper::queued() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return queue_.size();
+}
+
+bool LocalMapper::step() {
+  KeyFramePtr kf;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    if (queue_.empty()) return false;
+    kf = queue_.front();
+    queue_.pop_front();
+  }
+  process(kf);
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  if (queue_.empty()) idle_ = true;
+  return true;
+}
+
+void LocalMapper::run() {
+  for (;;) {
+    KeyFramePtr kf;
+    {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      queue_cv_.wait(lock, [&] { return stop_requested_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stop requested and drained
+      kf = queue_.front();
+      queue_.pop_front();
+      idle_ = false;
+    }
+    process(kf);
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    if (queue_.empty()) idle_ = true;
+  }
+}
+
+void LocalMapper::finish() {
+  stopping_ = true;
+  if (threaded_) {
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      stop_requested_ = true;
+    }
+    queue_cv_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  } else {
+    while (step()) {
+    }
+  }
+}
+
+LocalMapperStats LocalMapper::stats() const {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  return stats_;
+}
+
+void LocalMapper::process(const KeyFramePtr& kf) {
+  Stopwatch sw;
+  abort_ba_ = false;
+  {
+    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    insert_into_map(kf.get());
+    cull_map_points(kf.get());
+  }
+  const bool more_waiting = queued() > 0;
+  if (!more_waiting) {
+    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    fuse_with_neighbours(kf.get());
+  }
+  if (queued() == 0 && config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
+  {
+    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    if (!kf->bad) cull_keyframes(kf.get());
+    if (!kf->bad) map_->database.add(kf->id, kf->data->bow);
+  }
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.keyframes_processed;
+    stats_.step_ms.push_back(sw.ms());
+  }
+  if (on_processed_) on_processed_(kf);
+}
+
+void LocalMapper::insert_into_map(KeyFrame* kf) {
+  for (size_t i = 0; i < kf->map_points.size(); ++i) {
+    auto mp = kf->map_points[i];
+    if (!mp) continue;
+    if (mp->bad) {
+      kf->map_points[i].reset();
+      continue;
+    }
+    if (!mp->in_keyframe(kf)) {
+      Map::add_observation(kf, int(i), mp);
+      map_->update_map_point(mp.get());
+    } else if (mp->first_keyframe_seq == kf->id.seq) {
+      recent_points_.push_back(mp);  // created with this keyframe
+    }
+  }
+  map_->update_connections(kf);
+}
+
+void LocalMapper::cull_map_points(KeyFrame* kf) {
+  int culled = 0;
+  for (auto it = recent_points_.begin(); it != recent_points_.end();) {
+    const auto& mp = *it;
+    const int age = int(kf->id.seq) - int(mp->first_keyframe_seq);
+    if (mp->bad) {
+      it = recent_points_.erase(it);
+    } else if (mp->found_ratio() < config_.min_found_ratio) {
+      map_->set_map_point_bad(mp);
+      ++culled;
+      it = recent_points_.erase(it);
+    } else if (age >= 2 && mp->num_obs <= config_.min_observations) {
+      map_->set_map_point_bad(mp);
+      ++culled;
+      it = recent_points_.erase(it);
+    } else if (age >= 3) {
+      it = recent_points_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.points_culled += culled;
+}
+
+void LocalMapper::fuse_with_neighbours(KeyFrame* kf) {
+  std::set<KeyFrame*> targets;
+  for (KeyFrame* n : kf->best_covisibles(config_.fuse_neighbours)) {
+    if (n->bad || n == kf) continue;
+    targets.insert(n);
+    for (KeyFrame* n2 : n->best_covisibles(config_.fuse_second_neighbours))
+      if (!n2->bad && n2 != kf) targets.insert(n2);
+  }
+  int fused = 0;
+  std::vector<MapPointPtr> own;
+  for (const auto& mp : kf->map_points)
+    if (mp && !mp->bad) own.push_back(mp);
+  for (KeyFrame* t : targets) fused += fuse(*map_, t, own);
+  std::vector<MapPointPtr> theirs;
+  std::set<MapPoint*> seen;
+  for (KeyFrame* t : targets)
+    for (const auto& mp : t->map_points)
+      if (mp && !mp->bad && seen.insert(mp.get()).second) theirs.push_back(mp);
+  fused += fuse(*map_, kf, theirs);
+  for (const auto& mp : kf->map_points)
+    if (mp && !mp->bad) map_->update_map_point(mp.get());
+  map_->update_connections(kf);
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.points_fused += fused;
+}
+
+void LocalMapper::cull_keyframes(KeyFrame* kf) {
+  int culled = 0;
+  for (KeyFrame* cand : kf->covisibles()) {
+    if (cand->bad || cand == map_->origin().get() || cand == kf) continue;
+    const FrameData& f = *cand->data;
+    int points = 0, redundant = 0;
+    for (size_t i = 0; i < cand->map_points.size(); ++i) {
+      const auto& mp = cand->map_points[i];
+      if (!mp || mp->bad || !f.is_close(int(i))) continue;
+      ++points;
+      if (mp->observations.size() <= 3) continue;
+      const int level = f.features.keypoints[i].octave;
+      int seen_by = 0;
+      for (const auto& [other, idx] : mp->observations) {
+        if (other == cand) continue;
+        if (other->data->features.keypoints[idx].octave <= level + 1 && ++seen_by >= 3) break;
+      }
+      if (seen_by >= 3) ++redundant;
+    }
+    if (points > 0 && redundant > config_.redundant_ratio * points) {
+      map_->set_keyframe_bad(cand);
+      ++culled;
+    }
+  }
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.keyframes_culled += culled;
+}
+
+}  // namespace cslam

@@ -1,0 +1,82 @@
+#pragma once
+// Local mapping of one client map (ORB-SLAM2 class): keyframe insertion, recent map-point culling,
+// duplicate fusion with neighbours, local bundle adjustment and redundant keyframe culling.
+// Runs in its own thread (threaded = true) or is stepped by the caller (tests, offline runs).
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <list>
+#include <mutex>
+#include <thread>
+
+#include "eval/stats.h"
+#include "map/map.h"
+#include "optimize/bundle_adjustment.h"
+#include "tracking/tracker.h"
+
+namespace cslam {
+
+struct LocalMapperConfig {
+  int min_observations = 3;        // a recent point seen by fewer keyframes (after 2 keyframes) is culled
+  double min_found_ratio = 0.25;
+  int fuse_neighbours = 10, fuse_second_neighbours = 5;
+  double redundant_ratio = 0.9;    // keyframe culling: share of its close points seen by >= 3 others
+  bool local_ba = true;
+  BaConfig ba;
+  std::size_t queue_capacity = 8;
+};
+
+struct LocalMapperStats {
+  int keyframes_processed = 0, keyframes_culled = 0, points_culled = 0, points_fused = 0;
+  std::vector<double> ba_ms, step_ms;
+};
+
+// Called after each processed keyframe (e.g. loop detection, map fusion). Runs on the mapper thread.
+using KeyFrameProcessedCallback = std::function<void(const KeyFramePtr&)>;
+
+class LocalMapper : public KeyFrameSink {
+ public:
+  LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, bool threaded);
+  ~LocalMapper() override;
+
+  void set_on_processed(KeyFrameProcessedCallback cb) { on_processed_ = std::move(cb); }
+
+  // KeyFrameSink
+  void insert_keyframe(const KeyFramePtr& kf) override;
+  bool idle() const override { return idle_.load(); }
+  std::size_t queued() const override;
+  bool accepts_keyframes() const override { return !stopping_.load(); }
+  void interrupt_ba() override { abort_ba_.store(true); }
+
+  // Processes one queued keyframe (non-threaded mode). Returns false if none was queued.
+  bool step();
+  // Processes everything queued, then stops the thread. Idempotent.
+  void finish();
+  LocalMapperStats stats() const;
+  const std::shared_ptr<Map>& map() const { return map_; }
+
+ private:
+  void run();
+  void process(const KeyFramePtr& kf);
+  void insert_into_map(KeyFrame* kf);
+  void cull_map_points(KeyFrame* kf);
+  void fuse_with_neighbours(KeyFrame* kf);
+  void local_bundle_adjustment(KeyFrame* kf);
+  void cull_keyframes(KeyFrame* kf);
+
+  LocalMapperConfig config_;
+  std::shared_ptr<Map> map_;
+  const bool threaded_;
+  mutable std::mutex queue_mutex_;
+  std::condition_variable queue_cv_;
+  std::deque<KeyFramePtr> queue_;
+  std::atomic<bool> idle_{true}, stopping_{false}, abort_ba_{false};
+  bool stop_requested_ = false;
+  std::list<MapPointPtr> recent_points_;
+  KeyFrameProcessedCallback on_processed_;
+  mutable std::mutex stats_mutex_;
+  LocalMapperStats stats_;
+  std::thread thread_;
+};
+
+}  // namespace cslam

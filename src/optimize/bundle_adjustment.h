@@ -1,0 +1,53 @@
+#pragma once
+// Bundle adjustment of keyframe poses and points over reprojection (RGB-D "stereo") residuals,
+// used for local BA (covisible keyframes free, the second ring fixed) and global BA.
+#include <atomic>
+#include <vector>
+
+#include "geometry/se3.h"
+#include "optimize/reprojection_cost.h"
+
+namespace cslam {
+
+struct BaCamera {
+  SE3 T_cam_world;
+  StereoIntrinsics intrinsics;
+  bool fixed = false;
+};
+
+struct BaObservation {
+  int camera = 0, point = 0;
+  Eigen::Vector2d uv;
+  double u_right = -1;
+  double inv_sigma2 = 1;
+};
+
+struct BaProblem {
+  std::vector<BaCamera> cameras;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<BaObservation> observations;
+};
+
+struct BaConfig {
+  int first_iterations = 5;    // with the Huber kernel
+  int second_iterations = 10;  // after dropping outliers, no kernel (0: single stage)
+  double chi2_mono = 5.991, chi2_stereo = 7.815;
+  int threads = 1;
+};
+
+struct BaResult {
+  std::vector<SE3> T_cam_world;             // per camera
+  std::vector<Eigen::Vector3d> points;      // per point
+  std::vector<char> inlier;                 // per observation
+  double initial_cost = 0, final_cost = 0;
+  int iterations = 0;
+  bool converged = false, aborted = false;
+};
+
+// `abort` (optional) stops the solver between iterations when set (e.g. a new keyframe arrived).
+BaResult bundle_adjust(const BaProblem& problem, const BaConfig& config = {}, const std::atomic<bool>* abort = nullptr);
+
+// Whitened squared reprojection error of one observation (infinite behind the camera).
+double ba_observation_chi2(const BaCamera& cam, const Eigen::Vector3d& p, const BaObservation& o);
+
+}  // namespace cslam

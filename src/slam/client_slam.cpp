@@ -1,0 +1,183 @@
+#include "slam/client_slam.h"
+
+#include <shared_mutex>
+
+#include "core/log.h"
+#include "core/stopwatch.h"
+
+namespace cslam {
+
+const char* to_string(FrameOutcome o) {
+  switch (o) {
+    case FrameOutcome::kTracked: return "tracked";
+    case FrameOutcome::kLost: return "lost";
+    case FrameOutcome::kNotInitialized: return "not_initialized";
+    case FrameOutcome::kRejected: return "rejected";
+  }
+  return "unknown";
+}
+
+ClientSlam::ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary)
+    : info_(std::move(info)),
+      config_(std::move(config)),
+      vocabulary_(std::move(vocabulary)),
+      extractor_(config_.orb),
+      pyramid_(ScalePyramid::from(extractor_)),
+      ids_(std::make_shared<IdAllocator>(info_.id)) {
+  if (!vocabulary_ || vocabulary_->empty()) throw std::invalid_argument("ClientSlam needs a loaded vocabulary");
+  info_.camera.validate();
+  start_new_map();
+}
+
+ClientSlam::~ClientSlam() { finish(); }
+
+void ClientSlam::start_new_map() {
+  if (mapper_) mapper_->finish();
+  auto map = std::make_shared<Map>(info_.id, int(maps_.size()), ids_);
+  auto mapper = std::make_unique<LocalMapper>(config_.mapper, map, config_.threaded);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    maps_.push_back(map);
+  }
+  if (tracker_) tracker_->reset(map, mapper.get());
+  else tracker_ = std::make_unique<Tracker>(config_.tracker, map, mapper.get());
+  mapper_ = std::move(mapper);
+  if (maps_.size() > 1) logger("slam")->warn("client {}: tracking lost for long, started map {}", info_.id, maps_.size() - 1);
+}
+
+ProcessResult ClientSlam::process(const RgbdFrame& frame) {
+  ProcessResult r;
+  const auto& cam = info_.camera;
+  auto reject = [&](std::string why) {
+    r.outcome = FrameOutcome::kRejected;
+    r.reject_reason = std::move(why);
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++snapshot_.frames_rejected;
+    return r;
+  };
+  if (finished_) return reject("worker finished");
+  if (frame.bgr.empty() || frame.bgr.type() != CV_8UC3 || frame.bgr.cols != cam.width || frame.bgr.rows != cam.height)
+    return reject("colour image is not " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " BGR8");
+  if (frame.depth.empty() || frame.depth.type() != CV_16UC1 || frame.depth.cols != cam.width || frame.depth.rows != cam.height)
+    return reject("depth image is not " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " 16-bit");
+  if (!std::isfinite(frame.timestamp) || frame.timestamp <= last_timestamp_)
+    return reject("timestamp " + std::to_string(frame.timestamp) + " does not increase");
+  last_timestamp_ = frame.timestamp;
+
+  Stopwatch sw;
+  auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
+                              pyramid_, *vocabulary_, config_.bow_levels_up);
+  r.extract_ms = sw.ms();
+  sw.reset();
+  TrackResult t = tracker_->track(std::move(data));
+  if (!config_.threaded)
+    while (mapper_->step()) {
+    }
+  r.track_ms = sw.ms();
+  r.new_keyframe = t.new_keyframe;
+  r.outcome = t.ok ? FrameOutcome::kTracked
+                   : (t.state == TrackState::kNotInitialized ? FrameOutcome::kNotInitialized : FrameOutcome::kLost);
+
+  // Long loss: start a new map (merged later by map fusion); never stop processing.
+  if (t.ok) {
+    lost_since_ = -1;
+  } else if (t.state == TrackState::kLost) {
+    if (lost_since_ < 0) lost_since_ = frame.timestamp;
+    if (frame.timestamp - lost_since_ > config_.max_lost_seconds) {
+      start_new_map();
+      lost_since_ = -1;
+    }
+  }
+
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++snapshot_.frames_processed;
+  extract_ms_.push_back(r.extract_ms);
+  track_ms_.push_back(r.track_ms);
+  snapshot_.state = tracker_->state();
+  if (t.ok && t.reference) {
+    std::shared_lock<std::shared_mutex> map_lock(tracker_->map()->mutex);
+    records_.push_back({frame.timestamp, t.reference, t.T_cam_world * t.reference->T_world_cam(), tracker_->map()->index()});
+    ++snapshot_.frames_tracked;
+    snapshot_.T_world_cam = t.T_cam_world.inverse();
+  } else if (r.outcome == FrameOutcome::kLost) {
+    ++snapshot_.frames_lost;
+  }
+  snapshot_.maps = int(maps_.size());
+  snapshot_.current_map = tracker_->map()->index();
+  snapshot_.keyframes = int(tracker_->map()->num_keyframes());
+  snapshot_.map_points = int(tracker_->map()->num_map_points());
+  return r;
+}
+
+ClientSlamSnapshot ClientSlam::snapshot() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return snapshot_;
+}
+
+int ClientSlam::main_map_index() const {
+  std::vector<int> counts(maps_.size(), 0);
+  for (const auto& r : records_) ++counts[r.map_index];
+  int best = 0;
+  for (size_t i = 0; i < counts.size(); ++i)
+    if (counts[i] > counts[best]) best = int(i);
+  return best;
+}
+
+Trajectory ClientSlam::trajectory() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Trajectory out;
+  if (maps_.empty()) return out;
+  const int main = main_map_index();
+  std::shared_lock<std::shared_mutex> map_lock(maps_[main]->mutex);
+  for (const auto& r : records_) {
+    if (r.map_index != main) continue;
+    // Follow culled reference keyframes up the spanning tree.
+    SE3 T_cam_ref = r.T_cam_ref;
+    KeyFrame* ref = r.reference.get();
+    while (ref && ref->bad && ref->parent) {
+      T_cam_ref = T_cam_ref * ref->T_cam_parent;
+      ref = ref->parent.get();
+    }
+    if (!ref) continue;
+    out.push_back({r.timestamp, (T_cam_ref * ref->T_cam_world).inverse()});
+  }
+  return out;
+}
+
+Trajectory ClientSlam::keyframe_trajectory() const {
+  std::shared_ptr<Map> map;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (maps_.empty()) return {};
+    map = maps_[main_map_index()];
+  }
+  std::shared_lock<std::shared_mutex> map_lock(map->mutex);
+  Trajectory out;
+  for (const auto& kf : map->keyframes()) out.push_back({kf->timestamp(), kf->T_world_cam()});
+  sort_by_time(out);
+  return out;
+}
+
+ClientSlamTimings ClientSlam::timings() const {
+  ClientSlamTimings t;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    t.extract_ms = extract_ms_;
+    t.track_ms = track_ms_;
+  }
+  if (mapper_) t.mapper = mapper_->stats();
+  return t;
+}
+
+std::vector<std::shared_ptr<Map>> ClientSlam::maps() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return maps_;
+}
+
+void ClientSlam::finish() {
+  if (finished_) return;
+  finished_ = true;
+  if (mapper_) mapper_->finish();
+}
+
+}  // namespace cslam

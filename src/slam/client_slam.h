@@ -1,0 +1,89 @@
+#pragma once
+// One client's SLAM worker: ORB extraction, tracking (on the caller's thread), local mapping (its
+// own thread, or stepped inline), several maps if tracking is lost for long, and the frame
+// trajectory kept relative to reference keyframes so map corrections reach every frame.
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "bow/vocabulary.h"
+#include "io/trajectory_io.h"
+#include "slam/slam_config.h"
+#include "system/rgbd_frame.h"
+
+namespace cslam {
+
+enum class FrameOutcome { kTracked, kLost, kNotInitialized, kRejected };
+const char* to_string(FrameOutcome o);
+
+struct ProcessResult {
+  FrameOutcome outcome = FrameOutcome::kRejected;
+  std::string reject_reason;
+  bool new_keyframe = false;
+  double extract_ms = 0, track_ms = 0;
+};
+
+struct ClientSlamSnapshot {
+  TrackState state = TrackState::kNotInitialized;
+  std::uint64_t frames_processed = 0, frames_tracked = 0, frames_lost = 0, frames_rejected = 0;
+  int maps = 0, keyframes = 0, map_points = 0;
+  SE3 T_world_cam;  // current pose in the current map's frame
+  int current_map = 0;
+};
+
+struct ClientSlamTimings {
+  std::vector<double> extract_ms, track_ms;  // per processed frame
+  LocalMapperStats mapper;
+};
+
+class ClientSlam {
+ public:
+  ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary);
+  ~ClientSlam();
+  ClientSlam(const ClientSlam&) = delete;
+  ClientSlam& operator=(const ClientSlam&) = delete;
+
+  // Never throws on bad data: returns kRejected with a reason (wrong size/type, time going back).
+  ProcessResult process(const RgbdFrame& frame);
+  ClientSlamSnapshot snapshot() const;
+  // Every tracked frame of the map with most frames (camera-to-world), current estimates.
+  Trajectory trajectory() const;
+  // Keyframes of that map.
+  Trajectory keyframe_trajectory() const;
+  ClientSlamTimings timings() const;
+  std::vector<std::shared_ptr<Map>> maps() const;
+  // Stops local mapping after processing what is queued. Idempotent.
+  void finish();
+  const ClientInfo& info() const { return info_; }
+
+ private:
+  struct FrameRecord {
+    double timestamp;
+    KeyFramePtr reference;
+    SE3 T_cam_ref;
+    int map_index;
+  };
+  void start_new_map();
+  int main_map_index() const;
+
+  const ClientInfo info_;
+  SlamConfig config_;
+  std::shared_ptr<const Vocabulary> vocabulary_;
+  OrbExtractor extractor_;
+  std::shared_ptr<const ScalePyramid> pyramid_;
+  std::shared_ptr<IdAllocator> ids_;
+  std::vector<std::shared_ptr<Map>> maps_;
+  std::unique_ptr<LocalMapper> mapper_;
+  std::unique_ptr<Tracker> tracker_;
+  double last_timestamp_ = -1e300;
+  double lost_since_ = -1;
+
+  mutable std::mutex mutex_;  // guards records_, snapshot_, timings_, maps_ (list only)
+  std::vector<FrameRecord> records_;
+  ClientSlamSnapshot snapshot_;
+  std::vector<double> extract_ms_, track_ms_;
+  bool finished_ = false;
+};
+
+}  // namespace cslam

@@ -1,0 +1,20 @@
+#pragma once
+// Configuration of one client's SLAM pipeline: plain structs with defaults.
+#include "features/orb_extractor.h"
+#include "map/frame_data.h"
+#include "mapping/local_mapper.h"
+#include "tracking/tracker.h"
+
+namespace cslam {
+
+struct SlamConfig {
+  OrbConfig orb;
+  RgbdParams rgbd;
+  TrackerConfig tracker;
+  LocalMapperConfig mapper;
+  int bow_levels_up = 4;          // direct-index level for BoW matching, counted from the leaves
+  double max_lost_seconds = 3.0;  // lost longer than this (and relocalisation failing): start a new map
+  bool threaded = true;           // local mapping in its own thread
+};
+
+}  // namespace cslam

@@ -1,0 +1,93 @@
+#pragma once
+// Per-client RGB-D tracking (ORB-SLAM2 class): map initialisation from the first frame with
+// enough depth, constant-velocity motion model, reference-keyframe tracking by BoW, local-map
+// tracking, pose-only optimisation, keyframe decision and relocalisation.
+#include <functional>
+#include <memory>
+
+#include "map/frame.h"
+#include "map/map.h"
+#include "optimize/pose_optimizer.h"
+
+namespace cslam {
+
+enum class TrackState { kNotInitialized, kOk, kLost };
+
+struct TrackerConfig {
+  int min_init_points = 500;          // keypoints with depth needed to initialise a map
+  double motion_radius = 15.0;         // projection search radius (pixels at level 0) for the motion model
+  int min_motion_matches = 20;         // below this the search is repeated with twice the radius
+  int min_pose_inliers = 10;           // after motion-model / reference-keyframe pose optimisation
+  int min_local_map_inliers = 30;      // local-map tracking success
+  int min_local_map_inliers_after_reloc = 50;
+  int max_local_keyframes = 80;
+  int max_frames_between_keyframes = 30;  // ~1 s at 30 Hz
+  int min_frames_between_keyframes = 0;
+  double ref_ratio = 0.75;
+  int close_tracked_threshold = 100, close_untracked_threshold = 70;  // RGB-D "need close points" rule
+  int min_new_close_points = 100;      // new map points per keyframe: all close ones and at least this many
+  int reloc_min_bow_matches = 15;
+  int reloc_min_inliers = 50;
+};
+
+// What the tracker needs from local mapping.
+class KeyFrameSink {
+ public:
+  virtual ~KeyFrameSink() = default;
+  virtual void insert_keyframe(const KeyFramePtr& kf) = 0;
+  virtual bool idle() const = 0;
+  virtual std::size_t queued() const = 0;
+  virtual bool accepts_keyframes() const = 0;
+  virtual void interrupt_ba() = 0;
+};
+
+struct TrackResult {
+  TrackState state = TrackState::kNotInitialized;
+  bool ok = false;
+  bool new_keyframe = false;
+  bool relocalized = false;
+  bool initialized_map = false;
+  int inliers = 0;
+  SE3 T_cam_world;
+  KeyFramePtr reference;
+};
+
+class Tracker {
+ public:
+  Tracker(TrackerConfig config, std::shared_ptr<Map> map, KeyFrameSink* sink);
+
+  TrackResult track(std::shared_ptr<const FrameData> data);
+  TrackState state() const { return state_; }
+  const std::shared_ptr<Map>& map() const { return map_; }
+  // Starts over on a new, empty map (after a long loss); the previous map is kept by the caller.
+  void reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink);
+
+ private:
+  bool initialize(Frame& frame);
+  bool track_with_motion_model(Frame& frame);
+  bool track_reference_keyframe(Frame& frame);
+  bool relocalize(Frame& frame);
+  bool track_local_map(Frame& frame);
+  void update_last_frame();
+  void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
+                        KeyFramePtr& reference) const;
+  int optimize_frame_pose(Frame& frame) const;
+  bool need_new_keyframe(const Frame& frame) const;
+  KeyFramePtr create_keyframe(Frame& frame);
+  StereoIntrinsics intrinsics(const FrameData& f) const;
+
+  TrackerConfig config_;
+  std::shared_ptr<Map> map_;
+  KeyFrameSink* sink_;
+  TrackState state_ = TrackState::kNotInitialized;
+  std::unique_ptr<Frame> last_;
+  bool last_is_keyframe_ = false;
+  bool has_velocity_ = false;
+  SE3 velocity_;  // T_cam_last = velocity * ... : T_cur_world = velocity * T_last_world
+  KeyFramePtr reference_kf_;
+  KeyFramePtr last_keyframe_;
+  std::uint32_t frames_since_keyframe_ = 0, frames_since_reloc_ = 1000000;
+  int last_inliers_ = 0;
+};
+
+}  // namespace cslam

@@ -1,0 +1,163 @@
+// cslam-slam: runs one client's SLAM on a TUM-layout dataset (real or synthetic) as fast as
+// possible and writes the frame trajectory, keyframes and timing statistics.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include <sys/resource.h>
+
+#include <nlohmann/json.hpp>
+
+#include "core/bounded_queue.h"
+#include "core/cli.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "core/stopwatch.h"
+#include "eval/stats.h"
+#include "geometry/camera_io.h"
+#include "io/tum_dataset.h"
+#include "slam/client_slam.h"
+
+using namespace cslam;
+
+namespace {
+
+nlohmann::json summary_json(const std::vector<double>& v) {
+  const Summary s = summarize(v);
+  return {{"n", s.n}, {"median", s.median}, {"mean", s.mean}, {"p95", s.p95}, {"min", s.min}, {"max", s.max}};
+}
+
+double peak_rss_mb() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return ru.ru_maxrss / 1024.0;
+}
+
+int run(int argc, char** argv) {
+  CliArgs args("cslam-slam", "Runs one client's RGB-D SLAM offline on a TUM-layout dataset.");
+  args.option("dataset", "dataset folder (rgb.txt, depth.txt, ...)")
+      .option("camera", "camera preset (tum1, tum2, tum3, synthetic) or file; default DATASET/camera.yaml or tum1", "")
+      .option("range", "frames a:b (1-based, inclusive, of the associated RGB-D pairs)", "")
+      .option("vocab", "vocabulary file", "")
+      .option("out", "frame trajectory output (TUM format)")
+      .option("keyframes", "keyframe trajectory output (TUM format)", "")
+      .option("stats", "timing statistics output (JSON)", "")
+      .option("client", "client id", "1")
+      .flag("sync", "run local mapping inline (deterministic, slower)")
+      .flag("quiet", "no progress output")
+      .option("log-level", "trace, debug, info, warn, error, off", "info");
+  if (!args.parse(argc, argv)) return 0;
+  set_log_level(args.get("log-level"));
+  const std::string dir = args.get("dataset");
+  const TumDataset ds = open_tum_dataset(dir);
+  std::string cam_name = args.get("camera");
+  if (cam_name.empty()) cam_name = std::filesystem::exists(dir + "/camera.yaml") ? dir + "/camera.yaml" : "tum1";
+  ClientInfo info;
+  info.id = ClientId(args.get_int("client"));
+  info.name = std::filesystem::path(dir).filename().string();
+  info.camera = load_camera(cam_name);
+  std::vector<RgbdPair> pairs = ds.pairs;
+  if (args.has("range")) {
+    const auto [a, b] = parse_range(args.get("range"), int(pairs.size()));
+    pairs = select_range(pairs, a, b);
+  }
+  const std::string vocab_path = args.has("vocab") ? args.get("vocab") : default_vocabulary_path();
+  Stopwatch load_sw;
+  auto vocabulary = std::make_shared<const Vocabulary>(Vocabulary::load(vocab_path));
+  const double vocab_ms = load_sw.ms();
+
+  SlamConfig config;
+  config.threaded = !args.flag_set("sync");
+  ClientSlam slam(info, config, vocabulary);
+
+  // Images are decoded on a second thread, ahead of tracking.
+  BoundedQueue<std::pair<RgbdPair, RgbdImages>> loaded(4);
+  std::thread loader([&] {
+    for (const auto& p : pairs) {
+      RgbdImages im;
+      try {
+        im = load_rgbd(p);
+      } catch (const InputError& e) {
+        logger("slam")->error("{}", e.what());
+      }
+      if (!loaded.push({p, std::move(im)})) break;
+    }
+    loaded.close();
+  });
+
+  Stopwatch wall;
+  int n = 0, lost = 0, rejected = 0;
+  const bool quiet = args.flag_set("quiet");
+  while (auto item = loaded.pop()) {
+    RgbdFrame f;
+    f.client = info.id;
+    f.seq = std::uint64_t(n);
+    f.timestamp = item->first.rgb_time;
+    f.bgr = item->second.bgr;
+    f.depth = item->second.depth;
+    const ProcessResult r = slam.process(f);
+    ++n;
+    if (r.outcome == FrameOutcome::kLost) ++lost;
+    if (r.outcome == FrameOutcome::kRejected) {
+      ++rejected;
+      logger("slam")->warn("frame {} rejected: {}", n, r.reject_reason);
+    }
+    if (!quiet && (n % 50 == 0 || n == int(pairs.size()))) {
+      const auto s = slam.snapshot();
+      std::fprintf(stderr, "\r[cslam-slam] %d/%zu frames  %s  kf=%d mp=%d lost=%d  %.1f fps   ", n, pairs.size(),
+                   to_string(r.outcome), s.keyframes, s.map_points, lost, n / (wall.ms() / 1000.0));
+    }
+  }
+  loader.join();
+  slam.finish();
+  const double wall_s = wall.ms() / 1000.0;
+  if (!quiet) std::fprintf(stderr, "\n");
+
+  const Trajectory traj = slam.trajectory();
+  write_tum_trajectory(args.get("out"), traj, "cslam-slam " + dir);
+  if (args.has("keyframes")) write_tum_trajectory(args.get("keyframes"), slam.keyframe_trajectory(), "cslam-slam keyframes");
+  const auto snap = slam.snapshot();
+  const auto t = slam.timings();
+  std::vector<double> tracking_total;
+  for (size_t i = 0; i < t.track_ms.size(); ++i) tracking_total.push_back(t.track_ms[i] + t.extract_ms[i]);
+  nlohmann::json stats = {
+      {"dataset", dir},
+      {"frames", n},
+      {"frames_tracked", snap.frames_tracked},
+      {"frames_lost", lost},
+      {"frames_rejected", rejected},
+      {"trajectory_poses", traj.size()},
+      {"maps", snap.maps},
+      {"keyframes", snap.keyframes},
+      {"map_points", snap.map_points},
+      {"wall_time_s", wall_s},
+      {"vocabulary_load_ms", vocab_ms},
+      {"peak_rss_mb", peak_rss_mb()},
+      {"extract_ms", summary_json(t.extract_ms)},
+      {"track_ms", summary_json(t.track_ms)},
+      {"extract_plus_track_ms", summary_json(tracking_total)},
+      {"local_ba_ms", summary_json(t.mapper.ba_ms)},
+      {"local_mapping_step_ms", summary_json(t.mapper.step_ms)},
+      {"keyframes_processed", t.mapper.keyframes_processed},
+      {"keyframes_culled", t.mapper.keyframes_culled},
+  };
+  if (args.has("stats")) std::ofstream(args.get("stats")) << stats.dump(2) << "\n";
+  std::printf("frames %d tracked %llu lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
+              "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",
+              n, (unsigned long long)snap.frames_tracked, lost, rejected, snap.keyframes, snap.map_points, snap.maps, wall_s,
+              summarize(tracking_total).median, summarize(t.mapper.ba_ms).median, peak_rss_mb());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << "cslam-slam: error: " << e.what() << "\n";
+    return 1;
+  }
+}
