@@ -37,7 +37,8 @@ std::size_t backproject(const cv::Mat& bgr, const cv::Mat& depth, const RayTable
   const float zmin = float(params.min_depth), zmax = float(params.max_depth);
   const int stride = std::max(1, params.stride);
   const size_t before = out.size();
-  out.reserve(before + size_t(cam.width / stride + 1) * size_t(cam.height / stride + 1));
+  const size_t need = before + size_t(cam.width / stride + 1) * size_t(cam.height / stride + 1);
+  if (out.points.capacity() < need) out.reserve(std::max(need, 2 * out.points.capacity()));  // amortised growth
   for (int v = 0; v < cam.height; v += stride) {
     const std::uint16_t* drow = depth.ptr<std::uint16_t>(v);
     const cv::Vec3b* crow = bgr.ptr<cv::Vec3b>(v);

@@ -19,7 +19,6 @@ struct DenseConfig {
   int stride = 2;                           // back-project every stride-th pixel in u and v
   double voxel_size = 0.01;                 // voxel-grid filter leaf (metres)
   int chunk_frames = 30;                    // frames back-projected before the chunk is filtered
-  double refilter_growth = 1.5;             // re-filter the merged cloud when it grew by this factor
   bool remove_outliers = false;             // statistical outlier removal on the final cloud
   OutlierConfig outliers;
   int threads = 2;                          // >= 2: filtering (and image loading) run beside back-projection

@@ -1,6 +1,7 @@
 #include "dense/reconstructor.h"
 
 #include <cmath>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <stdexcept>
@@ -46,7 +47,6 @@ void DenseConfig::validate() const {
   if (stride < 1) throw ConfigError("dense: stride must be >= 1");
   if (!(voxel_size > 0)) throw ConfigError("dense: voxel_size must be positive");
   if (chunk_frames < 1) throw ConfigError("dense: chunk_frames must be >= 1");
-  if (!(refilter_growth > 1)) throw ConfigError("dense: refilter_growth must be > 1");
   if (threads < 1) throw ConfigError("dense: threads must be >= 1");
   if (!(max_time_gap >= 0)) throw ConfigError("dense: max_time_gap must be >= 0");
   if (remove_outliers && (outliers.mean_k < 1 || !(outliers.stddev_mul > 0)))
@@ -62,26 +62,37 @@ struct DenseReconstructor::Impl {
   int chunk_frames = 0;
   VoxelAccumulator accumulator;
   std::optional<TsdfVolume> tsdf;
-  // Filter stage: a worker thread owning the accumulator when threads >= 2.
-  BoundedQueue<ColoredCloud> chunks{2};
-  std::thread filter_thread;
+  // Filter stage: with threads >= 2, that many workers filter chunks concurrently (PCL) and
+  // merge them into the accumulator one at a time.
+  BoundedQueue<ColoredCloud> chunks;
+  std::vector<std::thread> filter_threads;
+  std::mutex merge_mutex;  // guards accumulator between the filter workers
   bool finished = false;
   std::set<SkipReason> warned;
   Stopwatch wall;
 
-  explicit Impl(const DenseConfig& c) : config(c), accumulator(c.voxel_size, c.refilter_growth) {
+  explicit Impl(const DenseConfig& c) : config(c), accumulator(c.voxel_size), chunks(size_t(c.threads)) {
     if (config.build_mesh) tsdf.emplace(config.tsdf);
     if (config.threads >= 2)
-      filter_thread = std::thread([this] {
-        while (auto c = chunks.pop()) accumulator.add_chunk(*c);
-      });
+      for (int k = 0; k < config.threads; ++k)
+        filter_threads.emplace_back([this] {
+          while (auto c = chunks.pop()) {
+            Stopwatch sw;
+            const ColoredCloud filtered = accumulator.filter_chunk(*c);
+            const double ms = sw.ms();
+            std::lock_guard<std::mutex> lock(merge_mutex);
+            accumulator.merge(filtered, c->size(), ms);
+          }
+        });
   }
 
   ~Impl() { stop_filter_thread(); }
 
   void stop_filter_thread() {
     chunks.close();
-    if (filter_thread.joinable()) filter_thread.join();
+    for (auto& t : filter_threads)
+      if (t.joinable()) t.join();
+    filter_threads.clear();
   }
 
   const RayTable& rays_for(const PinholeCamera& camera) {
@@ -93,12 +104,18 @@ struct DenseReconstructor::Impl {
 
   void flush_chunk() {
     if (chunk.empty()) return;
-    if (filter_thread.joinable())
+    if (!filter_threads.empty())
       chunks.push(std::move(chunk));
     else
       accumulator.add_chunk(chunk);
     chunk = ColoredCloud();
     chunk_frames = 0;
+  }
+
+  void reserve_chunk(const PinholeCamera& camera) {
+    const size_t per_frame = size_t((camera.width + config.stride - 1) / config.stride) * size_t((camera.height + config.stride - 1) / config.stride);
+    const size_t need = chunk.size() + per_frame;
+    if (chunk.points.capacity() < need) chunk.reserve(std::max(need, per_frame * size_t(config.chunk_frames)));
   }
 
   void skip(SkipReason r) {
@@ -138,6 +155,7 @@ FrameOutcome DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat
   params.min_depth = m.config.min_depth;
   params.max_depth = m.config.max_depth;
   params.stride = m.config.stride;
+  m.reserve_chunk(camera);
   out.points = backproject(bgr, depth16, rays, T_world_cam, params, m.chunk);
   m.timing.backproject += sw.ms();
   if (out.points == 0) return reject(SkipReason::kNoValidDepth);

@@ -1,6 +1,7 @@
 #include "dense/voxel_accumulator.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "cloud/filters.h"
@@ -8,33 +9,53 @@
 
 namespace cslam {
 
-VoxelAccumulator::VoxelAccumulator(double voxel_size, double refilter_growth)
-    : voxel_(float(voxel_size)), growth_(refilter_growth) {
+namespace {
+std::uint64_t voxel_key(const Eigen::Vector3f& p, float inv) {
+  constexpr std::int64_t kBias = std::int64_t(1) << 20;
+  auto c = [&](float v) { return std::uint64_t(std::int64_t(std::floor(v * inv)) + kBias) & 0x1FFFFF; };
+  return c(p.x()) | (c(p.y()) << 21) | (c(p.z()) << 42);
+}
+}  // namespace
+
+VoxelAccumulator::VoxelAccumulator(double voxel_size) : voxel_(float(voxel_size)) {
   if (!(voxel_size > 0)) throw std::invalid_argument("VoxelAccumulator: voxel size must be positive");
-  if (!(refilter_growth > 1.0)) throw std::invalid_argument("VoxelAccumulator: refilter growth must be > 1");
 }
 
-void VoxelAccumulator::add_chunk(const ColoredCloud& chunk) {
-  if (chunk.empty()) return;
+ColoredCloud VoxelAccumulator::filter_chunk(const ColoredCloud& chunk) const { return voxel_filter(chunk, voxel_); }
+
+void VoxelAccumulator::merge(const ColoredCloud& filtered, std::size_t raw_points, double filter_ms) {
+  if (filtered.empty()) return;
   Stopwatch sw;
   ++stats_.chunks;
-  stats_.raw_points += chunk.size();
-  map_.append(voxel_filter(chunk, voxel_));
-  stats_.peak_points = std::max(stats_.peak_points, map_.size() + chunk.size());
-  if (double(map_.size()) > growth_ * double(std::max<std::size_t>(filtered_size_, 50000))) {
-    map_ = voxel_filter(map_, voxel_);
-    filtered_size_ = map_.size();
-    ++stats_.refilters;
+  stats_.raw_points += raw_points;
+  if (!filtered.has_colors()) colors_ = false;
+  stats_.chunk_voxels += filtered.size();
+  const float inv = 1.0f / voxel_;
+  for (size_t i = 0; i < filtered.size(); ++i) {
+    const auto [it, inserted] = index_.try_emplace(voxel_key(filtered.points[i], inv), std::uint32_t(cells_.size()));
+    if (inserted) cells_.emplace_back();
+    Cell& c = cells_[it->second];
+    c.sum += filtered.points[i];
+    if (colors_)
+      for (int k = 0; k < 3; ++k) c.rgb[size_t(k)] += filtered.colors[i][size_t(k)];
+    ++c.count;
   }
-  stats_.filter_ms += sw.ms();
+  stats_.peak_points = std::max(stats_.peak_points, cells_.size() + raw_points);
+  stats_.filter_ms += filter_ms + sw.ms();
 }
 
 ColoredCloud VoxelAccumulator::finish() {
-  Stopwatch sw;
-  ColoredCloud out = voxel_filter(map_, voxel_);
-  map_ = ColoredCloud();
-  filtered_size_ = 0;
-  stats_.filter_ms += sw.ms();
+  ColoredCloud out;
+  out.points.reserve(cells_.size());
+  if (colors_) out.colors.reserve(cells_.size());
+  for (const Cell& c : cells_) {
+    out.points.push_back(c.sum / float(c.count));
+    if (colors_)
+      out.colors.push_back({std::uint8_t((c.rgb[0] + c.count / 2) / c.count), std::uint8_t((c.rgb[1] + c.count / 2) / c.count),
+                            std::uint8_t((c.rgb[2] + c.count / 2) / c.count)});
+  }
+  cells_ = {};
+  index_ = {};
   return out;
 }
 
