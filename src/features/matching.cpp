@@ -159,7 +159,18 @@ std::vector<Match> match_by_bow(const OrbFeatures& a, const FeatureVector& fa, c
     }
     for (int i : ia->second) {
       if (mask_a && !(*mask_a)[i]) continue;
-      const BestMatch m = best_match(a.descriptors[i], b, ib->second, mask_b);
+      BestMatch m;
+      for (int j : ib->second) {
+        if (mask_b && !(*mask_b)[j]) continue;  // mask: non-zero = may be matched
+        const int dist = hamming_distance(a.descriptors[i], b.descriptors[j]);
+        if (dist < m.distance) {
+          m.second_distance = m.distance;
+          m.distance = dist;
+          m.index = j;
+        } else if (dist < m.second_distance) {
+          m.second_distance = dist;
+        }
+      }
       if (accept(m, params)) pairs.offer(i, m.index, m.distance);
     }
     ++ia;
