@@ -35,7 +35,7 @@ int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-server", "Receives RGB-D frames from cslam clients over ZeroMQ and runs collaborative SLAM.");
   cli.option("bind", "ZeroMQ endpoint to bind (tcp://127.0.0.1:* picks a free port)", "tcp://*:5555")
       .option("clients", "number of clients to wait for before --exit-when-done can end the run", "1")
-      .flag("exit-when-done", "exit once every client said goodbye (or timed out)")
+      .flag("exit-when-done", "exit once --clients clients said goodbye and no other client is still active")
       .option("out-dir", "folder for client_K.txt trajectories, stats.json and network_stats.json", "cslam-out")
       .flag("no-slam", "do not run SLAM (count frames only; for throughput benchmarks)")
       .option("window", "flow-control window: frames in flight per client", "4")

@@ -1,5 +1,6 @@
 #include "server/receiver.h"
 
+#include <cerrno>
 #include <cstring>
 
 #include "core/log.h"
@@ -53,7 +54,12 @@ bool Receiver::run() {
                                {monitor_.handle(), 0, ZMQ_POLLIN, 0},
                                {nullptr, done_.read_fd(), ZMQ_POLLIN, 0},
                                {nullptr, stop_.read_fd(), ZMQ_POLLIN, 0}};
-    zmq::poll(items, 4, tick);
+    try {
+      zmq::poll(items, 4, tick);
+    } catch (const zmq::error_t& e) {
+      if (e.num() != EINTR) throw;
+      continue;  // a signal: its handler has written to the stop pipe, seen on the next poll
+    }
     if (items[3].revents & ZMQ_POLLIN) {
       log()->info("stop requested");
       return false;

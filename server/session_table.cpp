@@ -54,10 +54,12 @@ std::vector<ClientId> SessionTable::expire(Clock::time_point now, std::chrono::d
 }
 
 bool SessionTable::all_finished(std::size_t expected) const {
-  if (sessions_.empty() || sessions_.size() < expected) return false;
-  for (const auto& [id, s] : sessions_)
+  std::size_t done = 0;
+  for (const auto& [id, s] : sessions_) {
     if (s.state == SessionState::kActive) return false;
-  return true;
+    done += s.state == SessionState::kDone;
+  }
+  return done > 0 && done >= expected;
 }
 
 std::string routing_id_text(const std::string& routing_id) {

@@ -38,7 +38,8 @@ class SessionTable {
   // Marks sessions silent for longer than timeout as disconnected; returns their ids.
   std::vector<ClientId> expire(Clock::time_point now, std::chrono::duration<double> timeout);
 
-  // True when at least `expected` clients registered and none is still active.
+  // True when at least `expected` clients said goodbye and none is still active (a client that
+  // timed out does not hold the run open, but does not count as done either).
   bool all_finished(std::size_t expected) const;
   std::size_t size() const { return sessions_.size(); }
   const std::map<ClientId, Session>& sessions() const { return sessions_; }

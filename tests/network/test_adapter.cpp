@@ -1,0 +1,146 @@
+// The protobuf <-> library adapter: round trips and every kind of bad packet it must classify.
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "net_test_util.h"
+#include "proto/adapter.h"
+
+namespace cslam {
+namespace {
+
+PinholeCamera small_camera() {
+  PinholeCamera c = camera_tum_fr1();
+  c.width = 64;
+  c.height = 48;
+  return c;
+}
+
+wire::ErrorCode code_of(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const wire::WireError& e) {
+    return e.code();
+  }
+  return wire::ERROR_UNSPECIFIED;
+}
+
+TEST(Adapter, HelloRoundTripKeepsCamera) {
+  ClientInfo info;
+  info.id = 42;
+  info.name = "robot";
+  info.camera = camera_tum_fr1();
+  const ClientInfo back = wire::from_hello(wire::to_hello(info), "test");
+  EXPECT_EQ(back.id, 42);
+  EXPECT_EQ(back.name, "robot");
+  EXPECT_EQ(back.camera.fx, info.camera.fx);
+  EXPECT_EQ(back.camera.cy, info.camera.cy);
+  EXPECT_EQ(back.camera.dist, info.camera.dist);
+  EXPECT_EQ(back.camera.width, 640);
+  EXPECT_EQ(back.camera.depth_factor, 5000.0);
+}
+
+TEST(Adapter, BadHellosAreClassified) {
+  ClientInfo info;
+  info.camera = small_camera();
+  wire::Hello h = wire::to_hello(info);
+  h.set_version(wire::PROTOCOL_VERSION_UNSPECIFIED);
+  EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_VERSION);
+  h = wire::to_hello(info);
+  h.set_client_id(70000);
+  EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
+  h = wire::to_hello(info);
+  h.mutable_camera()->set_fx(-1);
+  EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
+  h = wire::to_hello(info);
+  h.mutable_camera()->set_width(100000);
+  EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
+  h = wire::to_hello(info);
+  h.mutable_camera()->add_distortion(0.1);
+  EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
+  h = wire::to_hello(info);
+  h.clear_camera();
+  EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
+}
+
+class AdapterFrameTest : public ::testing::TestWithParam<std::pair<RgbCodec, DepthCodec>> {};
+
+TEST_P(AdapterFrameTest, FrameRoundTrip) {
+  const PinholeCamera cam = small_camera();
+  CodecOptions o;
+  o.rgb = GetParam().first;
+  o.depth = GetParam().second;
+  const wire::ClientMessage m = test::make_frame(3, 17, 12.5, cam, o);
+  const RgbdFrame f = wire::from_wire_frame(m.frame(), cam, "test");
+  EXPECT_EQ(f.client, 3);
+  EXPECT_EQ(f.seq, 17u);
+  EXPECT_EQ(f.timestamp, 12.5);
+  EXPECT_EQ(f.bgr.cols, 64);
+  EXPECT_EQ(f.depth.rows, 48);
+  EXPECT_EQ(f.depth.at<std::uint16_t>(5, 5), 4000);  // lossless depth
+}
+
+INSTANTIATE_TEST_SUITE_P(Pairs, AdapterFrameTest,
+                         ::testing::Values(std::pair{RgbCodec::kRaw, DepthCodec::kRaw},
+                                           std::pair{RgbCodec::kJpeg, DepthCodec::kZstdDelta},
+                                           std::pair{RgbCodec::kPng, DepthCodec::kPng},
+                                           std::pair{RgbCodec::kJpeg, DepthCodec::kRvl}));
+
+TEST(Adapter, UnknownEncodingIsClassified) {
+  const PinholeCamera cam = small_camera();
+  wire::ClientMessage m = test::make_frame(1, 1, 0, cam);
+  m.mutable_frame()->mutable_rgb()->set_encoding(wire::Encoding(99));
+  EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_UNKNOWN_ENCODING);
+  m = test::make_frame(1, 1, 0, cam);
+  m.mutable_frame()->mutable_depth()->set_encoding(wire::RGB_JPEG);  // an RGB encoding for depth
+  EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_UNKNOWN_ENCODING);
+}
+
+TEST(Adapter, SizeContradictingTheHelloIsClassified) {
+  const PinholeCamera cam = small_camera();
+  wire::ClientMessage m = test::make_frame(1, 1, 0, cam);
+  m.mutable_frame()->mutable_depth()->set_width(32);
+  EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_SIZE_MISMATCH);
+  PinholeCamera other = cam;
+  other.width = 80;
+  m = test::make_frame(1, 1, 0, other);  // consistent header, other size than the hello
+  EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_SIZE_MISMATCH);
+}
+
+TEST(Adapter, CorruptImagesAreClassified) {
+  const PinholeCamera cam = small_camera();
+  CodecOptions png;
+  png.rgb = RgbCodec::kPng;
+  png.depth = DepthCodec::kPng;
+  for (const CodecOptions& o : {CodecOptions(), png}) {
+    wire::ClientMessage m = test::make_frame(1, 1, 0, cam, o);
+    std::string bytes = m.frame().rgb().data();
+    for (std::size_t i = 2; i < bytes.size(); i += 3) bytes[i] = char(0x5a);
+    m.mutable_frame()->mutable_rgb()->set_data(bytes.substr(0, bytes.size() / 3));
+    EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_CORRUPT_IMAGE);
+    m = test::make_frame(1, 1, 0, cam, o);
+    m.mutable_frame()->mutable_depth()->set_data("garbage");
+    EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_CORRUPT_IMAGE);
+  }
+}
+
+TEST(Adapter, RandomBytesAndTruncatedMessagesAreMalformed) {
+  EXPECT_EQ(code_of([] { wire::parse_client_message("", 0, "t"); }), wire::ERROR_MALFORMED);  // no body
+  const std::string junk = "\xff\xff\xff\xff\xff\xff\xff\xff\x01garbage";
+  EXPECT_EQ(code_of([&] { wire::parse_client_message(junk.data(), junk.size(), "t"); }), wire::ERROR_MALFORMED);
+  const std::string full = test::make_frame(1, 1, 0, small_camera()).SerializeAsString();
+  EXPECT_EQ(code_of([&] { wire::parse_client_message(full.data(), full.size() / 2, "t"); }), wire::ERROR_MALFORMED);
+  EXPECT_EQ(wire::parse_client_message(full.data(), full.size(), "t").body_case(), wire::ClientMessage::kFrame);
+}
+
+TEST(Adapter, ErrorsNameTheirSource) {
+  try {
+    wire::parse_client_message("x", 1, "client 7");
+    FAIL() << "no exception";
+  } catch (const wire::WireError& e) {
+    EXPECT_NE(std::string(e.what()).find("client 7"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace cslam
