@@ -89,19 +89,23 @@ TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& dept
               k3 = float(cam.dist[4]);
   const bool distorted = cam.has_distortion();
   const float max_r2 = rays.max_radius2() * 1.0001f;
-  const float max_w = config_.max_weight;
+  const float max_w = config_.max_weight, inv_trunc = 1.0f / trunc;
   auto update = [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       const Eigen::Vector3i& bc = work[i].first;
       Block& block = *work[i].second;
-      const Eigen::Vector3f origin = bc.cast<float>() * block_size;
+      // Camera-frame centre of voxel (x, y, z) = base + x * ax + y * ay + z * az.
+      const Eigen::Vector3f origin = bc.cast<float>() * block_size + Eigen::Vector3f::Constant(0.5f * voxel);
+      const Eigen::Vector3f base = Rt * (origin - t);
+      const Eigen::Vector3f ax = Rt.col(0) * voxel, ay = Rt.col(1) * voxel, az = Rt.col(2) * voxel;
       for (int z = 0; z < kB; ++z)
-        for (int y = 0; y < kB; ++y)
+        for (int y = 0; y < kB; ++y) {
+          const Eigen::Vector3f row = base + float(y) * ay + float(z) * az;
           for (int x = 0; x < kB; ++x) {
-            const Eigen::Vector3f pw = origin + Eigen::Vector3f(x + 0.5f, y + 0.5f, z + 0.5f) * voxel;
-            const Eigen::Vector3f pc = Rt * (pw - t);
+            const Eigen::Vector3f pc = row + float(x) * ax;
             if (pc.z() <= 1e-3f) continue;
-            float xn = pc.x() / pc.z(), yn = pc.y() / pc.z();
+            const float iz = 1.0f / pc.z();
+            float xn = pc.x() * iz, yn = pc.y() * iz;
             const float r2 = xn * xn + yn * yn;
             if (r2 > max_r2) continue;
             if (distorted) {
@@ -111,23 +115,25 @@ TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& dept
               xn = xd;
               yn = yd;
             }
-            const int u = int(std::lround(fx * xn + cx)), v = int(std::lround(fy * yn + cy));
-            if (u < 0 || v < 0 || u >= cam.width || v >= cam.height) continue;
+            const float uf = fx * xn + cx + 0.5f, vf = fy * yn + cy + 0.5f;  // round to nearest
+            if (!(uf >= 0.0f && vf >= 0.0f && uf < float(cam.width) && vf < float(cam.height))) continue;
+            const int u = int(uf), v = int(vf);
             const std::uint16_t raw = depth.at<std::uint16_t>(v, u);
             const float d = raw * scale;
             if (raw == 0 || d < zmin || d > zmax) continue;
             const float sdf = d - pc.z();
             if (sdf < -trunc) continue;
-            const float tsdf = std::min(1.0f, sdf / trunc);
+            const float tsdf = std::min(1.0f, sdf * inv_trunc);
             TsdfVoxel& vx = block.voxels[size_t(local_index(x, y, z))];
-            const float w = vx.weight, nw = w + 1.0f;
-            vx.sdf = (vx.sdf * w + tsdf) / nw;
+            const float w = vx.weight, nw = w + 1.0f, inv = 1.0f / nw;
+            vx.sdf = (vx.sdf * w + tsdf) * inv;
             const cv::Vec3b& c = bgr.at<cv::Vec3b>(v, u);
-            vx.r = std::uint8_t((vx.r * w + c[2]) / nw + 0.5f);
-            vx.g = std::uint8_t((vx.g * w + c[1]) / nw + 0.5f);
-            vx.b = std::uint8_t((vx.b * w + c[0]) / nw + 0.5f);
+            vx.r = std::uint8_t((vx.r * w + c[2]) * inv + 0.5f);
+            vx.g = std::uint8_t((vx.g * w + c[1]) * inv + 0.5f);
+            vx.b = std::uint8_t((vx.b * w + c[0]) * inv + 0.5f);
             vx.weight = std::min(nw, max_w);
           }
+        }
     }
   };
   const int threads = std::max(1, std::min<int>(config_.threads, int(work.size() / 64) + 1));
@@ -168,8 +174,12 @@ TriangleMesh TsdfVolume::extract_mesh() const {
           int config = 0;
           float lo = 2, hi = -2;
           bool ok = true;
+          const TsdfVoxel& first = block.voxels[size_t(local_index(x, y, z))];
+          if (first.weight <= 0) continue;
+          const bool inner = x + 1 < kB && y + 1 < kB && z + 1 < kB;
           for (int i = 0; i < 8 && ok; ++i) {
-            c[size_t(i)] = corner_voxel(x + (i & 1), y + ((i >> 1) & 1), z + ((i >> 2) & 1));
+            const int cx = x + (i & 1), cy = y + ((i >> 1) & 1), cz = z + ((i >> 2) & 1);
+            c[size_t(i)] = inner ? &block.voxels[size_t(local_index(cx, cy, cz))] : corner_voxel(cx, cy, cz);
             ok = c[size_t(i)] && c[size_t(i)]->weight > 0;
             if (!ok) break;
             if (c[size_t(i)]->sdf < 0) config |= 1 << i;

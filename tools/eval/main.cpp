@@ -1,4 +1,4 @@
-// cslam-eval: trajectory and dataset evaluation (ATE, RPE, the paper's split).
+// cslam-eval: trajectory and dataset evaluation (ATE, RPE, the paper's split) and cloud accuracy.
 #include <cstdio>
 #include <iostream>
 
@@ -11,6 +11,10 @@
 #include "io/trajectory_io.h"
 
 using namespace cslam;
+
+namespace cslam {
+int cmd_cloud(int argc, char** argv);  // cloud_cmd.cpp
+}
 
 namespace {
 
@@ -112,6 +116,7 @@ const char* kUsage =
     "  ate GT EST [--align se3|sim3|none] [--max-dt 0.02] [--json]   absolute pose error\n"
     "  rpe GT EST [--delta 1s] [--json]                              relative pose error\n"
     "  split --frames N --clients K --overlap ETA                    the paper's client frame ranges\n"
+    "  cloud REF.ply TEST.ply [--match-bbox] [--json]                Hausdorff / C2C / completeness of a cloud\n"
     "Run 'cslam-eval COMMAND --help' for a command's options.\n";
 
 }  // namespace
@@ -126,6 +131,7 @@ int main(int argc, char** argv) {
     if (cmd == "ate") return cmd_ate(argc, argv);
     if (cmd == "rpe") return cmd_rpe(argc, argv);
     if (cmd == "split") return cmd_split(argc, argv);
+    if (cmd == "cloud") return cslam::cmd_cloud(argc, argv);
     std::cerr << "cslam-eval: unknown command '" << cmd << "'\n" << kUsage;
     return 2;
   } catch (const std::exception& e) {
