@@ -29,7 +29,7 @@ int KeyFrame::weight(KeyFrame* other) const {
 int KeyFrame::tracked_map_points(int min_obs) const {
   int n = 0;
   for (const auto& mp : map_points)
-    if (mp && !mp->bad && (min_obs <= 0 || int(mp->observations.size()) >= min_obs)) ++n;
+    if (mp && !mp->bad && (min_obs <= 0 || mp->num_obs >= min_obs)) ++n;
   return n;
 }
 

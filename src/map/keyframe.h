@@ -79,7 +79,7 @@ class KeyFrame {
   std::vector<KeyFrame*> covisibles() const;
   std::vector<KeyFrame*> covisibles_with_weight(int min_weight) const;
   int weight(KeyFrame* other) const;
-  // Map points observed by at least min_obs keyframes.
+  // Map points with at least min_obs observations (RGB-D observations count twice).
   int tracked_map_points(int min_obs) const;
   std::set<MapPoint*> map_point_set() const;
   int index_of(const MapPoint* mp) const;

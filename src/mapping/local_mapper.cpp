@@ -186,7 +186,7 @@ void LocalMapper::cull_keyframes(KeyFrame* kf) {
       const auto& mp = cand->map_points[i];
       if (!mp || mp->bad || !f.is_close(int(i))) continue;
       ++points;
-      if (mp->observations.size() <= 3) continue;
+      if (mp->num_obs <= 3) continue;
       const int level = f.features.keypoints[i].octave;
       int seen_by = 0;
       for (const auto& [other, idx] : mp->observations) {

@@ -68,6 +68,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
                               pyramid_, *vocabulary_, config_.bow_levels_up);
   r.extract_ms = sw.ms();
+  r.features = int(data->size());
   sw.reset();
   TrackResult t = tracker_->track(std::move(data));
   if (!config_.threaded)
@@ -75,6 +76,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
     }
   r.track_ms = sw.ms();
   r.new_keyframe = t.new_keyframe;
+  r.inliers = t.inliers;
   r.outcome = t.ok ? FrameOutcome::kTracked
                    : (t.state == TrackState::kNotInitialized ? FrameOutcome::kNotInitialized : FrameOutcome::kLost);
 

@@ -21,6 +21,8 @@ struct ProcessResult {
   FrameOutcome outcome = FrameOutcome::kRejected;
   std::string reject_reason;
   bool new_keyframe = false;
+  int inliers = 0;
+  int features = 0;
   double extract_ms = 0, track_ms = 0;
 };
 

@@ -271,7 +271,7 @@ bool Tracker::track_local_map(Frame& frame) {
   frame.reference = reference_kf_;
   for (const auto& mp : frame.map_points)
     if (mp) ++mp->visible;
-  search_local_points(frame, local_points, 1.0);
+  search_local_points(frame, local_points, frames_since_reloc_ < 2 ? 5.0 : config_.local_map_radius);
   optimize_frame_pose(frame);
   int inliers = 0;
   for (size_t i = 0; i < frame.map_points.size(); ++i) {

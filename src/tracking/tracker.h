@@ -16,6 +16,7 @@ enum class TrackState { kNotInitialized, kOk, kLost };
 struct TrackerConfig {
   int min_init_points = 500;          // keypoints with depth needed to initialise a map
   double motion_radius = 15.0;         // projection search radius (pixels at level 0) for the motion model
+  double local_map_radius = 3.0;       // local-map projection search window (x 2.5..4 x level scale)
   int min_motion_matches = 20;         // below this the search is repeated with twice the radius
   int min_pose_inliers = 10;           // after motion-model / reference-keyframe pose optimisation
   int min_local_map_inliers = 30;      // local-map tracking success

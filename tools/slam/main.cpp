@@ -46,6 +46,7 @@ int run(int argc, char** argv) {
       .option("stats", "timing statistics output (JSON)", "")
       .option("client", "client id", "1")
       .flag("sync", "run local mapping inline (deterministic, slower)")
+      .flag("no-local-ba", "disable local bundle adjustment (ablation)")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -70,6 +71,7 @@ int run(int argc, char** argv) {
 
   SlamConfig config;
   config.threaded = !args.flag_set("sync");
+  config.mapper.local_ba = !args.flag_set("no-local-ba");
   ClientSlam slam(info, config, vocabulary);
 
   // Images are decoded on a second thread, ahead of tracking.
@@ -89,6 +91,7 @@ int run(int argc, char** argv) {
 
   Stopwatch wall;
   int n = 0, lost = 0, rejected = 0;
+  std::vector<double> inliers, features;
   const bool quiet = args.flag_set("quiet");
   while (auto item = loaded.pop()) {
     RgbdFrame f;
@@ -98,6 +101,9 @@ int run(int argc, char** argv) {
     f.bgr = item->second.bgr;
     f.depth = item->second.depth;
     const ProcessResult r = slam.process(f);
+    inliers.push_back(r.inliers);
+    features.push_back(r.features);
+    if (std::getenv("CSLAM_TRACE")) std::fprintf(stderr, "frame %d feats %d inliers %d kf %d\n", n, r.features, r.inliers, int(r.new_keyframe));
     ++n;
     if (r.outcome == FrameOutcome::kLost) ++lost;
     if (r.outcome == FrameOutcome::kRejected) {
@@ -139,6 +145,8 @@ int run(int argc, char** argv) {
       {"track_ms", summary_json(t.track_ms)},
       {"extract_plus_track_ms", summary_json(tracking_total)},
       {"local_ba_ms", summary_json(t.mapper.ba_ms)},
+      {"tracked_inliers", summary_json(inliers)},
+      {"features_per_frame", summary_json(features)},
       {"local_mapping_step_ms", summary_json(t.mapper.step_ms)},
       {"keyframes_processed", t.mapper.keyframes_processed},
       {"keyframes_culled", t.mapper.keyframes_culled},
