@@ -33,11 +33,19 @@ int cmd_ate(int argc, char** argv) {
       .positional("EST", "estimated trajectory, TUM format")
       .option("align", "se3 | sim3 | none", "se3")
       .option("max-dt", "maximum timestamp difference for association (s)", "0.02")
+      .option("per-pose", "write 'timestamp error_m' per associated pose to this file", "")
       .flag("json", "print JSON instead of a table");
   if (!args.parse(argc, argv, 2)) return 0;
   const auto gt = read_tum_trajectory(args.positionals()[0]);
   const auto est = read_tum_trajectory(args.positionals()[1]);
   const auto r = compute_ate(gt, est, parse_alignment(args.get("align")), args.get_double("max-dt"));
+  if (args.has("per-pose")) {
+    std::FILE* f = std::fopen(args.get("per-pose").c_str(), "w");
+    if (!f) throw InputError(args.get("per-pose"), "cannot write");
+    std::fprintf(f, "# timestamp ape_m\n");
+    for (size_t i = 0; i < r.errors.size(); ++i) std::fprintf(f, "%.6f %.6f\n", r.timestamps[i], r.errors[i]);
+    std::fclose(f);
+  }
   if (args.flag_set("json")) {
     nlohmann::json j = stats_json(r.stats);
     j["align"] = args.get("align");
