@@ -152,7 +152,7 @@ TrajectoryPlan plan_trajectories(const Scene& scene, const TrajectoryConfig& con
       rp.trajectory = sample_path(path, rp.phi_start, rp.phi_end, n, ramp, config.start_time, config.rate_hz);
     } else {
       rp.kind = "arc";
-      rp.base_height = std::clamp(rng.uniform(0.55, 1.3), config.min_height + height_amp + 0.02, config.max_height - height_amp - 0.02);
+      rp.base_height = std::clamp(rng.uniform(0.75, 1.25), config.min_height + height_amp + 0.02, config.max_height - height_amp - 0.02);
       const double h = rp.base_height;
       const double pitch0 = (0.9 - h) * 8 * kDeg;  // low robots look up a little, high ones down
       const PathFn path = [&w, h, pitch0, yaw_amp, pitch_amp, height_amp, psi1, psi2, psi3](double phi) {
@@ -191,8 +191,11 @@ Trajectory make_whole_sequence(const TrajectoryPlan& plan, const TrajectoryConfi
       const SE3 a = out.back().T_world_cam, b = t.front().T_world_cam;
       const double dist = (b.translation() - a.translation()).norm(), ang = (a.inverse() * b).rotation_angle();
       const double mean_limit = 0.9 / (kPi / 2);
-      const int steps = std::max(2, static_cast<int>(std::ceil(std::max(dist / (config.max_step * mean_limit),
-                                                                         ang / (config.max_rotation_deg * kDeg * mean_limit)))));
+      // Also keep the peak acceleration d/2 (pi/T)^2 below 0.8 m/s^2.
+      const double accel_frames = config.rate_hz * kPi * std::sqrt(dist / (2 * 0.8));
+      const int steps = std::max(2, static_cast<int>(std::ceil(std::max({dist / (config.max_step * mean_limit),
+                                                                          ang / (config.max_rotation_deg * kDeg * mean_limit),
+                                                                          accel_frames}))));
       for (int i = 1; i < steps; ++i) append(interpolate_pose(a, b, 0.5 * (1 - std::cos(kPi * i / steps))));
     }
     for (const auto& p : t) append(p.T_world_cam);

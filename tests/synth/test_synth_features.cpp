@@ -52,3 +52,46 @@ TEST(SynthFeatures, OrbFindsManyWellSpreadKeypointsOnDemoFrames) {
   EXPECT_GE(good, static_cast<int>(std::ceil(0.95 * frames)));
   EXPECT_GT(in_range / valid, 0.7);
 }
+
+namespace {
+
+// ORB matches (mutual nearest neighbours, Hamming < 40) between two images.
+int orb_matches(const cv::Mat& a, const cv::Mat& b) {
+  auto orb = cv::ORB::create(1000);
+  std::vector<cv::KeyPoint> ka, kb;
+  cv::Mat da, db;
+  orb->detectAndCompute(a, cv::noArray(), ka, da);
+  orb->detectAndCompute(b, cv::noArray(), kb, db);
+  if (da.empty() || db.empty()) return 0;
+  cv::BFMatcher matcher(cv::NORM_HAMMING, true);
+  std::vector<cv::DMatch> m;
+  matcher.match(da, db, m);
+  return static_cast<int>(std::count_if(m.begin(), m.end(), [](const cv::DMatch& d) { return d.distance < 40; }));
+}
+
+// View of a wall point from 1.4 m in front of it (the walls' normals are horizontal).
+RenderedFrame view_of(const Renderer& r, const Scene& scene, int face, const Eigen::Vector3d& center) {
+  const Eigen::Vector3d n = scene.faces[face].normal;
+  const Eigen::Vector3d eye = center + 1.4 * n;
+  return r.render(camera_pose(eye, std::atan2(-n.y(), -n.x()), 0.0));
+}
+
+}  // namespace
+
+TEST(SynthFeatures, RepeatedTexturePatchLooksAlikeAndPlacesAreOtherwiseDistinct) {
+  SynthConfig c = synth_preset("demo");
+  c.scene.furniture = 0;  // nothing in front of the walls
+  c.scene.repeat_texture = true;
+  const Scene repeated = make_scene(c.scene);
+  c.scene.repeat_texture = false;
+  const Scene plain = make_scene(c.scene);
+  ASSERT_EQ(repeated.repeated_patches.size(), 1u);
+  const RepeatedPatch& p = repeated.repeated_patches[0];
+  EXPECT_GT((p.center_a - p.center_b).norm(), 2.0);  // on two different walls
+  const Renderer ra(repeated, c.camera), rp(plain, c.camera);
+  const int same = orb_matches(view_of(ra, repeated, p.face_a, p.center_a).bgr, view_of(ra, repeated, p.face_b, p.center_b).bgr);
+  const int different = orb_matches(view_of(rp, plain, p.face_a, p.center_a).bgr, view_of(rp, plain, p.face_b, p.center_b).bgr);
+  std::printf("ORB matches between the two patch views: %d with --repeat-texture, %d without\n", same, different);
+  EXPECT_GT(same, 150);
+  EXPECT_LT(different, 40);
+}

@@ -56,7 +56,12 @@ int run(int argc, char** argv) {
   auto given = [&](const char* name) { return !args.get(name).empty(); };
   if (given("robots")) c.trajectory.robots = args.get_int("robots");
   if (given("frames")) c.trajectory.frames = args.get_int("frames");
-  if (given("seed")) c.scene.seed = static_cast<std::uint64_t>(std::stoull(args.get("seed")));
+  if (given("seed")) {
+    const std::string text = args.get("seed");
+    if (text.find_first_not_of("0123456789") != std::string::npos || text.size() > 19)
+      throw ConfigError("cslam-synth: --seed expects a non-negative integer, got '" + text + "'");
+    c.scene.seed = static_cast<std::uint64_t>(std::stoull(text));
+  }
   if (given("width") || given("height"))
     c.camera = synthetic_camera(given("width") ? args.get_int("width") : c.camera.width, given("height") ? args.get_int("height") : c.camera.height);
   if (given("room")) parse_room(args.get("room"), c.scene);
