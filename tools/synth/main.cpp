@@ -44,7 +44,7 @@ int run(int argc, char** argv) {
       .option("ply-spacing", "spacing of the scene.ply surface samples, metres", "0.01")
       .option("log-level", "trace, debug, info, warn, error, off", "info")
       .flag("noise", "realistic degradations: depth noise ~ z^2, no depth at grazing angles, image noise, motion blur")
-      .flag("loop", "robot 1 drives a closed loop back to its start (needs >= ~300 frames)")
+      .flag("loop", "robot 1 drives a closed loop back to its start (needs >= ~270 frames)")
       .flag("no-loop", "no loop (robot 1 follows an arc like the others)")
       .flag("single", "single-robot mode (one robot, with a loop unless --no-loop)")
       .flag("whole", "one long sequence OUT/whole/ visiting every robot's path in turn (for cslam-eval split)")
@@ -99,7 +99,8 @@ int main(int argc, char** argv) {
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "cslam-synth: error: %s\n", e.what());
+    const std::string what = e.what();
+    std::fprintf(stderr, "%serror: %s\n", what.rfind("cslam-synth", 0) == 0 ? "" : "cslam-synth: ", what.c_str());
     return 1;
   }
 }
