@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/SVD>
-
 #include "core/error.h"
 #include "io/tum_dataset.h"
 
@@ -15,41 +13,6 @@ Alignment parse_alignment(const std::string& text) {
   if (text == "se3") return Alignment::kSE3;
   if (text == "sim3") return Alignment::kSim3;
   throw ConfigError("unknown alignment '" + text + "' (use se3, sim3 or none)");
-}
-
-UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst, bool with_scale) {
-  UmeyamaResult r;
-  const size_t n = src.size();
-  if (n < 3 || dst.size() != n) return r;
-  Eigen::Vector3d mu_s = Eigen::Vector3d::Zero(), mu_d = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < n; ++i) {
-    mu_s += src[i];
-    mu_d += dst[i];
-  }
-  mu_s /= double(n);
-  mu_d /= double(n);
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  double var_s = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d a = src[i] - mu_s, b = dst[i] - mu_d;
-    cov += b * a.transpose();
-    var_s += a.squaredNorm();
-  }
-  cov /= double(n);
-  var_s /= double(n);
-  if (var_s < 1e-12) return r;
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
-  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) S(2, 2) = -1;
-  const Eigen::Matrix3d R = svd.matrixU() * S * svd.matrixV().transpose();
-  const double s = with_scale ? (svd.singularValues().asDiagonal() * S).trace() / var_s : 1.0;
-  const Eigen::Vector3d t = mu_d - s * R * mu_s;
-  r.ok = std::isfinite(s) && s > 0;
-  r.T_dst_src = Sim3(Eigen::Quaterniond(R), t, s);
-  double sq = 0;
-  for (size_t i = 0; i < n; ++i) sq += (r.T_dst_src * src[i] - dst[i]).squaredNorm();
-  r.rmse = std::sqrt(sq / double(n));
-  return r;
 }
 
 std::vector<std::pair<int, int>> associate_trajectories(const Trajectory& gt, const Trajectory& est, double max_dt) {

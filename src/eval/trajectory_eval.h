@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "eval/stats.h"
+#include "geometry/alignment.h"  // umeyama(), UmeyamaResult (moved to geometry, still exported here)
 #include "geometry/se3.h"
 #include "io/trajectory_io.h"
 
@@ -12,15 +13,6 @@ namespace cslam {
 
 enum class Alignment { kNone, kSE3, kSim3 };
 Alignment parse_alignment(const std::string& text);  // "none" | "se3" | "sim3"; throws ConfigError
-
-// Least-squares similarity (Umeyama 1991) mapping src onto dst: dst ~ s R src + t.
-// With with_scale = false, s = 1. Needs at least 3 non-degenerate points; returns false otherwise.
-struct UmeyamaResult {
-  bool ok = false;
-  Sim3 T_dst_src;
-  double rmse = 0;
-};
-UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst, bool with_scale);
 
 // Index pairs (gt, est) associated by nearest timestamp within max_dt, each pose used once.
 std::vector<std::pair<int, int>> associate_trajectories(const Trajectory& gt, const Trajectory& est, double max_dt);

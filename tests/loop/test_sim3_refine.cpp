@@ -1,0 +1,126 @@
+// refine_sim3 and the cost functors of the loop module (checked against numeric differentiation).
+#include <gtest/gtest.h>
+
+#include <ceres/ceres.h>
+
+#include "core/error.h"
+#include "loop/sim3_costs.h"
+#include "loop/sim3_refine.h"
+#include "loop_fixtures.h"
+
+using namespace cslam;
+
+namespace {
+
+template <typename Functor, int kRes, int... kBlocks>
+void compare_jacobians(const Functor& f, std::vector<double*> params) {
+  ceres::AutoDiffCostFunction<Functor, kRes, kBlocks...> autodiff(new Functor(f));
+  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, kRes, kBlocks...> numeric(new Functor(f));
+  const std::vector<int> sizes = {kBlocks...};
+  std::vector<std::vector<double>> ja(sizes.size()), jn(sizes.size());
+  std::vector<double*> pa, pn;
+  for (size_t b = 0; b < sizes.size(); ++b) {
+    ja[b].assign(kRes * sizes[b], 0);
+    jn[b].assign(kRes * sizes[b], 0);
+    pa.push_back(ja[b].data());
+    pn.push_back(jn[b].data());
+  }
+  double ra[kRes], rn[kRes];
+  ASSERT_TRUE(autodiff.Evaluate(params.data(), ra, pa.data()));
+  ASSERT_TRUE(numeric.Evaluate(params.data(), rn, pn.data()));
+  double max_abs = 0;
+  for (int i = 0; i < kRes; ++i) EXPECT_NEAR(ra[i], rn[i], 1e-9);
+  for (size_t b = 0; b < sizes.size(); ++b)
+    for (size_t i = 0; i < ja[b].size(); ++i) {
+      EXPECT_NEAR(ja[b][i], jn[b][i], 1e-5 * std::max(1.0, std::abs(jn[b][i]))) << "block " << b << " entry " << i;
+      max_abs = std::max(max_abs, std::abs(ja[b][i]));
+    }
+  EXPECT_GT(max_abs, 1e-3);  // the Jacobian is not trivially zero
+}
+
+double sim3_error(const Sim3& a, const Sim3& b) {
+  return a.rotation().angularDistance(b.rotation()) + (a.translation() - b.translation()).norm() +
+         std::abs(std::log(a.scale() / b.scale()));
+}
+
+}  // namespace
+
+TEST(LoopCosts, Sim3ReprojectionJacobiansMatchNumeric) {
+  const auto k = test::loop_intrinsics();
+  auto S = to_sim3_param(test::rotation_about(0.4, {0.3, 1, -0.2}, {0.2, -0.1, 0.3}, 1.3));
+  const Sim3ReprojectionCost1 c1(k, {0.3, -0.2, 2.2}, {350.0, 240.0}, 1.0 / 1.2);
+  compare_jacobians<Sim3ReprojectionCost1, 2, 6, 1>(c1, {S.pose.data(), &S.log_scale});
+  const Sim3ReprojectionCost2 c2(k, {-0.4, 0.1, 2.8}, {300.0, 260.0}, 1.0);
+  compare_jacobians<Sim3ReprojectionCost2, 2, 6, 1>(c2, {S.pose.data(), &S.log_scale});
+}
+
+TEST(LoopCosts, PoseGraphEdgeJacobiansMatchNumeric) {
+  auto a = to_sim3_param(test::rotation_about(0.7, {0.1, 0.2, 1}, {1.0, 2.0, -0.5}, 1.1));
+  auto b = to_sim3_param(test::rotation_about(1.1, {0.3, -0.2, 1}, {1.5, 2.4, -0.3}, 0.9));
+  const Sim3 meas = test::rotation_about(0.35, {0, 0.1, 1}, {0.4, 0.3, 0.1}, 0.85);
+  compare_jacobians<PoseGraphEdgeCost<7>, 7, 6, 1, 6, 1>(PoseGraphEdgeCost<7>(meas, 2.0),
+                                                         {a.pose.data(), &a.log_scale, b.pose.data(), &b.log_scale});
+  compare_jacobians<PoseGraphEdgeCost<6>, 6, 6, 1, 6, 1>(PoseGraphEdgeCost<6>(meas, 1.0),
+                                                         {a.pose.data(), &a.log_scale, b.pose.data(), &b.log_scale});
+}
+
+TEST(LoopCosts, PoseGraphEdgeIsZeroForExactMeasurement) {
+  const Sim3 a = test::rotation_about(0.7, {0.1, 0.2, 1}, {1.0, 2.0, -0.5}, 1.1);
+  const Sim3 b = test::rotation_about(-2.9, {0.3, -0.2, 1}, {1.5, 2.4, -0.3}, 0.9);
+  PoseGraphEdge e{0, 1, a.inverse() * b, 3.0};
+  EXPECT_NEAR(pose_graph_edge_error(a, b, e, false), 0, 1e-20);
+  e.S_from_to = e.S_from_to * test::rotation_about(0.01, {0, 0, 1}, {0, 0, 0});
+  EXPECT_NEAR(pose_graph_edge_error(a, b, e, false), 3.0 * 0.01 * 0.01, 1e-8);  // weight * angle^2
+}
+
+TEST(LoopCosts, Sim3ParamRoundTrip) {
+  const Sim3 S = test::rotation_about(2.8, {0.3, -0.4, 0.8}, {1, 2, 3}, 0.6);
+  const auto p = to_sim3_param(S);
+  EXPECT_LT(sim3_error(from_sim3_param(p.pose.data(), p.log_scale), S), 1e-12);
+}
+
+TEST(Sim3Refine, ReducesErrorAndFindsOutliers) {
+  const auto k = test::loop_intrinsics();
+  for (bool fix_scale : {true, false}) {
+    const Sim3 truth = test::rotation_about(0.3, {0.2, 1.0, 0.1}, {0.3, -0.1, 0.2}, fix_scale ? 1.0 : 1.25);
+    const auto set = test::make_matches(truth, 200, 0.3, 21);
+    // Start from a perturbed estimate (about 1.5 deg, 5 cm, 3% scale off).
+    const Sim3 start = truth * test::rotation_about(0.025, {1, -1, 0.5}, {0.04, -0.03, 0.02}, fix_scale ? 1.0 : 1.03);
+    const auto r = refine_sim3(start, set.matches, k, k, fix_scale);
+    EXPECT_LT(sim3_error(r.S_12, truth), 0.2 * sim3_error(start, truth)) << "fix_scale " << fix_scale;
+    EXPECT_LT(test::rotation_error_deg(r.S_12, truth), 0.3);
+    EXPECT_LT((r.S_12.translation() - truth.translation()).norm(), 0.02);
+    if (fix_scale) EXPECT_DOUBLE_EQ(r.S_12.scale(), 1.0);
+    else EXPECT_NEAR(r.S_12.scale(), 1.25, 0.015);
+    EXPECT_LT(r.final_cost, r.initial_cost);  // robust cost of all matches (30% wrong ones dominate it)
+    int wrong = 0, good = 0, n_true = 0;
+    for (size_t i = 0; i < r.inlier.size(); ++i) {
+      n_true += set.is_inlier[i];
+      if (r.inlier[i]) (set.is_inlier[i] ? good : wrong)++;
+    }
+    EXPECT_EQ(good + wrong, r.num_inliers);
+    EXPECT_GT(good, 0.9 * n_true);
+    EXPECT_LE(wrong, 3);
+  }
+}
+
+TEST(Sim3Refine, ExactDataConvergesToTruth) {
+  const auto k = test::loop_intrinsics();
+  const Sim3 truth = test::rotation_about(-0.2, {1, 0.2, 0}, {0.1, 0.2, -0.1}, 0.8);
+  const auto set = test::make_matches(truth, 60, 0.0, 5, 0.0, 0.0);
+  const Sim3 start = truth * test::rotation_about(0.05, {0, 1, 0}, {0.05, 0, 0}, 1.05);
+  const auto r = refine_sim3(start, set.matches, k, k, false);
+  EXPECT_LT(sim3_error(r.S_12, truth), 1e-6);
+  EXPECT_TRUE(r.converged);
+  EXPECT_EQ(r.num_inliers, 60);
+  EXPECT_LT(r.final_cost, 1e-10);
+}
+
+TEST(Sim3Refine, TooFewMatchesAndBadChi2) {
+  const auto k = test::loop_intrinsics();
+  const Sim3 S = test::rotation_about(0.1, {0, 1, 0}, {0, 0, 0});
+  const auto r = refine_sim3(S, {}, k, k, true);
+  EXPECT_EQ(r.num_inliers, 0);
+  EXPECT_LT(sim3_error(r.S_12, S), 1e-15);
+  EXPECT_THROW(refine_sim3(S, {}, k, k, true, 0.0), ConfigError);
+}
