@@ -26,6 +26,8 @@ struct FaceSetup {
   float D = 0;
   float size_u = 0, size_v = 0;
   bool disc = false;
+  int texture = 0;
+  float tex_u0 = 0, tex_v0 = 0;  // texture offsets in texels
   // Projected polygon (face clipped at the near plane), for the per-row pixel span.
   int nvert = 0;
   float pu[8] = {}, pv[8] = {};
@@ -108,7 +110,26 @@ std::vector<FaceSetup> setup_faces(const Scene& scene, const PinholeCamera& cam,
     s.size_u = static_cast<float>(f.size_u);
     s.size_v = static_cast<float>(f.size_v);
     s.disc = f.disc;
+    s.texture = f.texture;
+    s.tex_u0 = static_cast<float>(f.tex_u0 / scene.config.texel_size);
+    s.tex_v0 = static_cast<float>(f.tex_v0 / scene.config.texel_size);
     out.push_back(s);
+  }
+  return out;
+}
+
+// One mip level of a texture, with its scale relative to level 0 (odd sizes round down).
+struct TexLevel {
+  const cv::Mat* image = nullptr;
+  float sx = 1, sy = 1;
+};
+
+std::vector<std::vector<TexLevel>> texture_levels(const Scene& scene) {
+  std::vector<std::vector<TexLevel>> out;
+  for (const auto& t : scene.textures) {
+    out.emplace_back();
+    for (const auto& m : t.mip)
+      out.back().push_back({&m, static_cast<float>(m.cols) / t.mip[0].cols, static_cast<float>(m.rows) / t.mip[0].rows});
   }
   return out;
 }
@@ -124,6 +145,7 @@ inline float approx_gauss(std::uint64_t h) {
 struct Renderer::Pass {
   const Renderer& r;
   std::vector<FaceSetup> faces;
+  std::vector<std::vector<TexLevel>> textures;
   std::uint64_t seed;
   bool depth_noise, image_noise;
   cv::Mat& bgr;
@@ -169,7 +191,7 @@ struct Renderer::Pass {
     const float texel = static_cast<float>(scene.config.texel_size);
     const float ifx = static_cast<float>(1.0 / cam.fx), ify = static_cast<float>(1.0 / cam.fy);
     const float cx = static_cast<float>(cam.cx), cy = static_cast<float>(cam.cy);
-    const float fx = static_cast<float>(cam.fx);
+    const float inv_texel = 1.0f / texel, inv_fx_texel = static_cast<float>(1.0 / (cam.fx * scene.config.texel_size));
     const Degradation& deg = r.options_.degradation;
     const float cos_grazing = static_cast<float>(std::cos(deg.grazing_angle_deg * 3.14159265358979 / 180.0));
     const float min_d = static_cast<float>(r.options_.min_depth), max_d = static_cast<float>(r.options_.max_depth);
@@ -189,21 +211,19 @@ struct Renderer::Pass {
           continue;
         }
         const FaceSetup& f = faces[fi];
-        const Face& face = scene.faces[f.face];
-        const auto& mip = scene.textures[face.texture].mip;
+        const auto& levels = textures[f.texture];
         const float z = zbuf[idx];
         const float xn = (u - cx) * ifx;
         const float rr = xn * xn + yn * yn + 1.0f;
-        const float aden = -(f.den_u * u + f.den_v * v + f.den_c);  // |n . r| > 0
-        const float cosang = aden / std::sqrt(rr);
-        // Footprint of the pixel on the surface in texels (anisotropy capped at 4).
-        const float footprint = z * rr / (fx * std::max(aden, 0.25f * std::sqrt(rr))) / texel;
+        const float aden = -(f.den_u * u + f.den_v * v + f.den_c);  // |n . r| = cos(angle) |r| > 0
+        // Footprint of the pixel on the surface in texels, z |r|^2 / (fx |n . r|) (anisotropy capped).
+        const float footprint = z * rr * inv_fx_texel / std::max(aden, 0.25f);
         int level = footprint >= 2.0f ? std::ilogb(footprint) : 0;
-        level = std::min(level, static_cast<int>(mip.size()) - 1);
-        const cv::Mat& tex = mip[level];
-        const float scale_x = static_cast<float>(tex.cols) / mip[0].cols, scale_y = static_cast<float>(tex.rows) / mip[0].rows;
-        float tx = (sbuf[idx] + static_cast<float>(face.tex_u0)) / texel * scale_x - 0.5f;
-        float ty = (tbuf[idx] + static_cast<float>(face.tex_v0)) / texel * scale_y - 0.5f;
+        level = std::min(level, static_cast<int>(levels.size()) - 1);
+        const TexLevel& lv = levels[level];
+        const cv::Mat& tex = *lv.image;
+        float tx = (sbuf[idx] * inv_texel + f.tex_u0) * lv.sx - 0.5f;
+        float ty = (tbuf[idx] * inv_texel + f.tex_v0) * lv.sy - 0.5f;
         tx = std::clamp(tx, 0.0f, tex.cols - 1.001f);
         ty = std::clamp(ty, 0.0f, tex.rows - 1.001f);
         const int x0 = static_cast<int>(tx), y0 = static_cast<int>(ty);
@@ -223,7 +243,7 @@ struct Renderer::Pass {
         if (!dout) continue;
         float zd = z;
         if (depth_noise) {
-          if (cosang < cos_grazing) zd = 0;
+          if (aden < cos_grazing * std::sqrt(rr)) zd = 0;  // cos(angle) below the limit
           else zd += static_cast<float>(deg.depth_noise_coeff) * z * z * approx_gauss(h);
         }
         dout[u] = (zd >= min_d && zd <= max_d) ? static_cast<std::uint16_t>(std::min(65535.0f, std::round(zd * dfac))) : 0;
@@ -244,7 +264,8 @@ void Renderer::render_pass(const SE3& T_world_cam, std::uint64_t noise_seed, boo
                            cv::Mat& bgr, cv::Mat* depth) const {
   bgr.create(camera_.height, camera_.width, CV_8UC3);
   if (depth) depth->create(camera_.height, camera_.width, CV_16UC1);
-  Pass pass{*this, setup_faces(scene_, camera_, T_world_cam, options_.near_clip), noise_seed, depth_noise, image_noise, bgr, depth};
+  Pass pass{*this, setup_faces(scene_, camera_, T_world_cam, options_.near_clip), texture_levels(scene_), noise_seed, depth_noise,
+            image_noise, bgr, depth};
   const int threads = std::min(options_.threads, camera_.height);
   if (threads <= 1) {
     pass.run_rows(0, camera_.height);

@@ -1,9 +1,11 @@
 #pragma once
 // Helpers for the synthetic-generator tests: temporary folders and file comparison.
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
