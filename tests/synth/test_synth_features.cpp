@@ -95,3 +95,38 @@ TEST(SynthFeatures, RepeatedTexturePatchLooksAlikeAndPlacesAreOtherwiseDistinct)
   EXPECT_GT(same, 150);
   EXPECT_LT(different, 40);
 }
+
+TEST(SynthFeatures, DemoRobotsSeeEachOthersPlaces) {
+  // Map fusion needs views of the same places: robot 2's frames against robot 1's (the loop robot,
+  // looking the same way from the room centre) and against robot 3's (same path, shifted).
+  const SynthConfig c = synth_preset("demo");
+  const Scene scene = make_scene(c.scene);
+  const TrajectoryPlan plan = plan_trajectories(scene, c.trajectory);
+  const Renderer renderer(scene, c.camera);
+  auto closest_view = [](const Trajectory& t, const SE3& T) {
+    size_t best = 0;
+    double best_cost = 1e9;
+    for (size_t i = 0; i < t.size(); ++i) {
+      const double cost = (t[i].T_world_cam.inverse() * T).rotation_angle() + 0.3 * (t[i].T_world_cam.translation() - T.translation()).norm();
+      if (cost < best_cost) {
+        best_cost = cost;
+        best = i;
+      }
+    }
+    return best;
+  };
+  const Trajectory &r1 = plan.robots[0].trajectory, &r2 = plan.robots[1].trajectory, &r3 = plan.robots[2].trajectory;
+  int with_r1 = 0, with_r3 = 0;
+  const int samples = 6;
+  for (int k = 0; k < samples; ++k) {
+    const SE3& T2 = r2[30 + k * 45].T_world_cam;
+    const cv::Mat img2 = renderer.render(T2).bgr;
+    const int m1 = orb_matches(img2, renderer.render(r1[closest_view(r1, T2)].T_world_cam).bgr);
+    const int m3 = orb_matches(img2, renderer.render(r3[closest_view(r3, T2)].T_world_cam).bgr);
+    std::printf("robot 2 frame %d: %d ORB matches with robot 1, %d with robot 3\n", 30 + k * 45, m1, m3);
+    with_r1 += m1 >= 30;
+    with_r3 += m3 >= 30;
+  }
+  EXPECT_GE(with_r1, samples - 1);
+  EXPECT_GE(with_r3, 2);  // robot 3 retraces the last part of robot 2's path only
+}
