@@ -1,9 +1,12 @@
 #pragma once
 // Non-linear refinement of S_12 (from sim3_ransac) over reprojection residuals in both images
 // (S_12 * p2 into image 1, S_21 * p1 into image 2, each whitened by 1/sigma), with Ceres:
-//  stage 1: 10 iterations, Huber kernel (delta = sqrt(chi2)) over every match;
+//  stage 1: 10 iterations, Cauchy kernel (scale sqrt(chi2)) over every match: its influence
+//           fades for gross errors, so many wrong matches do not bias the estimate (with a Huber
+//           kernel, 50% wrong matches pull the solution several pixels off and lose inliers);
 //  outlier check: a match is dropped when either image's error^2/sigma2 exceeds chi2;
-//  stage 2: 10 more iterations, Huber, on the remaining matches (skipped if fewer than 3);
+//  stage 2: 10 more iterations, Huber kernel (delta = sqrt(chi2)), on the remaining matches
+//           (skipped if fewer than 3);
 //  final classification of every match.
 // fix_scale keeps the log-scale block constant (RGB-D / stereo); otherwise 7 DoF.
 #include <vector>
@@ -16,9 +19,9 @@ struct Sim3RefineResult {
   Sim3 S_12;
   std::vector<char> inlier;  // per match, after the final classification
   int num_inliers = 0;
-  // Robust (Huber) cost of ALL matches at the initial and the refined S_12, so the two compare.
+  // Huber cost (delta = sqrt(chi2)) of the final inliers at the initial and at the refined S_12.
   double initial_cost = 0, final_cost = 0;
-  bool converged = false;  // the last solver stage reached Ceres CONVERGENCE
+  bool converged = false;  // the last solver stage reached Ceres CONVERGENCE (not just max iterations)
 };
 
 // Throws ConfigError if chi2 <= 0. Fewer than 3 matches: returns the initial S_12, no inliers.

@@ -83,7 +83,7 @@ TEST(Sim3Refine, ReducesErrorAndFindsOutliers) {
   const auto k = test::loop_intrinsics();
   for (bool fix_scale : {true, false}) {
     const Sim3 truth = test::rotation_about(0.3, {0.2, 1.0, 0.1}, {0.3, -0.1, 0.2}, fix_scale ? 1.0 : 1.25);
-    const auto set = test::make_matches(truth, 200, 0.3, 21);
+    const auto set = test::make_matches(truth, 200, 0.5, 21);  // half of them wrong
     // Start from a perturbed estimate (about 1.5 deg, 5 cm, 3% scale off).
     const Sim3 start = truth * test::rotation_about(0.025, {1, -1, 0.5}, {0.04, -0.03, 0.02}, fix_scale ? 1.0 : 1.03);
     const auto r = refine_sim3(start, set.matches, k, k, fix_scale);
@@ -92,7 +92,7 @@ TEST(Sim3Refine, ReducesErrorAndFindsOutliers) {
     EXPECT_LT((r.S_12.translation() - truth.translation()).norm(), 0.02);
     if (fix_scale) EXPECT_DOUBLE_EQ(r.S_12.scale(), 1.0);
     else EXPECT_NEAR(r.S_12.scale(), 1.25, 0.015);
-    EXPECT_LT(r.final_cost, r.initial_cost);  // robust cost of all matches (30% wrong ones dominate it)
+    EXPECT_LT(r.final_cost, 0.2 * r.initial_cost);  // Huber cost of the final inliers
     int wrong = 0, good = 0, n_true = 0;
     for (size_t i = 0; i < r.inlier.size(); ++i) {
       n_true += set.is_inlier[i];
@@ -101,6 +101,23 @@ TEST(Sim3Refine, ReducesErrorAndFindsOutliers) {
     EXPECT_EQ(good + wrong, r.num_inliers);
     EXPECT_GT(good, 0.9 * n_true);
     EXPECT_LE(wrong, 3);
+  }
+}
+
+TEST(Sim3Refine, AfterRansacKeepsInliersAndDoesNotDegrade) {
+  const auto k = test::loop_intrinsics();
+  for (bool fix_scale : {true, false}) {
+    const Sim3 truth = test::rotation_about(0.3, {0.2, 1.0, 0.1}, {0.3, -0.1, 0.2}, fix_scale ? 1.0 : 1.3);
+    const auto set = test::make_matches(truth, 300, 0.5, 31);
+    Sim3RansacConfig cfg;
+    cfg.fix_scale = fix_scale;
+    const auto ransac = sim3_ransac(set.matches, k, k, cfg);
+    ASSERT_TRUE(ransac.success);
+    const auto r = refine_sim3(ransac.S_12, set.matches, k, k, fix_scale);
+    EXPECT_GE(r.num_inliers, int(0.95 * ransac.num_inliers)) << "fix_scale " << fix_scale;
+    EXPECT_LT(test::rotation_error_deg(r.S_12, truth), 0.3);
+    EXPECT_LT((r.S_12.translation() - truth.translation()).norm(), 0.02);
+    EXPECT_LE(r.final_cost, r.initial_cost);
   }
 }
 
