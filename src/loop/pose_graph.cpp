@@ -14,6 +14,7 @@ namespace {
 
 void validate(const std::vector<PoseGraphNode>& nodes, const std::vector<PoseGraphEdge>& edges, const PoseGraphConfig& cfg) {
   if (cfg.max_iterations < 1) throw ConfigError("optimize_pose_graph: max_iterations must be >= 1");
+  if (cfg.threads < 1) throw ConfigError("optimize_pose_graph: threads must be >= 1");
   const int n = int(nodes.size());
   for (int i = 0; i < n; ++i)
     if (!nodes[i].S_world_node.is_finite() || !(nodes[i].S_world_node.scale() > 0))

@@ -40,7 +40,7 @@ struct PoseGraphResult {
 };
 
 // Throws ConfigError on an edge with an out-of-range node, from == to, a non-positive or
-// non-finite weight, a non-finite pose, or max_iterations < 1. If no node with an edge is fixed,
+// non-finite weight, a non-finite pose, max_iterations < 1 or threads < 1. If no node with an edge is fixed,
 // the first node with an edge is held fixed (the gauge). An empty edge list returns the nodes
 // unchanged. Nodes without edges keep their pose.
 PoseGraphResult optimize_pose_graph(const std::vector<PoseGraphNode>& nodes, const std::vector<PoseGraphEdge>& edges,

@@ -107,4 +107,7 @@ TEST(PoseGraph, EmptyAndInvalidInput) {
   PoseGraphConfig cfg;
   cfg.max_iterations = 0;
   EXPECT_THROW(optimize_pose_graph(g.nodes, g.edges, cfg), ConfigError);
+  cfg = {};
+  cfg.threads = 0;
+  EXPECT_THROW(optimize_pose_graph(g.nodes, g.edges, cfg), ConfigError);
 }

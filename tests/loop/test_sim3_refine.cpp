@@ -64,6 +64,16 @@ TEST(LoopCosts, PoseGraphEdgeJacobiansMatchNumeric) {
                                                          {a.pose.data(), &a.log_scale, b.pose.data(), &b.log_scale});
 }
 
+TEST(LoopCosts, PoseGraphEdgeJacobiansAtExactMeasurement) {
+  // At the optimum E = identity, where angle-axis uses its small-angle branch.
+  const Sim3 A = test::rotation_about(0.7, {0.1, 0.2, 1}, {1.0, 2.0, -0.5}, 1.1);
+  const Sim3 B = test::rotation_about(-1.2, {0.3, -0.2, 1}, {1.5, 2.4, -0.3}, 0.9);
+  auto a = to_sim3_param(A), b = to_sim3_param(B);
+  const Sim3 meas = A.inverse() * B;
+  compare_jacobians<PoseGraphEdgeCost<7>, 7, 6, 1, 6, 1>(PoseGraphEdgeCost<7>(meas, 1.0),
+                                                         {a.pose.data(), &a.log_scale, b.pose.data(), &b.log_scale});
+}
+
 TEST(LoopCosts, PoseGraphEdgeIsZeroForExactMeasurement) {
   const Sim3 a = test::rotation_about(0.7, {0.1, 0.2, 1}, {1.0, 2.0, -0.5}, 1.1);
   const Sim3 b = test::rotation_about(-2.9, {0.3, -0.2, 1}, {1.5, 2.4, -0.3}, 0.9);
