@@ -33,7 +33,7 @@ int run(int argc, char** argv) {
       .option("rate", "frames per second, or 'max' to send as fast as credits allow", "30")
       .option("camera", "tum1 | tum2 | tum3 | synthetic | camera file (default: DIR/camera.yaml if present, else tum1)", "")
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
-      .option("jpeg-quality", "JPEG quality 1..100", "90")
+      .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")
       .flag("preload", "load and encode every frame before sending (measures the network path only)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")

@@ -1,6 +1,9 @@
 #include "proto/adapter.h"
 
 #include <cmath>
+#include <exception>
+
+#include <opencv2/core/utility.hpp>
 
 namespace cslam::wire {
 
@@ -148,15 +151,32 @@ cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& ca
   out.timestamp = frame.timestamp();
   const std::string& rgb = frame.rgb().data();
   const std::string& depth = frame.depth().data();
-  try {
-    out.bgr = decode_rgb(rgb_codec, reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), camera.width,
-                         camera.height, source + " rgb");
-    out.depth = decode_depth(depth_codec, reinterpret_cast<const std::uint8_t*>(depth.data()), depth.size(),
-                             camera.width, camera.height, source + " depth");
-  } catch (const WireError&) {
-    throw;
-  } catch (const InputError& e) {
-    throw WireError(ERROR_CORRUPT_IMAGE, e.source(), e.what());
+  // RGB and depth decode in parallel (OpenCV's thread pool): about half the latency per frame.
+  std::exception_ptr errors[2];
+  cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
+    for (int task = range.start; task < range.end; ++task) {
+      try {
+        if (task == 0) {
+          out.bgr = decode_rgb(rgb_codec, reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), camera.width,
+                               camera.height, source + " rgb");
+        } else {
+          out.depth = decode_depth(depth_codec, reinterpret_cast<const std::uint8_t*>(depth.data()), depth.size(),
+                                   camera.width, camera.height, source + " depth");
+        }
+      } catch (...) {
+        errors[task] = std::current_exception();
+      }
+    }
+  });
+  for (const auto& error : errors) {
+    if (!error) continue;
+    try {
+      std::rethrow_exception(error);
+    } catch (const WireError&) {
+      throw;
+    } catch (const InputError& e) {
+      throw WireError(ERROR_CORRUPT_IMAGE, e.source(), e.what());
+    }
   }
   return out;
 }

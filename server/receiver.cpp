@@ -211,6 +211,7 @@ void Receiver::on_frame(const std::string& routing_id, const wire::RgbdFrame& fr
   session->last_seq = seq;
   ++net.frames_accepted;
   net.decode_dispatch_ms.push_back(timer.ms());
+  stats_.note_frame(Clock::now());
 }
 
 void Receiver::on_goodbye(const std::string& routing_id, const wire::Goodbye& goodbye) {

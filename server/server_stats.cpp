@@ -38,6 +38,11 @@ std::string ServerStats::to_json(const SystemSnapshot& snapshot, double wall_s) 
   nlohmann::json j;
   j["wall_s"] = wall_s;
   j["bytes_received"] = total_bytes_;
+  const double span_s = std::chrono::duration<double>(last_frame_ - first_frame_).count();
+  j["frames_accepted"] = frames_total_;
+  j["first_to_last_frame_s"] = span_s;
+  j["throughput_fps"] = frames_total_ > 1 && span_s > 0 ? double(frames_total_ - 1) / span_s : 0.0;
+  j["throughput_mb_s"] = span_s > 0 ? double(total_bytes_) / span_s / 1e6 : 0.0;
   j["unattributed"] = unattributed_;
   j["transport_events"] = transport_;
   std::vector<double> all_ms;

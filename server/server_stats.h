@@ -2,6 +2,7 @@
 // Network-side statistics of cslam-server: per-client frames accepted/dropped (by reason), bytes,
 // decode+dispatch times; packets that could not be attributed to a client. Owned by the receiving
 // thread; logged periodically and written to network_stats.json at the end.
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -28,6 +29,11 @@ class ServerStats {
   // A connection closed by a peer or dropped by ZeroMQ (e.g. a message over ZMQ_MAXMSGSIZE).
   void count_transport_event(const std::string& event) { ++transport_[event]; }
   void add_bytes(std::uint64_t bytes) { total_bytes_ += bytes; }
+  // An accepted frame, for the aggregate throughput (first to last accepted frame, all clients).
+  void note_frame(std::chrono::steady_clock::time_point now) {
+    if (frames_total_++ == 0) first_frame_ = now;
+    last_frame_ = now;
+  }
 
   // One log line per client since the previous call: frames received/processed/dropped, fps, MB/s.
   std::vector<std::string> progress_lines(const SystemSnapshot& snapshot, double elapsed_s);
@@ -42,7 +48,8 @@ class ServerStats {
  private:
   std::map<ClientId, ClientNetStats> clients_;
   std::map<std::string, std::uint64_t> unattributed_, transport_;
-  std::uint64_t total_bytes_ = 0;
+  std::uint64_t total_bytes_ = 0, frames_total_ = 0;
+  std::chrono::steady_clock::time_point first_frame_, last_frame_;
   // Counters at the previous progress line, for rates.
   std::map<ClientId, std::pair<std::uint64_t, std::uint64_t>> last_processed_bytes_;
 };

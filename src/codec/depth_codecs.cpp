@@ -126,9 +126,10 @@ inline std::int32_t predict(const std::uint16_t* row, const std::uint8_t* row_va
     const std::int32_t a = row[x - 1], b = above[x];
     if (!vc) return (a + b) / 2;
     const std::int32_t c = above[x - 1];
-    if (c >= std::max(a, b)) return std::min(a, b);
-    if (c <= std::min(a, b)) return std::max(a, b);
-    return a + b - c;
+    // Branch-free form (selects compile to conditional moves; depth noise defeats prediction).
+    const std::int32_t hi = std::max(a, b), lo = std::min(a, b);
+    const std::int32_t p = c >= hi ? lo : a + b - c;
+    return c <= lo ? hi : p;
   }
   if (va) return row[x - 1];
   if (vb) return above[x];

@@ -169,7 +169,8 @@ cv::Mat decode_rgb(RgbCodec codec, const std::uint8_t* data, std::size_t size, i
     }
     case RgbCodec::kJpeg:
       check_jpeg_header(data, size, width, height, source);
-      return imdecode_checked(data, size, cv::IMREAD_COLOR, CV_8UC3, width, height, source);
+      return imdecode_checked(data, size, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION, CV_8UC3, width, height,
+                              source);
     case RgbCodec::kPng:
       check_png_header(data, size, width, height, false, source);
       return imdecode_checked(data, size, cv::IMREAD_COLOR, CV_8UC3, width, height, source);
