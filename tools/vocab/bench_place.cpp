@@ -6,6 +6,7 @@
 //     keyframe of robot A at the crossing ranks first for robot B's crossing frame.
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 
 #include "bow/keyframe_database.h"
@@ -16,6 +17,7 @@
 #include "features/orb_extractor.h"
 #include "features/procedural_image.h"
 #include "geometry/camera.h"
+#include "geometry/camera_io.h"
 #include "image_sources.h"
 #include "io/tum_dataset.h"
 
@@ -48,51 +50,65 @@ void print_outcome(const char* name, const Outcome& o) {
               o.with_true_match, o.answered ? double(o.correct_top1) / o.answered : 0.0, o.correct_top1, o.answered);
 }
 
-int real_sequence(const CliArgs& args, const Vocabulary& voc, const OrbExtractor& extractor) {
-  const TumDataset ds = open_tum_dataset(args.get("tum"));
-  if (!ds.groundtruth) throw InputError(args.get("tum"), "no groundtruth.txt");
+struct PosedImage {
+  std::string path;
+  SE3 T_world_cam;
+};
+
+// Frames of a TUM dataset with a ground-truth pose, every `every`-th of [first, last).
+std::vector<PosedImage> posed_frames(const TumDataset& ds, const Trajectory& gt, int first, int last, int every) {
+  std::vector<PosedImage> out;
+  for (int i = first; i < last; i += every)
+    if (const SE3* T = pose_at(gt, ds.rgb[i].timestamp)) out.push_back({ds.rgb[i].path, *T});
+  return out;
+}
+
+PinholeCamera camera_of(const std::string& root) {
+  const std::string yaml = root + "/camera.yaml";
+  return std::ifstream(yaml).good() ? load_camera_file(yaml) : camera_tum_fr1();
+}
+
+Trajectory groundtruth_of(const TumDataset& ds, const std::string& root) {
+  if (!ds.groundtruth) throw InputError(root, "no groundtruth.txt");
   Trajectory gt = *ds.groundtruth;
   sort_by_time(gt);
-  const PinholeCamera camera = camera_tum_fr1();
-  const int n = int(ds.rgb.size()), half = n / 2;
-  const int db_every = args.get_int("db-every"), q_every = args.get_int("query-every");
+  return gt;
+}
+
+// Database from `keyframes` (client 1), queries from `queries`; prints recall@1 and precision.
+void evaluate(const std::vector<PosedImage>& keyframes, const PinholeCamera& kf_camera, const std::vector<PosedImage>& queries,
+              const PinholeCamera& q_camera, const CliArgs& args, const Vocabulary& voc, const OrbExtractor& extractor) {
   const double max_angle = args.get_double("max-angle"), max_dist = args.get_double("max-dist");
   const int levels_up = args.get_int("levels-up");
-
-  auto bow_of = [&](int i) {
-    const OrbFeatures f = extractor.extract(load_gray({ds.rgb[i].path, 0, 0}), &camera);
+  auto bow_of = [&](const std::string& path, const PinholeCamera& cam) {
+    const OrbFeatures f = extractor.extract(load_gray({path, 0, 0}), &cam);
     BowVector bow;
     FeatureVector fv;
     voc.transform(f.descriptors, bow, fv, levels_up);
     return bow;
   };
-
   KeyFrameDatabase db;
-  std::vector<SE3> kf_pose;
-  for (int i = 0; i < half; i += db_every) {
-    const SE3* T = pose_at(gt, ds.rgb[i].timestamp);
-    if (!T) continue;
-    db.add(KeyFrameId{1, std::uint32_t(kf_pose.size())}, bow_of(i));
-    kf_pose.push_back(*T);
-  }
+  for (std::size_t k = 0; k < keyframes.size(); ++k) db.add(KeyFrameId{1, std::uint32_t(k)}, bow_of(keyframes[k].path, kf_camera));
   auto neighbours = [&](KeyFrameId id) {  // stand-in covisibility: adjacent keyframes
     std::vector<KeyFrameId> out;
     if (id.seq > 0) out.push_back({1, id.seq - 1});
-    if (id.seq + 1 < kf_pose.size()) out.push_back({1, id.seq + 1});
+    if (id.seq + 1 < keyframes.size()) out.push_back({1, id.seq + 1});
     return out;
   };
   auto is_true = [&](const SE3& Tq, std::uint32_t kf) {
-    return view_angle_deg(Tq, kf_pose[kf]) < max_angle && (Tq.translation() - kf_pose[kf].translation()).norm() < max_dist;
+    const SE3& Tk = keyframes[kf].T_world_cam;
+    return view_angle_deg(Tq, Tk) < max_angle && (Tq.translation() - Tk.translation()).norm() < max_dist;
   };
-
   Outcome plain, grouped;
-  std::vector<double> top_scores_true, top_scores_false;
-  for (int i = half; i < n; i += q_every) {
-    const SE3* T = pose_at(gt, ds.rgb[i].timestamp);
-    if (!T) continue;
+  struct Top {
+    double score;
+    bool ok, has_true;
+  };
+  std::vector<Top> tops;
+  for (const PosedImage& q : queries) {
     bool has_true = false;
-    for (std::uint32_t k = 0; k < kf_pose.size(); ++k) has_true |= is_true(*T, k);
-    const BowVector bow = bow_of(i);
+    for (std::uint32_t k = 0; k < keyframes.size(); ++k) has_true |= is_true(q.T_world_cam, k);
+    const BowVector bow = bow_of(q.path, q_camera);
     const auto ranked = db.rank(bow, 1);
     const auto groups = db.query(bow, {}, nullptr, neighbours);
     for (auto [o, top] : {std::pair<Outcome*, const std::vector<KeyFrameDatabase::Candidate>*>{&plain, &ranked},
@@ -101,16 +117,57 @@ int real_sequence(const CliArgs& args, const Vocabulary& voc, const OrbExtractor
       o->with_true_match += has_true;
       if (top->empty()) continue;
       ++o->answered;
-      const bool ok = is_true(*T, top->front().id.seq);
+      const bool ok = is_true(q.T_world_cam, top->front().id.seq);
       o->correct_top1 += ok;
       o->correct_top1_with_match += ok && has_true;
+      if (o == &plain) tops.push_back({top->front().score, ok, has_true});
     }
   }
-  std::printf("real sequence %s: %zu keyframes (every %d-th frame of the first %d), queries every %d-th frame of the "
-              "second half; true match = angle < %.0f deg and distance < %.2f m\n",
-              args.get("tum").c_str(), kf_pose.size(), db_every, half, q_every, max_angle, max_dist);
   print_outcome("top score (rank)", plain);
   print_outcome("covisibility groups (query)", grouped);
+  // Accepting the top candidate only above a score threshold trades recall for precision.
+  std::printf("  threshold on the top score:");
+  for (double th : {0.0, 0.02, 0.03, 0.04, 0.05, 0.06, 0.08, 0.10}) {
+    int accepted = 0, correct = 0, with_true = 0;
+    for (const Top& t : tops) {
+      with_true += t.has_true;
+      if (t.score < th) continue;
+      ++accepted;
+      correct += t.ok;
+    }
+    std::printf("  >=%.2f: P %.2f R %.2f", th, accepted ? double(correct) / accepted : 1.0,
+                with_true ? double(correct) / with_true : 0.0);
+  }
+  std::printf("\n");
+}
+
+int real_sequence(const CliArgs& args, const Vocabulary& voc, const OrbExtractor& extractor) {
+  const int db_every = args.get_int("db-every"), q_every = args.get_int("query-every");
+  if (args.has("query-tum")) {
+    // Two datasets in one world frame (e.g. two robots of a cslam-synth scene).
+    const std::string db_root = args.get("tum"), q_root = args.get("query-tum");
+    const TumDataset db_ds = open_tum_dataset(db_root), q_ds = open_tum_dataset(q_root);
+    const auto kfs = posed_frames(db_ds, groundtruth_of(db_ds, db_root), 0, int(db_ds.rgb.size()), db_every);
+    const auto qs = posed_frames(q_ds, groundtruth_of(q_ds, q_root), 0, int(q_ds.rgb.size()), q_every);
+    std::printf("cross-dataset: %zu keyframes of %s (every %d-th frame), %zu queries of %s (every %d-th); true match = "
+                "angle < %.0f deg and distance < %.2f m\n",
+                kfs.size(), db_root.c_str(), db_every, qs.size(), q_root.c_str(), q_every, args.get_double("max-angle"),
+                args.get_double("max-dist"));
+    evaluate(kfs, camera_of(db_root), qs, camera_of(q_root), args, voc, extractor);
+    return 0;
+  }
+  const std::string root = args.get("tum");
+  const TumDataset ds = open_tum_dataset(root);
+  const Trajectory gt = groundtruth_of(ds, root);
+  const int n = int(ds.rgb.size()), half = n / 2;
+  const auto kfs = posed_frames(ds, gt, 0, half, db_every);
+  const auto qs = posed_frames(ds, gt, half, n, q_every);
+  std::printf("real sequence %s: %zu keyframes (every %d-th frame of the first %d), %zu queries (every %d-th frame of the "
+              "second half); true match = angle < %.0f deg and distance < %.2f m\n",
+              root.c_str(), kfs.size(), db_every, half, qs.size(), q_every, args.get_double("max-angle"),
+              args.get_double("max-dist"));
+  const PinholeCamera cam = camera_of(root);
+  evaluate(kfs, cam, qs, cam, args, voc, extractor);
   return 0;
 }
 
@@ -159,6 +216,7 @@ int main(int argc, char** argv) {
   try {
     CliArgs args("cslam-bench-place", "Place-recognition recall/precision of the vocabulary and keyframe database.");
     args.option("tum", "TUM dataset folder with groundtruth.txt", std::string(CSLAM_SHARED_DATA_DIR) + "/tum_fr1_rpy")
+        .option("query-tum", "second dataset in the same world frame: keyframes from --tum, queries from this one", "")
         .option("vocabulary", "vocabulary file ('default' = the committed one)", "default")
         .option("db-every", "database keyframe every n-th frame of the first half", "10")
         .option("query-every", "query every n-th frame of the second half", "1")
