@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 #include <thread>
+#include <limits>
+#include <unordered_map>
 
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
@@ -11,26 +13,88 @@
 
 namespace cslam {
 
+namespace {
+
+using XyzCloud = pcl::PointCloud<pcl::PointXYZ>;
+
+XyzCloud::Ptr to_xyz(const std::vector<Eigen::Vector3f>& pts) {
+  XyzCloud::Ptr cloud(new XyzCloud);
+  cloud->resize(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) (*cloud)[i].getVector3fMap() = pts[i];
+  cloud->width = std::uint32_t(pts.size());
+  cloud->height = 1;
+  return cloud;
+}
+
+// Targets bucketed in a coarse grid: cell centres (for a small KD-tree) and member lists.
+struct CoarseGrid {
+  std::vector<Eigen::Vector3f> centres;
+  std::vector<std::uint32_t> start;    // members of cell c: order[start[c] .. start[c + 1])
+  std::vector<std::uint32_t> order;    // target indices grouped by cell
+};
+
+CoarseGrid build_grid(const std::vector<Eigen::Vector3f>& pts, float cell) {
+  const float inv = 1.0f / cell;
+  std::unordered_map<std::uint64_t, std::uint32_t> cell_of_key;
+  std::vector<std::uint32_t> cell_of_point(pts.size());
+  CoarseGrid g;
+  std::vector<Eigen::Vector3i> coords;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Vector3i c = (pts[i] * inv).array().floor().cast<int>();
+    auto k = [](int v) { return std::uint64_t(std::int64_t(v) + (std::int64_t(1) << 20)) & 0x1FFFFF; };
+    const auto [it, inserted] = cell_of_key.try_emplace(k(c.x()) | (k(c.y()) << 21) | (k(c.z()) << 42), std::uint32_t(coords.size()));
+    if (inserted) coords.push_back(c);
+    cell_of_point[i] = it->second;
+  }
+  g.start.assign(coords.size() + 1, 0);
+  for (auto c : cell_of_point) ++g.start[c + 1];
+  for (size_t c = 0; c < coords.size(); ++c) g.start[c + 1] += g.start[c];
+  g.order.resize(pts.size());
+  std::vector<std::uint32_t> fill(g.start.begin(), g.start.end() - 1);
+  for (size_t i = 0; i < pts.size(); ++i) g.order[fill[cell_of_point[i]]++] = std::uint32_t(i);
+  for (const auto& c : coords) g.centres.push_back((c.cast<float>() + Eigen::Vector3f::Constant(0.5f)) * cell);
+  return g;
+}
+
+}  // namespace
+
 std::vector<float> nearest_distances(const std::vector<Eigen::Vector3f>& queries,
                                      const std::vector<Eigen::Vector3f>& targets, int threads) {
   if (targets.empty()) throw std::invalid_argument("nearest_distances: target cloud is empty");
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  cloud->resize(targets.size());
-  for (size_t i = 0; i < targets.size(); ++i) (*cloud)[i].getVector3fMap() = targets[i];
-  cloud->width = std::uint32_t(targets.size());
-  cloud->height = 1;
-  pcl::KdTreeFLANN<pcl::PointXYZ> tree(false);  // unsorted results: only one neighbour is asked for
-  tree.setInputCloud(cloud);
+  // Exact k-NN in a KD-tree is fast near the cloud but very slow for queries far from a large
+  // dense cloud (e.g. 1.4 ms per query 0.5 m away from 1.7 M points: the search ball meets many
+  // cells). So a coarse grid (cell = bbox diagonal / 200) is searched first: with d_c the distance
+  // to the nearest occupied cell centre and h = cell * sqrt(3) / 2, the true nearest point lies in
+  // a cell whose centre is within d_c + 2h. Near queries then use the exact KD-tree search; far
+  // ones scan the members of those few cells. Both are exact.
+  const BoundingBox bb = bounding_box(targets);
+  const float cell = std::max(bb.diagonal() / 200.0f, 1e-6f);
+  const float h = cell * std::sqrt(3.0f) / 2.0f;
+  const CoarseGrid grid = build_grid(targets, cell);
+  pcl::KdTreeFLANN<pcl::PointXYZ> fine(false), coarse(false);
+  fine.setInputCloud(to_xyz(targets));
+  coarse.setInputCloud(to_xyz(grid.centres));
 
   std::vector<float> out(queries.size(), 0.0f);
   auto work = [&](size_t begin, size_t end) {
-    pcl::Indices idx(1);
-    std::vector<float> sq(1);
+    pcl::Indices idx(1), cells;
+    std::vector<float> sq(1), cell_sq;
     pcl::PointXYZ q;
     for (size_t i = begin; i < end; ++i) {
       q.getVector3fMap() = queries[i];
-      tree.nearestKSearch(q, 1, idx, sq);
-      out[i] = std::sqrt(sq[0]);
+      coarse.nearestKSearch(q, 1, idx, sq);
+      const double dc = std::sqrt(double(sq[0]));
+      if (dc < 8 * cell) {
+        fine.nearestKSearch(q, 1, idx, sq);
+        out[i] = std::sqrt(sq[0]);
+        continue;
+      }
+      coarse.radiusSearch(q, dc + 2 * h + 1e-6, cells, cell_sq);
+      float best = std::numeric_limits<float>::max();
+      for (const auto c : cells)
+        for (std::uint32_t m = grid.start[size_t(c)]; m < grid.start[size_t(c) + 1]; ++m)
+          best = std::min(best, (targets[grid.order[m]] - queries[i]).squaredNorm());
+      out[i] = std::sqrt(best);
     }
   };
   const size_t n = queries.size();

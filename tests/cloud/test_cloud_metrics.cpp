@@ -32,6 +32,26 @@ TEST(CloudMetrics, NearestDistancesMatchBruteForce) {
   }
 }
 
+TEST(CloudMetrics, FarQueriesAreExactToo) {
+  // Dense targets (a 1 cm grid with a bump) and queries up to 2 m away: the far-query path
+  // (coarse cells + member scan) must agree with brute force.
+  std::vector<Eigen::Vector3f> targets;
+  for (int x = 0; x < 120; ++x)
+    for (int y = 0; y < 80; ++y) targets.emplace_back(0.01f * x, 0.01f * y, 0.05f * std::sin(0.1f * x) * std::cos(0.07f * y));
+  std::vector<Eigen::Vector3f> queries;
+  for (int i = 0; i < 400; ++i)
+    queries.emplace_back(-1.0f + 0.0091f * i, 0.4f + std::sin(0.3f * i), 2.0f * std::cos(0.11f * i));
+  const auto d = nearest_distances(queries, targets, 2);
+  int far = 0;
+  for (size_t i = 0; i < queries.size(); ++i) {
+    float best = 1e9f;
+    for (const auto& t : targets) best = std::min(best, (queries[i] - t).norm());
+    EXPECT_NEAR(d[i], best, 1e-5f) << i;
+    if (best > 0.5f) ++far;
+  }
+  EXPECT_GT(far, 100);
+}
+
 TEST(CloudMetrics, KnownDistancesOnShiftedPlane) {
   // REF: 20x20 grid (5 cm) at z = 0. TEST: the same grid at z = 0.01 plus one point 10 cm up.
   const auto ref = grid(20, 0.05f, 0.0f);
