@@ -1,5 +1,6 @@
 #include "slam/client_slam.h"
 
+#include <algorithm>
 #include <shared_mutex>
 
 #include "core/log.h"
@@ -66,7 +67,8 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
 
   Stopwatch sw;
   auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
-                              pyramid_, *vocabulary_, config_.bow_levels_up);
+                              pyramid_, *vocabulary_,
+                              std::max(0, vocabulary_->depth() - config_.bow_direct_level));
   r.extract_ms = sw.ms();
   r.features = int(data->size());
   sw.reset();

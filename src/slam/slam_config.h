@@ -12,7 +12,7 @@ struct SlamConfig {
   RgbdParams rgbd;
   TrackerConfig tracker;
   LocalMapperConfig mapper;
-  int bow_levels_up = 4;          // direct-index level for BoW matching, counted from the leaves
+  int bow_direct_level = 2;       // vocabulary level of the direct index used by BoW matching (root = 0)
   double max_lost_seconds = 3.0;  // lost longer than this (and relocalisation failing): start a new map
   bool threaded = true;           // local mapping in its own thread
 };

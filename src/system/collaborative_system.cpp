@@ -4,12 +4,12 @@
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
-#include <thread>
 
 #include <nlohmann/json.hpp>
 
-#include "core/bounded_queue.h"
 #include "core/log.h"
+#include "eval/stats.h"
+#include "system/client_pipeline.h"
 
 namespace cslam {
 
@@ -22,70 +22,9 @@ const char* to_string(TrackingState s) {
   return "unknown";
 }
 
-// One client's worker: a bounded queue and the thread that drains it.
-// (Until the SLAM core is wired in, the worker records each frame's timestamp with the
-// identity pose; the interface stays the same.)
-class ClientPipeline {
- public:
-  ClientPipeline(const ClientInfo& info, const SystemConfig& config)
-      : info_(info), config_(config), queue_(config.client_queue_capacity) {
-    thread_ = std::thread([this] { run(); });
-  }
-  ~ClientPipeline() { finish(); }
-
-  bool submit(RgbdFrame frame) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++snapshot_.frames_submitted;
-    }
-    return queue_.push(std::move(frame));
-  }
-
-  void finish() {
-    queue_.close();
-    if (thread_.joinable()) thread_.join();
-  }
-
-  ClientSnapshot snapshot() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ClientSnapshot s = snapshot_;
-    s.id = info_.id;
-    s.name = info_.name;
-    s.queue_depth = queue_.size();
-    return s;
-  }
-  Trajectory trajectory() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return trajectory_;
-  }
-  const ClientInfo& info() const { return info_; }
-
- private:
-  void run() {
-    while (auto frame = queue_.pop()) {
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        trajectory_.push_back({frame->timestamp, SE3()});
-        ++snapshot_.frames_processed;
-        snapshot_.tracking = TrackingState::kTracking;
-        snapshot_.last_timestamp = frame->timestamp;
-        snapshot_.group = info_.id;
-      }
-      if (config_.on_frame_done) config_.on_frame_done(frame->client, frame->seq);
-    }
-  }
-
-  const ClientInfo info_;
-  const SystemConfig& config_;
-  BoundedQueue<RgbdFrame> queue_;
-  mutable std::mutex mutex_;
-  ClientSnapshot snapshot_;
-  Trajectory trajectory_;
-  std::thread thread_;
-};
-
 struct CollaborativeSystem::Impl {
   SystemConfig config;
+  std::shared_ptr<const Vocabulary> vocabulary;
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   mutable std::mutex mutex;  // guards the client table (not the clients' contents)
   std::map<ClientId, std::unique_ptr<ClientPipeline>> clients;
@@ -95,6 +34,12 @@ struct CollaborativeSystem::Impl {
 
 CollaborativeSystem::CollaborativeSystem(SystemConfig config) : impl_(std::make_unique<Impl>()) {
   impl_->config = std::move(config);
+  if (impl_->config.run_slam) {
+    const std::string path =
+        impl_->config.vocabulary_path.empty() ? default_vocabulary_path() : impl_->config.vocabulary_path;
+    impl_->vocabulary = std::make_shared<const Vocabulary>(Vocabulary::load(path));
+    logger("system")->info("vocabulary {} loaded ({} words)", path, impl_->vocabulary->num_words());
+  }
 }
 
 CollaborativeSystem::~CollaborativeSystem() { finish(); }
@@ -114,7 +59,7 @@ void CollaborativeSystem::add_client(const ClientInfo& info) {
       throw std::invalid_argument("client " + std::to_string(info.id) + " re-registered with a different camera");
     return;
   }
-  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config));
+  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary));
   logger("system")->info("client {} ('{}') registered, camera {} {}x{}", info.id, info.name, info.camera.name,
                          info.camera.width, info.camera.height);
 }
@@ -166,18 +111,39 @@ std::map<ClientId, Trajectory> CollaborativeSystem::trajectories() const {
   return out;
 }
 
+namespace {
+nlohmann::json summary_json(const std::vector<double>& v) {
+  const Summary s = summarize(v);
+  return {{"n", s.n}, {"median", s.median}, {"mean", s.mean}, {"p95", s.p95}, {"min", s.min}, {"max", s.max}};
+}
+}  // namespace
+
 void CollaborativeSystem::write_outputs(const std::string& dir) const {
   std::filesystem::create_directories(dir);
   const auto trajs = trajectories();
   const auto snap = snapshot();
   nlohmann::json stats;
   stats["uptime_s"] = snap.uptime_s;
+  stats["clients"] = nlohmann::json::array();
   for (const auto& c : snap.clients) {
-    write_tum_trajectory(dir + "/client_" + std::to_string(c.id) + ".txt", trajs.at(c.id), "client " + std::to_string(c.id));
-    stats["clients"].push_back({{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
-                                {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
-                                {"keyframes", c.keyframes}, {"map_points", c.map_points}, {"group", c.group},
-                                {"tracking", to_string(c.tracking)}});
+    const std::string id = std::to_string(c.id);
+    write_tum_trajectory(dir + "/client_" + id + ".txt", trajs.at(c.id), "client " + id + ", frame of group " + std::to_string(c.group));
+    nlohmann::json cj = {{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
+                         {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
+                         {"frames_lost", c.frames_lost}, {"trajectory_poses", trajs.at(c.id).size()},
+                         {"keyframes", c.keyframes}, {"map_points", c.map_points}, {"maps", c.maps}, {"group", c.group},
+                         {"fused", false}, {"tracking", to_string(c.tracking)}};
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    const auto& p = impl_->clients.at(c.id);
+    if (impl_->config.run_slam) {
+      write_tum_trajectory(dir + "/keyframes_" + id + ".txt", p->keyframe_trajectory(), "client " + id + " keyframes");
+      const auto t = p->timings();
+      std::vector<double> total;
+      for (size_t i = 0; i < t.track_ms.size(); ++i) total.push_back(t.track_ms[i] + t.extract_ms[i]);
+      cj["extract_plus_track_ms"] = summary_json(total);
+      cj["local_ba_ms"] = summary_json(t.mapper.ba_ms);
+    }
+    stats["clients"].push_back(cj);
   }
   stats["fusion_events"] = nlohmann::json::array();
   for (const auto& e : snap.events)

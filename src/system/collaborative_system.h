@@ -21,7 +21,8 @@ struct ClientSnapshot {
   ClientId id = 0;
   std::string name;
   TrackingState tracking = TrackingState::kNotInitialized;
-  std::uint64_t frames_submitted = 0, frames_processed = 0, frames_rejected = 0;
+  std::uint64_t frames_submitted = 0, frames_processed = 0, frames_rejected = 0, frames_lost = 0;
+  int maps = 1;
   std::size_t queue_depth = 0;
   int keyframes = 0, map_points = 0;
   int group = -1;  // fused group id (clients in one group share a frame); own id if unfused

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/ids.h"
+#include "slam/slam_config.h"
 
 namespace cslam {
 
@@ -18,6 +19,8 @@ struct SystemConfig {
   double fusion_rate_hz = 2.0;
   // Run the SLAM stages (false: only count frames and record timestamps, for network tests).
   bool run_slam = true;
+  // Per-client SLAM settings (every client gets the same).
+  SlamConfig slam;
   // Called from a client's worker thread after each frame has been consumed (processed or
   // rejected), e.g. so the network layer can hand the client a flow-control credit back.
   // Must be cheap and must not call back into the system.

@@ -1,6 +1,8 @@
 #include "tracking/tracker.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <shared_mutex>
 #include <unordered_map>
@@ -297,7 +299,7 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
   int ref_matches = 0;
   {
     std::shared_lock<std::shared_mutex> lock(map_->mutex);
-    if (reference_kf_) ref_matches = reference_kf_->tracked_map_points(nkfs <= 2 ? 2 : 3);
+    if (reference_kf_) ref_matches = reference_kf_->tracked_map_points(nkfs <= 2 ? 2 : config_.ref_min_observations);
   }
   const bool idle = sink_->idle();
   const FrameData& f = *frame.data;
@@ -313,6 +315,10 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
   const bool c1b = frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes) && idle;
   const bool c1c = last_inliers_ < ref_matches * 0.25 || need_close;
   const bool c2 = (last_inliers_ < ref_matches * ratio || need_close) && last_inliers_ > 15;
+  if (std::getenv("CSLAM_TRACE_KF"))
+    std::fprintf(stderr, "kfdecide inl %d ref %d (ref kf %u, nkfs %zu) close %d/%d idle %d c1 %d%d%d c2 %d\n", last_inliers_,
+                 ref_matches, reference_kf_ ? reference_kf_->id.seq : 0u, nkfs, tracked_close, untracked_close, int(idle),
+                 int(c1a), int(c1b), int(c1c), int(c2));
   if (!((c1a || c1b || c1c) && c2)) return false;
   if (idle) return true;
   sink_->interrupt_ba();

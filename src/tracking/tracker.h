@@ -25,6 +25,7 @@ struct TrackerConfig {
   int max_frames_between_keyframes = 30;  // ~1 s at 30 Hz
   int min_frames_between_keyframes = 0;
   double ref_ratio = 0.75;
+  int ref_min_observations = 2;        // reference-keyframe points counted by the keyframe rule (RGB-D obs count 2)
   int close_tracked_threshold = 100, close_untracked_threshold = 70;  // RGB-D "need close points" rule
   int min_new_close_points = 100;      // new map points per keyframe: all close ones and at least this many
   int reloc_min_bow_matches = 15;

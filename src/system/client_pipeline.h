@@ -1,0 +1,44 @@
+#pragma once
+// One client inside the collaborative system: a bounded frame queue and the worker thread that
+// drains it into the client's SLAM (or, with run_slam off, only counts frames).
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "core/bounded_queue.h"
+#include "slam/client_slam.h"
+#include "system/collaborative_system.h"
+
+namespace cslam {
+
+class ClientPipeline {
+ public:
+  ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary);
+  ~ClientPipeline();
+
+  // Blocks while the queue is full. False once finishing.
+  bool submit(RgbdFrame frame);
+  // Drains the queue, stops the worker and the SLAM threads. Idempotent.
+  void finish();
+
+  ClientSnapshot snapshot() const;
+  Trajectory trajectory() const;
+  Trajectory keyframe_trajectory() const;
+  const ClientInfo& info() const { return info_; }
+  ClientSlam* slam() { return slam_.get(); }
+  ClientSlamTimings timings() const;
+
+ private:
+  void run();
+
+  const ClientInfo info_;
+  const SystemConfig& config_;
+  std::unique_ptr<ClientSlam> slam_;  // null when run_slam is off
+  BoundedQueue<RgbdFrame> queue_;
+  mutable std::mutex mutex_;
+  ClientSnapshot counters_;
+  Trajectory counted_trajectory_;  // run_slam off: timestamps with identity poses
+  std::thread thread_;
+};
+
+}  // namespace cslam
