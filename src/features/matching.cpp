@@ -181,4 +181,22 @@ std::vector<Match> match_by_bow(const OrbFeatures& a, const FeatureVector& fa, c
   return out;
 }
 
+std::vector<Match> match_by_projection(const std::vector<ProjectedDescriptor>& points, const OrbFeatures& frame,
+                                       const FeatureGrid& grid, const std::vector<double>& scale_factors, double radius,
+                                       const MatchParams& params, const std::vector<char>* frame_taken) {
+  OneToOne pairs(frame.size());
+  const int max_level = int(scale_factors.size()) - 1;
+  for (int i = 0; i < int(points.size()); ++i) {
+    const ProjectedDescriptor& p = points[i];
+    const int level = std::clamp(p.level, 0, std::max(0, max_level));
+    const double r = radius * (scale_factors.empty() ? 1.0 : scale_factors[level]);
+    const std::vector<int> candidates = grid.features_in_area(p.u, p.v, r, std::max(0, level - 1), level + 1);
+    const BestMatch m = best_match(p.descriptor, frame, candidates, frame_taken);
+    if (m.index < 0 || m.distance > params.th_high) continue;
+    if (m.level == m.second_level && double(m.distance) > params.nn_ratio * double(m.second_distance)) continue;
+    pairs.offer(i, m.index, m.distance);
+  }
+  return pairs.take();
+}
+
 }  // namespace cslam

@@ -6,6 +6,7 @@
 
 #include "bow/bow_vector.h"
 #include "features/descriptor.h"
+#include "features/feature_grid.h"
 #include "features/orb_extractor.h"
 
 namespace cslam {
@@ -64,6 +65,20 @@ struct BestMatch {
 };
 BestMatch best_match(const Descriptor& d, const OrbFeatures& features, const std::vector<int>& candidates,
                      const std::vector<char>* skip = nullptr);
+
+// Matching by projection (tracking): each point (e.g. a map point projected into the frame) is
+// matched to the best unused frame feature within `radius * scale_factors[level]` pixels of its
+// projection (undistorted coordinates) on levels [level-1, level+1]. Accepted if distance <=
+// th_high and, when the two best are on the same level, distance <= nn_ratio * second.
+// frame_taken: features already matched (non-zero) are skipped. Match.a = point index, .b = feature.
+struct ProjectedDescriptor {
+  double u = 0, v = 0;
+  int level = 0;  // predicted pyramid level
+  Descriptor descriptor{};
+};
+std::vector<Match> match_by_projection(const std::vector<ProjectedDescriptor>& points, const OrbFeatures& frame,
+                                       const FeatureGrid& grid, const std::vector<double>& scale_factors, double radius,
+                                       const MatchParams& params, const std::vector<char>* frame_taken = nullptr);
 
 // Removes the matches whose rotation is inconsistent (RotationHistogram over keypoint angles).
 void filter_by_orientation(const OrbFeatures& a, const OrbFeatures& b, std::vector<Match>& matches);

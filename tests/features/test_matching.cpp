@@ -110,3 +110,41 @@ TEST(Matching, BruteForceFindsShiftedScene) {
 
 }  // namespace
 }  // namespace cslam
+
+namespace cslam {
+namespace {
+
+TEST(Matching, ByProjectionFindsShiftedFeatures) {
+  // Project frame A's features into frame B with the known shift: each must find its twin.
+  const cv::Mat img = procedural_image(41);
+  cv::Mat shifted;
+  const cv::Mat M = (cv::Mat_<double>(2, 3) << 1, 0, -12, 0, 1, 7);
+  cv::warpAffine(img, shifted, M, img.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  const OrbExtractor ex;
+  const OrbFeatures a = ex.extract(img), b = ex.extract(shifted);
+  const FeatureGrid grid(b, {0, 640, 0, 480});
+  std::vector<ProjectedDescriptor> points;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    points.push_back({a.undistorted[i].x() - 12, a.undistorted[i].y() + 7, a.keypoints[i].octave, a.descriptors[i]});
+  const auto m = match_by_projection(points, b, grid, ex.scale_factors(), 3.0, MatchParams{});
+  ASSERT_GT(m.size(), 500u);
+  std::vector<char> used(b.size(), 0);
+  int good = 0;
+  for (const Match& x : m) {
+    ASSERT_FALSE(used[x.b]);
+    used[x.b] = 1;
+    EXPECT_LE(x.distance, 100);
+    const double scale = ex.scale_factors()[a.keypoints[x.a].octave];
+    EXPECT_LE(std::abs(b.undistorted[x.b].x() - points[x.a].u), 3.0 * scale + 1e-9);
+    good += x.distance <= 50;
+  }
+  EXPECT_GT(good, 0.9 * m.size());
+  // Taken features are never returned; a far-off projection finds nothing.
+  std::vector<char> taken(b.size(), 1);
+  EXPECT_TRUE(match_by_projection(points, b, grid, ex.scale_factors(), 3.0, MatchParams{}, &taken).empty());
+  std::vector<ProjectedDescriptor> far{{-500, -500, 0, a.descriptors[0]}};
+  EXPECT_TRUE(match_by_projection(far, b, grid, ex.scale_factors(), 3.0, MatchParams{}).empty());
+}
+
+}  // namespace
+}  // namespace cslam
