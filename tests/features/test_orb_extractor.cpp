@@ -2,6 +2,7 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -98,6 +99,31 @@ TEST(OrbExtractor, DescriptorsAreRotationInvariant) {
   }
   EXPECT_GT(geometric, 0.8 * matches.size());
   EXPECT_GT(angle_ok, 0.8 * matches.size());
+}
+
+TEST(OrbExtractor, Level0DescriptorsEqualOpenCvOrbWithOurAngles) {
+  // Level-0 keypoints: OpenCV's ORB on the same image, keypoints and angles gives the same bits,
+  // byte j bit i -> descriptor bit 8j+i.
+  const cv::Mat img = procedural_image(13);
+  const OrbExtractor ex;
+  const OrbFeatures f = ex.extract(img);
+  std::vector<cv::KeyPoint> kps;
+  std::vector<int> index;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    if (f.keypoints[i].octave != 0) continue;
+    cv::KeyPoint kp = f.keypoints[i];
+    kp.class_id = int(i);
+    kps.push_back(kp);
+  }
+  ASSERT_GT(kps.size(), 100u);
+  cv::Ptr<cv::ORB> orb = cv::ORB::create(1000, 1.2f, 1, 19, 0, 2, cv::ORB::FAST_SCORE, 31, 20);
+  cv::Mat desc;
+  orb->compute(img, kps, desc);
+  ASSERT_EQ(desc.rows, int(kps.size()));
+  for (int r = 0; r < desc.rows; ++r) {
+    const Descriptor& ours = f.descriptors[kps[r].class_id];
+    ASSERT_EQ(ours, descriptor_from_row(desc.row(r))) << "keypoint " << kps[r].class_id;
+  }
 }
 
 TEST(OrbExtractor, ThreadSafeConstExtraction) {
