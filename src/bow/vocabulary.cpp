@@ -6,6 +6,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <stdexcept>
 
 #include "core/error.h"
 
@@ -143,6 +144,7 @@ void Vocabulary::save(const std::string& path) const {
 }
 
 WordId Vocabulary::word_of(const Descriptor& d, int levels_up, NodeId& node) const {
+  if (num_children_.empty()) throw std::logic_error("Vocabulary::word_of: empty vocabulary");
   const int target = depth_ - levels_up;
   std::uint32_t id = 0;
   node = 0;

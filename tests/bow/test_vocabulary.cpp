@@ -213,6 +213,12 @@ TEST(VocabularyTrain, RejectsBadConfig) {
   c.branching = 1;
   EXPECT_THROW(Vocabulary::train({{Descriptor{1, 2, 3, 4}}}, c), ConfigError);
   EXPECT_THROW(Vocabulary::train({}, VocabularyTrainConfig{}), ConfigError);
+  // An empty vocabulary transforms to empty vectors; asking for a word is a programming error.
+  const Vocabulary empty;
+  BowVector bow;
+  empty.transform({Descriptor{1, 2, 3, 4}}, bow);
+  EXPECT_TRUE(bow.empty());
+  EXPECT_THROW(empty.word_of(Descriptor{1, 2, 3, 4}), std::logic_error);
 }
 
 TEST(DefaultVocabulary, LoadsAndHasTheDocumentedShape) {
