@@ -4,12 +4,15 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "bow/keyframe_database.h"
 #include "bow/vocabulary.h"
+#include "common/test_data.h"
 #include "features/matching.h"
 #include "features/orb_extractor.h"
 #include "features/procedural_image.h"
+#include "io/tum_dataset.h"
 
 namespace cslam {
 namespace {
@@ -101,6 +104,27 @@ TEST_F(WithDefaultVocabulary, OwnImageRanksFirst) {
     ASSERT_FALSE(r.empty());
     EXPECT_EQ(r[0].id, kf(3, i));
     EXPECT_NEAR(r[0].score, 1.0, 1e-9);
+  }
+}
+
+TEST_F(WithDefaultVocabulary, OwnRealFrameRanksFirst) {
+  CSLAM_REQUIRE_TUM_RPY();
+  const TumDataset ds = open_tum_dataset(test::tum_rpy_dir());
+  const PinholeCamera cam = camera_tum_fr1();
+  const OrbExtractor ex;
+  KeyFrameDatabase db;
+  std::vector<BowVector> bows;
+  for (std::size_t i = 0; i < ds.rgb.size(); i += 40) {
+    BowVector b;
+    voc_->transform(ex.extract(cv::imread(ds.rgb[i].path, cv::IMREAD_GRAYSCALE), &cam).descriptors, b);
+    ASSERT_FALSE(b.empty());
+    db.add(kf(1, std::uint32_t(bows.size())), b);
+    bows.push_back(b);
+  }
+  for (std::uint32_t i = 0; i < bows.size(); ++i) {
+    const auto r = db.query(bows[i], {}, nullptr, nullptr);
+    ASSERT_FALSE(r.empty());
+    EXPECT_EQ(r[0].id, kf(1, i));
   }
 }
 
