@@ -1,4 +1,5 @@
 #include <cmath>
+#include <set>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -124,6 +125,21 @@ TEST(OrbExtractor, Level0DescriptorsEqualOpenCvOrbWithOurAngles) {
     const Descriptor& ours = f.descriptors[kps[r].class_id];
     ASSERT_EQ(ours, descriptor_from_row(desc.row(r))) << "keypoint " << kps[r].class_id;
   }
+}
+
+TEST(OrbExtractor, FastScoreSelectionEqualsDetectionAtTheInitialThreshold) {
+  // The extractor runs FAST once at the fallback threshold and keeps corners scoring >= the
+  // initial threshold in textured cells: that must be exactly FAST at the initial threshold.
+  const cv::Mat img = procedural_image(17);
+  std::vector<cv::KeyPoint> at20, at7;
+  cv::FAST(img, at20, 20, true);
+  cv::FAST(img, at7, 7, true);
+  std::set<std::pair<float, float>> expected, selected;
+  for (const auto& k : at20) expected.insert({k.pt.x, k.pt.y});
+  for (const auto& k : at7)
+    if (k.response >= 20.f) selected.insert({k.pt.x, k.pt.y});
+  ASSERT_GT(expected.size(), 500u);
+  EXPECT_EQ(selected, expected);
 }
 
 TEST(OrbExtractor, ThreadSafeConstExtraction) {
