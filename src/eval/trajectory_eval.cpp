@@ -34,16 +34,25 @@ std::vector<std::pair<int, int>> associate_trajectories(const Trajectory& gt, co
 }
 
 AteResult compute_ate(const Trajectory& gt, const Trajectory& est, Alignment align, double max_dt) {
-  auto pairs = associate_trajectories(gt, est, max_dt);
-  if (pairs.size() < 3)
-    throw InputError("ATE", "only " + std::to_string(pairs.size()) +
-                                " poses associate between ground truth and estimate (need >= 3; check timestamps and --max-dt)");
-  std::sort(pairs.begin(), pairs.end(), [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
+  return compute_ate_joint({{gt, est}}, align, max_dt);
+}
+
+AteResult compute_ate_joint(const std::vector<std::pair<Trajectory, Trajectory>>& trajectory_pairs, Alignment align,
+                            double max_dt) {
   std::vector<Eigen::Vector3d> src, dst;
-  for (const auto& [i, j] : pairs) {
-    dst.push_back(gt[i].T_world_cam.translation());
-    src.push_back(est[j].T_world_cam.translation());
+  std::vector<double> times;
+  for (const auto& [gt, est] : trajectory_pairs) {
+    auto pairs = associate_trajectories(gt, est, max_dt);
+    std::sort(pairs.begin(), pairs.end(), [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
+    for (const auto& [i, j] : pairs) {
+      dst.push_back(gt[i].T_world_cam.translation());
+      src.push_back(est[j].T_world_cam.translation());
+      times.push_back(est[j].timestamp);
+    }
   }
+  if (src.size() < 3)
+    throw InputError("ATE", "only " + std::to_string(src.size()) +
+                                " poses associate between ground truth and estimate (need >= 3; check timestamps and --max-dt)");
   AteResult r;
   if (align != Alignment::kNone) {
     const auto u = umeyama(src, dst, align == Alignment::kSim3);
@@ -52,7 +61,7 @@ AteResult compute_ate(const Trajectory& gt, const Trajectory& est, Alignment ali
   }
   for (size_t k = 0; k < src.size(); ++k) {
     r.errors.push_back((r.T_gt_est * src[k] - dst[k]).norm());
-    r.timestamps.push_back(est[pairs[k].second].timestamp);
+    r.timestamps.push_back(times[k]);
   }
   r.stats = compute_stats(r.errors);
   return r;

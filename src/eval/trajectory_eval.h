@@ -26,6 +26,12 @@ struct AteResult {
 // Throws InputError (source "ATE") if fewer than 3 poses associate.
 AteResult compute_ate(const Trajectory& gt, const Trajectory& est, Alignment align, double max_dt = 0.02);
 
+// Joint ATE of several (ground truth, estimate) pairs with ONE alignment: each pair is associated
+// on its own (clients may share timestamps), then all positions are aligned together. This is the
+// accuracy of a fused group's combined trajectory.
+AteResult compute_ate_joint(const std::vector<std::pair<Trajectory, Trajectory>>& pairs, Alignment align,
+                            double max_dt = 0.02);
+
 struct RpeResult {
   ErrorStats translation;  // metres
   ErrorStats rotation;     // degrees

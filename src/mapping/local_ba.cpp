@@ -22,9 +22,11 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
   std::vector<KeyFramePtr> cameras;
   std::vector<MapPointPtr> points;
   std::vector<std::pair<KeyFrame*, MapPoint*>> obs_refs;
+  std::uint64_t change_index = 0;
   {
     std::shared_lock<std::shared_mutex> lock(map_->mutex);
     if (kf->bad) return;
+    change_index = map_->big_change_index();
     std::unordered_map<KeyFrame*, int> cam_index;
     auto add_camera = [&](KeyFrame* k, bool fixed) {
       auto p = map_->shared(k);
@@ -68,6 +70,8 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
   const BaResult res = bundle_adjust(prob, config_.ba, &abort_ba_);
   {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    // The map was moved meanwhile (fusion, loop correction): the solution is in the old frame.
+    if (map_->big_change_index() != change_index) return;
     for (size_t i = 0; i < prob.observations.size(); ++i) {
       if (res.inlier[i]) continue;
       KeyFrame* okf = obs_refs[i].first;

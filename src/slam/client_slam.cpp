@@ -18,13 +18,15 @@ const char* to_string(FrameOutcome o) {
   return "unknown";
 }
 
-ClientSlam::ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary)
+ClientSlam::ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary,
+                       KeyFrameListener listener)
     : info_(std::move(info)),
       config_(std::move(config)),
       vocabulary_(std::move(vocabulary)),
       extractor_(config_.orb),
       pyramid_(ScalePyramid::from(extractor_)),
-      ids_(std::make_shared<IdAllocator>(info_.id)) {
+      ids_(std::make_shared<IdAllocator>(info_.id)),
+      listener_(std::move(listener)) {
   if (!vocabulary_ || vocabulary_->empty()) throw std::invalid_argument("ClientSlam needs a loaded vocabulary");
   info_.camera.validate();
   start_new_map();
@@ -36,6 +38,13 @@ void ClientSlam::start_new_map() {
   if (mapper_) mapper_->finish();
   auto map = std::make_shared<Map>(info_.id, int(maps_.size()), ids_);
   auto mapper = std::make_unique<LocalMapper>(config_.mapper, map, config_.threaded);
+  if (listener_) {
+    const ClientId client = info_.id;
+    std::weak_ptr<Map> weak = map;
+    mapper->set_on_processed([this, client, weak](const KeyFramePtr& kf) {
+      if (auto m = weak.lock()) listener_(client, m, kf);
+    });
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     maps_.push_back(map);
@@ -99,8 +108,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   track_ms_.push_back(r.track_ms);
   snapshot_.state = tracker_->state();
   if (t.ok && t.reference) {
-    std::shared_lock<std::shared_mutex> map_lock(tracker_->map()->mutex);
-    records_.push_back({frame.timestamp, t.reference, t.T_cam_world * t.reference->T_world_cam(), tracker_->map()->index()});
+    records_.push_back({frame.timestamp, t.reference, t.T_cam_ref, tracker_->map()->index()});
     ++snapshot_.frames_tracked;
     snapshot_.T_world_cam = t.T_cam_world.inverse();
   } else if (r.outcome == FrameOutcome::kLost) {
@@ -146,6 +154,11 @@ Trajectory ClientSlam::trajectory() const {
     out.push_back({r.timestamp, (T_cam_ref * ref->T_cam_world).inverse()});
   }
   return out;
+}
+
+std::shared_ptr<Map> ClientSlam::main_map() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return maps_.empty() ? nullptr : maps_[main_map_index()];
 }
 
 Trajectory ClientSlam::keyframe_trajectory() const {

@@ -39,9 +39,13 @@ struct ClientSlamTimings {
   LocalMapperStats mapper;
 };
 
+// Told about every keyframe local mapping has finished (map fusion, loop detection listen).
+using KeyFrameListener = std::function<void(ClientId, const std::shared_ptr<Map>&, const KeyFramePtr&)>;
+
 class ClientSlam {
  public:
-  ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary);
+  ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary,
+             KeyFrameListener listener = {});
   ~ClientSlam();
   ClientSlam(const ClientSlam&) = delete;
   ClientSlam& operator=(const ClientSlam&) = delete;
@@ -51,6 +55,8 @@ class ClientSlam {
   ClientSlamSnapshot snapshot() const;
   // Every tracked frame of the map with most frames (camera-to-world), current estimates.
   Trajectory trajectory() const;
+  // The map the trajectory is expressed in.
+  std::shared_ptr<Map> main_map() const;
   // Keyframes of that map.
   Trajectory keyframe_trajectory() const;
   ClientSlamTimings timings() const;
@@ -75,6 +81,7 @@ class ClientSlam {
   OrbExtractor extractor_;
   std::shared_ptr<const ScalePyramid> pyramid_;
   std::shared_ptr<IdAllocator> ids_;
+  KeyFrameListener listener_;
   std::vector<std::shared_ptr<Map>> maps_;
   std::unique_ptr<LocalMapper> mapper_;
   std::unique_ptr<Tracker> tracker_;

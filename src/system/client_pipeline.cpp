@@ -4,9 +4,10 @@
 
 namespace cslam {
 
-ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary)
+ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
+                               KeyFrameListener listener)
     : info_(info), config_(config), queue_(config.client_queue_capacity) {
-  if (config_.run_slam) slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary));
+  if (config_.run_slam) slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = info_.id;

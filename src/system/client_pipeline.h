@@ -13,7 +13,8 @@ namespace cslam {
 
 class ClientPipeline {
  public:
-  ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary);
+  ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
+                 KeyFrameListener listener);
   ~ClientPipeline();
 
   // Blocks while the queue is full. False once finishing.

@@ -28,8 +28,15 @@ struct CollaborativeSystem::Impl {
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   mutable std::mutex mutex;  // guards the client table (not the clients' contents)
   std::map<ClientId, std::unique_ptr<ClientPipeline>> clients;
-  std::vector<FusionEvent> events;
+  std::unique_ptr<FusionManager> fusion;
   bool finished = false;
+
+  int group_of(ClientPipeline& p) const {
+    if (!fusion || !p.slam()) return p.info().id;
+    auto map = p.slam()->main_map();
+    const int g = map ? fusion->group_of(map.get()) : -1;
+    return g < 0 ? int(p.info().id) * 100 : g;
+  }
 };
 
 CollaborativeSystem::CollaborativeSystem(SystemConfig config) : impl_(std::make_unique<Impl>()) {
@@ -39,6 +46,7 @@ CollaborativeSystem::CollaborativeSystem(SystemConfig config) : impl_(std::make_
         impl_->config.vocabulary_path.empty() ? default_vocabulary_path() : impl_->config.vocabulary_path;
     impl_->vocabulary = std::make_shared<const Vocabulary>(Vocabulary::load(path));
     logger("system")->info("vocabulary {} loaded ({} words)", path, impl_->vocabulary->num_words());
+    impl_->fusion = std::make_unique<FusionManager>(impl_->config.fusion, impl_->vocabulary);
   }
 }
 
@@ -59,7 +67,12 @@ void CollaborativeSystem::add_client(const ClientInfo& info) {
       throw std::invalid_argument("client " + std::to_string(info.id) + " re-registered with a different camera");
     return;
   }
-  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary));
+  KeyFrameListener listener;
+  if (impl_->fusion) {
+    FusionManager* fusion = impl_->fusion.get();
+    listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion->notify(c, m, kf); };
+  }
+  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary, std::move(listener)));
   logger("system")->info("client {} ('{}') registered, camera {} {}x{}", info.id, info.name, info.camera.name,
                          info.camera.width, info.camera.height);
 }
@@ -92,8 +105,11 @@ SystemSnapshot CollaborativeSystem::snapshot() const {
   SystemSnapshot s;
   std::lock_guard<std::mutex> lock(impl_->mutex);
   s.uptime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - impl_->start).count();
-  for (const auto& [id, p] : impl_->clients) s.clients.push_back(p->snapshot());
-  s.events = impl_->events;
+  for (const auto& [id, p] : impl_->clients) {
+    s.clients.push_back(p->snapshot());
+    s.clients.back().group = impl_->group_of(*p);
+  }
+  if (impl_->fusion) s.events = impl_->fusion->events();
   return s;
 }
 
@@ -102,6 +118,15 @@ void CollaborativeSystem::finish() {
   if (impl_->finished) return;
   impl_->finished = true;
   for (auto& [id, p] : impl_->clients) p->finish();
+  // Every keyframe is mapped now; let fusion look at the last ones, then stop it.
+  if (impl_->fusion) impl_->fusion->finish();
+}
+
+std::map<int, std::vector<ClientId>> CollaborativeSystem::groups() const {
+  std::map<int, std::vector<ClientId>> out;
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  for (const auto& [id, p] : impl_->clients) out[impl_->group_of(*p)].push_back(id);
+  return out;
 }
 
 std::map<ClientId, Trajectory> CollaborativeSystem::trajectories() const {
@@ -132,7 +157,7 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
                          {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
                          {"frames_lost", c.frames_lost}, {"trajectory_poses", trajs.at(c.id).size()},
                          {"keyframes", c.keyframes}, {"map_points", c.map_points}, {"maps", c.maps}, {"group", c.group},
-                         {"fused", false}, {"tracking", to_string(c.tracking)}};
+                         {"tracking", to_string(c.tracking)}};
     std::lock_guard<std::mutex> lock(impl_->mutex);
     const auto& p = impl_->clients.at(c.id);
     if (impl_->config.run_slam) {
@@ -145,11 +170,27 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
     }
     stats["clients"].push_back(cj);
   }
+  // Fused groups: one combined trajectory each; clients alone stay in their own frame.
+  const auto group_members = groups();
+  stats["groups"] = nlohmann::json::array();
+  for (const auto& [g, members] : group_members) {
+    stats["groups"].push_back({{"group", g}, {"clients", members}, {"fused", members.size() > 1}});
+    if (members.size() < 2) continue;
+    Trajectory combined;
+    for (ClientId c : members) combined.insert(combined.end(), trajs.at(c).begin(), trajs.at(c).end());
+    sort_by_time(combined);
+    write_tum_trajectory(dir + "/fused_" + std::to_string(g) + ".txt", combined, "fused group " + std::to_string(g));
+  }
+  for (auto& cj : stats["clients"]) {
+    const int g = cj["group"].get<int>();
+    cj["fused"] = group_members.at(g).size() > 1;
+  }
   stats["fusion_events"] = nlohmann::json::array();
   for (const auto& e : snap.events)
     stats["fusion_events"].push_back({{"time_s", e.wall_time_s}, {"client_a", e.client_a}, {"client_b", e.client_b},
                                       {"group", e.group}, {"inliers", e.inliers}, {"duration_ms", e.duration_ms},
-                                      {"kind", e.kind}});
+                                      {"kind", e.kind}, {"query_timestamp", e.query_timestamp},
+                                      {"candidate_timestamp", e.candidate_timestamp}});
   std::ofstream(dir + "/stats.json") << stats.dump(2) << "\n";
 }
 

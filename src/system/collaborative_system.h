@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "fusion/fusion_event.h"
 #include "io/trajectory_io.h"
 #include "system/rgbd_frame.h"
 #include "system/system_config.h"
@@ -28,15 +29,6 @@ struct ClientSnapshot {
   int group = -1;  // fused group id (clients in one group share a frame); own id if unfused
   SE3 T_world_cam;  // current pose in the group frame
   double last_timestamp = 0;
-};
-
-struct FusionEvent {
-  double wall_time_s = 0;  // seconds since system start
-  ClientId client_a = 0, client_b = 0;
-  int group = -1;
-  int inliers = 0;
-  double duration_ms = 0;
-  std::string kind = "fusion";  // "fusion" or "loop"
 };
 
 struct SystemSnapshot {
@@ -72,7 +64,10 @@ class CollaborativeSystem {
 
   // Per-client trajectories, each in the frame of its fused group.
   std::map<ClientId, Trajectory> trajectories() const;
-  // Writes client_K.txt, fused_G.txt and stats.json into dir (created if needed).
+  // Group id -> member clients (a client alone is a group of one).
+  std::map<int, std::vector<ClientId>> groups() const;
+  // Writes client_K.txt (each in its group's frame), fused_G.txt (all frames of a group of two or
+  // more clients, time-ordered), keyframes_K.txt and stats.json into dir (created if needed).
   void write_outputs(const std::string& dir) const;
 
  private:

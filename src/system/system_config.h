@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/ids.h"
+#include "fusion/fusion_manager.h"
 #include "slam/slam_config.h"
 
 namespace cslam {
@@ -15,8 +16,8 @@ struct SystemConfig {
   std::size_t client_queue_capacity = 8;
   // Vocabulary file for BoW (empty: the project's default vocabulary).
   std::string vocabulary_path;
-  // Map-fusion check rate (Hz).
-  double fusion_rate_hz = 2.0;
+  // Map fusion across clients (rate, thresholds).
+  FusionConfig fusion;
   // Run the SLAM stages (false: only count frames and record timestamps, for network tests).
   bool run_slam = true;
   // Per-client SLAM settings (every client gets the same).

@@ -43,6 +43,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
   } else {
     {
       std::shared_lock<std::shared_mutex> lock(map_->mutex);
+      tracked_change_index_ = map_->big_change_index();
       if (state_ == TrackState::kOk) {
         update_last_frame();
         if (has_velocity_) ok = track_with_motion_model(frame);
@@ -53,6 +54,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
         if (ok) frames_since_reloc_ = 0;
       }
       if (ok) ok = track_local_map(frame);
+      if (ok && frame.reference) frame.T_cam_ref = frame.T_cam_world * frame.reference->T_world_cam();
     }
     state_ = ok ? TrackState::kOk : TrackState::kLost;
     if (ok) {
@@ -69,10 +71,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       }
       ++frames_since_keyframe_;
       ++frames_since_reloc_;
-      if (need_new_keyframe(frame)) {
-        create_keyframe(frame);
-        result.new_keyframe = true;
-      }
+      if (need_new_keyframe(frame)) result.new_keyframe = create_keyframe(frame) != nullptr;
     } else {
       has_velocity_ = false;
     }
@@ -84,13 +83,16 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
   result.T_cam_world = frame.T_cam_world;
   result.reference = frame.reference;
   last_is_keyframe_ = result.new_keyframe || result.initialized_map;
-  if (ok) {
-    if (frame.reference) {
-      std::shared_lock<std::shared_mutex> lock(map_->mutex);
-      frame.T_cam_ref = frame.T_cam_world * frame.reference->T_world_cam();
-    }
-    last_ = std::make_unique<Frame>(std::move(frame));
+  if (ok && frame.reference) {
+    std::shared_lock<std::shared_mutex> lock(map_->mutex);
+    // If the map moved (fusion) after this frame was tracked, the reference keyframe moved with
+    // it: the relative pose taken under the tracking lock carries the frame into the new frame.
+    if (map_->big_change_index() != tracked_change_index_) frame.T_cam_world = frame.T_cam_ref * frame.reference->T_cam_world;
+    else if (result.initialized_map) frame.T_cam_ref = frame.T_cam_world * frame.reference->T_world_cam();
+    result.T_cam_ref = frame.T_cam_ref;
+    result.T_cam_world = frame.T_cam_world;
   }
+  if (ok) last_ = std::make_unique<Frame>(std::move(frame));
   return result;
 }
 
@@ -330,6 +332,7 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
   KeyFramePtr kf;
   {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    if (map_->big_change_index() != tracked_change_index_) return nullptr;  // map moved meanwhile: next frame
     kf = std::make_shared<KeyFrame>(map_->ids().next_keyframe(), frame.data, frame.T_cam_world);
     for (size_t i = 0; i < f.size(); ++i)
       if (frame.map_points[i] && !frame.map_points[i]->bad && !frame.outlier[i]) kf->map_points[i] = frame.map_points[i];
@@ -357,6 +360,7 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
     map_->add_keyframe(kf);
   }
   frame.reference = kf;
+  frame.T_cam_ref = SE3();  // the keyframe's pose is this frame's pose
   reference_kf_ = kf;
   last_keyframe_ = kf;
   frames_since_keyframe_ = 0;

@@ -52,6 +52,7 @@ struct TrackResult {
   int inliers = 0;
   SE3 T_cam_world;
   KeyFramePtr reference;
+  SE3 T_cam_ref;  // pose relative to the reference keyframe (valid when ok)
 };
 
 class Tracker {
@@ -90,6 +91,7 @@ class Tracker {
   KeyFramePtr last_keyframe_;
   std::uint32_t frames_since_keyframe_ = 0, frames_since_reloc_ = 1000000;
   int last_inliers_ = 0;
+  std::uint64_t tracked_change_index_ = 0;  // map change index when the frame was tracked
 };
 
 }  // namespace cslam

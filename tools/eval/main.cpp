@@ -34,11 +34,16 @@ int cmd_ate(int argc, char** argv) {
       .option("align", "se3 | sim3 | none", "se3")
       .option("max-dt", "maximum timestamp difference for association (s)", "0.02")
       .option("per-pose", "write 'timestamp error_m' per associated pose to this file", "")
+      .multi_option("also", "more GT EST pairs evaluated with the same single alignment (a fused group: one\n"
+                            "      pair per client, each associated on its own), e.g. --also gt2.txt est2.txt")
       .flag("json", "print JSON instead of a table");
   if (!args.parse(argc, argv, 2)) return 0;
-  const auto gt = read_tum_trajectory(args.positionals()[0]);
-  const auto est = read_tum_trajectory(args.positionals()[1]);
-  const auto r = compute_ate(gt, est, parse_alignment(args.get("align")), args.get_double("max-dt"));
+  std::vector<std::pair<Trajectory, Trajectory>> pairs;
+  pairs.emplace_back(read_tum_trajectory(args.positionals()[0]), read_tum_trajectory(args.positionals()[1]));
+  const auto also = args.get_multi("also");
+  if (also.size() % 2 != 0) throw ConfigError("--also takes pairs: GT EST [GT EST ...]");
+  for (size_t i = 0; i < also.size(); i += 2) pairs.emplace_back(read_tum_trajectory(also[i]), read_tum_trajectory(also[i + 1]));
+  const auto r = compute_ate_joint(pairs, parse_alignment(args.get("align")), args.get_double("max-dt"));
   if (args.has("per-pose")) {
     std::FILE* f = std::fopen(args.get("per-pose").c_str(), "w");
     if (!f) throw InputError(args.get("per-pose"), "cannot write");

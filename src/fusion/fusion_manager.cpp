@@ -1,0 +1,225 @@
+#include "fusion/fusion_manager.h"
+
+#include <algorithm>
+#include <shared_mutex>
+
+#include "core/log.h"
+#include "core/stopwatch.h"
+
+namespace cslam {
+
+void transform_map(Map& map, const SE3& T_new_old) {
+  std::unique_lock<std::shared_mutex> lock(map.mutex);
+  const SE3 T_old_new = T_new_old.inverse();
+  for (const auto& kf : map.keyframes()) kf->T_cam_world = kf->T_cam_world * T_old_new;
+  const auto points = map.map_points();
+  for (const auto& mp : points) mp->position = T_new_old * mp->position;
+  for (const auto& mp : points) map.update_map_point(mp.get());
+  map.note_big_change();
+}
+
+FusionManager::FusionManager(FusionConfig config, std::shared_ptr<const Vocabulary> vocabulary)
+    : config_(std::move(config)), vocabulary_(std::move(vocabulary)) {
+  thread_ = std::thread([this] { run(); });
+}
+
+FusionManager::~FusionManager() { finish(); }
+
+void FusionManager::notify(ClientId client, const std::shared_ptr<Map>& map, const KeyFramePtr& kf) {
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    if (!group_.count(map.get())) {
+      registry_.push_back({client, map});
+      group_[map.get()] = int(client) * 100 + map->index();
+    }
+  }
+  if (!config_.enabled) return;
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  if (stop_) return;
+  if (queue_.size() >= config_.queue_capacity) {
+    queue_.pop_front();
+    ++dropped_;
+  }
+  queue_.push_back({client, map, kf});
+  // Processed at the next tick of the fixed-rate loop.
+}
+
+void FusionManager::finish() {
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    stop_ = true;
+  }
+  queue_cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+int FusionManager::group_of(const Map* map) const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  auto it = group_.find(map);
+  return it == group_.end() ? -1 : it->second;
+}
+
+std::vector<FusionEvent> FusionManager::events() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return events_;
+}
+
+std::size_t FusionManager::dropped() const {
+  std::lock_guard<std::mutex> lock(const_cast<std::mutex&>(queue_mutex_));
+  return dropped_;
+}
+
+void FusionManager::run() {
+  const auto period = std::chrono::duration<double>(1.0 / std::max(0.1, config_.rate_hz));
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  for (;;) {
+    // Fixed-rate check; finish() wakes it at once.
+    queue_cv_.wait_for(lock, period, [&] { return stop_; });
+    std::deque<Pending> batch;
+    batch.swap(queue_);
+    const bool stopping = stop_;
+    lock.unlock();
+    for (const auto& p : batch) process(p);
+    lock.lock();
+    if (stopping && queue_.empty()) return;
+  }
+}
+
+void FusionManager::process(const Pending& p) {
+  const Map& map = *p.map;
+  BowVector bow;
+  double min_score = 1.0;
+  double query_time = 0;
+  {
+    std::shared_lock<std::shared_mutex> lock(p.map->mutex);
+    if (p.kf->bad) return;
+    const auto covisibles = p.kf->covisibles();
+    if (covisibles.empty()) return;
+    bow = p.kf->data->bow;
+    for (KeyFrame* c : covisibles) min_score = std::min(min_score, Vocabulary::score(bow, c->data->bow));
+    query_time = p.kf->timestamp();
+  }
+  std::vector<Registered> others;
+  int my_group = -1;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    my_group = group_.at(&map);
+    for (const auto& r : registry_) {
+      auto m = r.map.lock();
+      if (m && group_.at(m.get()) != my_group) others.push_back(r);
+    }
+  }
+  for (const auto& other_reg : others) {
+    auto other = other_reg.map.lock();
+    if (!other) continue;
+    std::vector<ConsistencyChecker::Group> groups;
+    {
+      std::shared_lock<std::shared_mutex> lock(other->mutex);
+      KeyFrameDatabase::QueryParams qp;
+      qp.min_score = min_score;
+      const auto cands = other->database.query(
+          bow, qp, [](KeyFrameId) { return false; },
+          [&](KeyFrameId id) {
+            std::vector<KeyFrameId> out;
+            if (auto kf = other->keyframe(id))
+              for (KeyFrame* n : kf->best_covisibles(10)) out.push_back(n->id);
+            return out;
+          });
+      for (const auto& c : cands) {
+        ConsistencyChecker::Group g;
+        g.candidate = c.id;
+        g.members.push_back(c.id);
+        if (auto kf = other->keyframe(c.id))
+          for (KeyFrame* n : kf->covisibles()) g.members.push_back(n->id);
+        groups.push_back(std::move(g));
+      }
+    }
+    std::vector<KeyFrameId> consistent;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      auto key = std::make_pair(&map, static_cast<const Map*>(other.get()));
+      auto it = consistency_.find(key);
+      if (it == consistency_.end()) it = consistency_.emplace(key, ConsistencyChecker(config_.consistency)).first;
+      consistent = it->second.update(groups);
+    }
+    if (consistent.empty()) continue;
+    const auto hit = std::chrono::steady_clock::now();
+    for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
+      OverlapVerifyResult v;
+      SE3 T_wq_wc;
+      double cand_time = 0;
+      {
+        // Two shared locks, taken in address order.
+        Map* first = p.map.get() < other.get() ? p.map.get() : other.get();
+        Map* second = first == p.map.get() ? other.get() : p.map.get();
+        std::shared_lock<std::shared_mutex> l1(first->mutex);
+        std::shared_lock<std::shared_mutex> l2(second->mutex);
+        KeyFramePtr cand = other->keyframe(consistent[i]);
+        if (!cand || cand->bad || p.kf->bad) continue;
+        v = verify_overlap(*p.kf, *cand, cand->best_covisibles(10), config_.verify);
+        if (!v.accepted) {
+          logger("fusion")->debug("client {} kf {} vs client {} kf {}: rejected ({}; bow {} ransac {} refined {} proj {})",
+                                  p.client, p.kf->id.seq, other_reg.client, cand->id.seq, v.reason, v.bow_matches,
+                                  v.ransac_inliers, v.refined_inliers, v.projection_matches);
+          continue;
+        }
+        // T_wq_wc = T_wq_camq * S_camq_camc * T_camc_wc
+        T_wq_wc = p.kf->T_world_cam() * v.S_query_candidate.to_se3() * cand->T_cam_world;
+        cand_time = cand->timestamp();
+      }
+      (void)query_time;
+      fuse(p, other, other_reg.client, T_wq_wc, v, cand_time, hit);
+      return;
+    }
+  }
+}
+
+void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const SE3& T_wq_wc,
+                         const OverlapVerifyResult& v, double candidate_time, std::chrono::steady_clock::time_point hit) {
+  // Members of both groups, and which group moves (the one with fewer keyframes).
+  std::vector<std::shared_ptr<Map>> group_q, group_c;
+  int gq = -1, gc = -1;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    gq = group_.at(p.map.get());
+    gc = group_.at(other.get());
+    if (gq == gc) return;
+    for (const auto& r : registry_)
+      if (auto m = r.map.lock()) {
+        if (group_.at(m.get()) == gq) group_q.push_back(m);
+        else if (group_.at(m.get()) == gc) group_c.push_back(m);
+      }
+  }
+  auto keyframes_of = [](const std::vector<std::shared_ptr<Map>>& g) {
+    std::size_t n = 0;
+    for (const auto& m : g) {
+      std::shared_lock<std::shared_mutex> lock(m->mutex);
+      n += m->num_keyframes();
+    }
+    return n;
+  };
+  const bool move_candidate_side = keyframes_of(group_c) <= keyframes_of(group_q);
+  const auto& moving = move_candidate_side ? group_c : group_q;
+  const SE3 T_new_old = move_candidate_side ? T_wq_wc : T_wq_wc.inverse();
+  for (const auto& m : moving) transform_map(*m, T_new_old);
+  const int kept = move_candidate_side ? gq : gc;
+  FusionEvent e;
+  e.client_a = p.client;
+  e.client_b = other_client;
+  e.group = kept;
+  e.inliers = v.refined_inliers;
+  e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
+  e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  e.query_timestamp = p.kf->timestamp();
+  e.candidate_timestamp = candidate_time;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (auto& [m, g] : group_)
+      if (g == gq || g == gc) g = kept;
+    events_.push_back(e);
+  }
+  logger("fusion")->info("fused client {} with client {} into group {}: {} inliers, {} projection matches, {:.1f} ms",
+                         p.client, other_client, kept, v.refined_inliers, v.projection_matches, e.duration_ms);
+}
+
+}  // namespace cslam

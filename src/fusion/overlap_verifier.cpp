@@ -1,0 +1,119 @@
+#include "fusion/overlap_verifier.h"
+
+#include <set>
+
+#include "features/matching.h"
+#include "loop/sim3_refine.h"
+
+namespace cslam {
+
+namespace {
+
+StereoIntrinsics intrinsics_of(const KeyFrame& kf) {
+  const auto& c = kf.data->camera;
+  return {c.fx, c.fy, c.cx, c.cy, kf.data->rgbd.bf};
+}
+
+std::vector<char> has_point_mask(const KeyFrame& kf) {
+  std::vector<char> mask(kf.map_points.size(), 0);
+  for (size_t i = 0; i < mask.size(); ++i) mask[i] = kf.map_points[i] && !kf.map_points[i]->bad;
+  return mask;
+}
+
+// Counts keypoints of `query` that match (by descriptor) the candidate group's points projected
+// with S (query-camera <- candidate-camera).
+int count_projection_matches(const KeyFrame& query, const KeyFrame& candidate, const std::vector<KeyFrame*>& neighbours,
+                             const Sim3& S_q_c, double radius) {
+  const FrameData& f = *query.data;
+  std::set<MapPoint*> points;
+  auto collect = [&](const KeyFrame& kf) {
+    for (const auto& mp : kf.map_points)
+      if (mp && !mp->bad) points.insert(mp.get());
+  };
+  collect(candidate);
+  for (KeyFrame* n : neighbours)
+    if (n && !n->bad) collect(*n);
+  std::vector<char> used(f.size(), 0);
+  int matched = 0;
+  const SE3 T_c_w = candidate.T_cam_world;
+  for (MapPoint* mp : points) {
+    const Eigen::Vector3d pq = S_q_c * (T_c_w * mp->position);
+    if (pq.z() <= 0.1) continue;
+    const Eigen::Vector2d uv = f.camera.project(pq);
+    if (!f.in_bounds(uv.x(), uv.y())) continue;
+    const double dist = pq.norm();
+    if (dist < mp->min_valid_distance() || dist > mp->max_valid_distance()) continue;
+    const int level = mp->predict_level(dist, *f.pyramid);
+    const auto cands = f.grid.features_in_area(uv.x(), uv.y(), radius * f.pyramid->scale[level], level - 1, level + 1);
+    int best = 256, best_idx = -1;
+    for (int idx : cands) {
+      if (used[idx]) continue;
+      const int d = hamming_distance(mp->descriptor, f.features.descriptors[idx]);
+      if (d < best) {
+        best = d;
+        best_idx = idx;
+      }
+    }
+    if (best <= 50) {
+      used[best_idx] = 1;
+      ++matched;
+    }
+  }
+  return matched;
+}
+
+}  // namespace
+
+OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candidate,
+                                   const std::vector<KeyFrame*>& candidate_neighbours, const OverlapVerifyConfig& cfg) {
+  OverlapVerifyResult r;
+  const FrameData& fq = *query.data;
+  const FrameData& fc = *candidate.data;
+  MatchParams mp;
+  mp.nn_ratio = 0.75;
+  mp.th_low = 50;
+  mp.check_orientation = true;
+  const auto mask_q = has_point_mask(query), mask_c = has_point_mask(candidate);
+  const auto matches = match_by_bow(fq.features, fq.feature_vector, fc.features, fc.feature_vector, mp, &mask_q, &mask_c);
+  r.bow_matches = int(matches.size());
+  if (r.bow_matches < cfg.min_bow_matches) {
+    r.reason = "too few BoW matches";
+    return r;
+  }
+  std::vector<Sim3Correspondence> corr;
+  corr.reserve(matches.size());
+  for (const auto& m : matches) {
+    Sim3Correspondence c;
+    c.p1 = query.T_cam_world * query.map_points[m.a]->position;
+    c.p2 = candidate.T_cam_world * candidate.map_points[m.b]->position;
+    c.uv1 = fq.features.undistorted[m.a];
+    c.uv2 = fc.features.undistorted[m.b];
+    c.sigma2_1 = fq.pyramid->sigma2[fq.features.keypoints[m.a].octave];
+    c.sigma2_2 = fc.pyramid->sigma2[fc.features.keypoints[m.b].octave];
+    corr.push_back(c);
+  }
+  const StereoIntrinsics kq = intrinsics_of(query), kc = intrinsics_of(candidate);
+  const Sim3RansacResult ransac = sim3_ransac(corr, kq, kc, cfg.ransac);
+  r.ransac_inliers = ransac.num_inliers;
+  if (!ransac.success) {
+    r.reason = "RANSAC found no consistent transform";
+    return r;
+  }
+  const Sim3RefineResult refined = refine_sim3(ransac.S_12, corr, kq, kc, cfg.ransac.fix_scale);
+  r.refined_inliers = refined.num_inliers;
+  if (refined.num_inliers < cfg.min_refined_inliers) {
+    r.reason = "too few inliers after refinement";
+    return r;
+  }
+  r.S_query_candidate = refined.S_12;
+  r.projection_matches =
+      count_projection_matches(query, candidate, candidate_neighbours, refined.S_12, cfg.projection_radius);
+  if (r.projection_matches < cfg.min_projection_matches) {
+    r.reason = "projection check failed";
+    return r;
+  }
+  r.accepted = true;
+  return r;
+}
+
+}  // namespace cslam

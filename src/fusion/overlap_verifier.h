@@ -1,0 +1,33 @@
+#pragma once
+// Verification of a place-recognition candidate between two keyframes (of the same or of two
+// different maps): BoW matches of their map points, RANSAC SE3/Sim3 on the 3D-3D matches with a
+// reprojection inlier test in both images, Ceres refinement, then a projection check of the
+// candidate's covisible keyframes' points into the query keyframe. The caller holds both maps'
+// mutexes (shared).
+#include <string>
+#include <vector>
+
+#include "loop/sim3_ransac.h"
+#include "map/keyframe.h"
+
+namespace cslam {
+
+struct OverlapVerifyConfig {
+  int min_bow_matches = 20;
+  Sim3RansacConfig ransac;           // fix_scale: RGB-D observes scale
+  int min_refined_inliers = 20;
+  int min_projection_matches = 40;   // total matches confirmed by projection
+  double projection_radius = 7.5;    // pixels at level 0
+};
+
+struct OverlapVerifyResult {
+  bool accepted = false;
+  std::string reason;                // why it was rejected
+  Sim3 S_query_candidate;            // maps candidate-camera coordinates into query-camera coordinates
+  int bow_matches = 0, ransac_inliers = 0, refined_inliers = 0, projection_matches = 0;
+};
+
+OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candidate,
+                                   const std::vector<KeyFrame*>& candidate_neighbours, const OverlapVerifyConfig& config);
+
+}  // namespace cslam
