@@ -120,7 +120,9 @@ int run(int argc, char** argv) {
   else
     write_ply(out, r.cloud);
   if (!args.get("pcd").empty()) write_pcd(args.get("pcd"), r.cloud);
-  std::fprintf(stderr, "cloud: %zu points (from %zu raw) -> %s\n", r.cloud.size(), r.raw_points, out.c_str());
+  const BoundingBox bb = bounding_box(r.cloud.points);
+  std::fprintf(stderr, "cloud: %zu points (from %zu raw), bbox [%.2f %.2f %.2f] - [%.2f %.2f %.2f] m -> %s\n", r.cloud.size(),
+               r.raw_points, bb.min.x(), bb.min.y(), bb.min.z(), bb.max.x(), bb.max.y(), bb.max.z(), out.c_str());
   if (cfg.build_mesh) {
     if (r.mesh.triangles.empty()) throw InputError(datasets.front(), "TSDF produced an empty mesh; nothing written to " + mesh_path);
     write_ply_mesh(mesh_path, r.mesh);
