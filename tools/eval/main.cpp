@@ -36,6 +36,7 @@ int cmd_ate(int argc, char** argv) {
       .option("per-pose", "write 'timestamp error_m' per associated pose to this file", "")
       .multi_option("also", "more GT EST pairs evaluated with the same single alignment (a fused group: one\n"
                             "      pair per client, each associated on its own), e.g. --also gt2.txt est2.txt")
+      .multi_option("aligned", "write each estimate (EST, then the --also ones) transformed by the alignment to these files")
       .flag("json", "print JSON instead of a table");
   if (!args.parse(argc, argv, 2)) return 0;
   std::vector<std::pair<Trajectory, Trajectory>> pairs;
@@ -44,6 +45,14 @@ int cmd_ate(int argc, char** argv) {
   if (also.size() % 2 != 0) throw ConfigError("--also takes pairs: GT EST [GT EST ...]");
   for (size_t i = 0; i < also.size(); i += 2) pairs.emplace_back(read_tum_trajectory(also[i]), read_tum_trajectory(also[i + 1]));
   const auto r = compute_ate_joint(pairs, parse_alignment(args.get("align")), args.get_double("max-dt"));
+  const auto aligned_out = args.get_multi("aligned");
+  if (!aligned_out.empty() && aligned_out.size() != pairs.size())
+    throw ConfigError("--aligned needs one output file per estimate (" + std::to_string(pairs.size()) + ")");
+  for (size_t i = 0; i < aligned_out.size(); ++i) {
+    Trajectory moved = pairs[i].second;
+    for (auto& p : moved) p.T_world_cam = apply_sim3_to_pose(r.T_gt_est, p.T_world_cam);
+    write_tum_trajectory(aligned_out[i], moved, "aligned to ground truth");
+  }
   if (args.has("per-pose")) {
     std::FILE* f = std::fopen(args.get("per-pose").c_str(), "w");
     if (!f) throw InputError(args.get("per-pose"), "cannot write");

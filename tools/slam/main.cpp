@@ -18,6 +18,7 @@
 #include "eval/stats.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
+#include "multi.h"
 #include "slam/client_slam.h"
 
 using namespace cslam;
@@ -37,20 +38,30 @@ double peak_rss_mb() {
 
 int run(int argc, char** argv) {
   CliArgs args("cslam-slam", "Runs one client's RGB-D SLAM offline on a TUM-layout dataset.");
-  args.option("dataset", "dataset folder (rgb.txt, depth.txt, ...)")
+  args.option("dataset", "dataset folder (rgb.txt, depth.txt, ...)", "")
+      .multi_option("datasets", "multi-client mode: one dataset folder per client (e.g. cslam-synth robot_1 robot_2 ...)")
+      .option("clients", "multi-client mode: split --dataset into K clients with the paper's ranges", "1")
+      .option("overlap", "overlap rate eta of the split, e.g. 0.05 or 5%", "5%")
+      .option("out-dir", "multi-client mode: output folder (client_K.txt, fused_G.txt, stats.json)", "")
       .option("camera", "camera preset (tum1, tum2, tum3, synthetic) or file; default DATASET/camera.yaml or tum1", "")
       .option("range", "frames a:b (1-based, inclusive, of the associated RGB-D pairs)", "")
       .option("vocab", "vocabulary file", "")
-      .option("out", "frame trajectory output (TUM format)")
+      .option("out", "frame trajectory output (TUM format), single-client mode", "")
       .option("keyframes", "keyframe trajectory output (TUM format)", "")
       .option("stats", "timing statistics output (JSON)", "")
       .option("client", "client id", "1")
       .flag("sync", "run local mapping inline (deterministic, slower)")
       .flag("no-local-ba", "disable local bundle adjustment (ablation)")
+      .flag("no-fusion", "multi-client mode: disable map fusion (ablation)")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
   set_log_level(args.get("log-level"));
+  if (!args.get_multi("datasets").empty() || args.get_int("clients") > 1) {
+    if (!args.has("out-dir")) throw ConfigError("multi-client mode needs --out-dir");
+    return run_multi_client(args);
+  }
+  if (!args.has("dataset") || !args.has("out")) throw ConfigError("single-client mode needs --dataset and --out");
   const std::string dir = args.get("dataset");
   const TumDataset ds = open_tum_dataset(dir);
   std::string cam_name = args.get("camera");
