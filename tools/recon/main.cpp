@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "dense/trajectory_recon.h"
+#include "eval/trajectory_eval.h"
 #include "io/trajectory_io.h"
 
 using namespace cslam;
@@ -52,6 +53,8 @@ int run(int argc, char** argv) {
       .option("tsdf-trunc", "TSDF truncation distance (m)", "0.04")
       .option("tsdf-every", "fuse every n-th used frame into the TSDF", "1")
       .option("camera", "camera preset or file when a dataset has no camera.yaml", "tum1")
+      .option("align-to", "evaluation aid: SE3-align the poses to this ground-truth trajectory first (Umeyama over "
+                          "timestamp-associated positions), so SLAM-pose and ground-truth-pose clouds share a frame", "")
       .option("log-level", "trace|debug|info|warn|error|off", "info");
   if (!args.parse(argc, argv)) return 0;
   set_log_level(args.get("log-level"));
@@ -99,6 +102,15 @@ int run(int argc, char** argv) {
     }
     total_poses += s.poses.size();
     sources.push_back(std::move(s));
+  }
+  if (!args.get("align-to").empty()) {
+    const Trajectory gt = read_tum_trajectory(args.get("align-to"));
+    for (auto& s : sources) {
+      const AteResult ate = compute_ate(gt, s.poses, Alignment::kSE3, cfg.max_time_gap);
+      for (auto& p : s.poses) p.T_world_cam = apply_sim3_to_pose(ate.T_gt_est, p.T_world_cam);
+      std::fprintf(stderr, "aligned %s to %s: ATE rmse %.4f m over %d poses\n", s.dataset_dir.c_str(), args.get("align-to").c_str(),
+                   ate.stats.rmse, ate.stats.n);
+    }
   }
   std::fprintf(stderr, "cslam-recon: %zu poses from %zu trajectory file(s), %zu dataset(s)\n", total_poses, pose_files.size(),
                datasets.size());
