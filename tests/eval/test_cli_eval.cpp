@@ -7,22 +7,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "common/run_program.h"
 #include "common/test_data.h"
 
 namespace {
-struct RunResult {
-  int status;
-  std::string output;
-};
-RunResult run(const std::string& args) {
-  const std::string cmd = std::string(CSLAM_BIN_DIR) + "/cslam-eval " + args + " 2>&1";
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(cmd.c_str(), "r"), pclose);
-  std::string out;
-  std::array<char, 512> buf{};
-  while (fgets(buf.data(), buf.size(), pipe.get())) out += buf.data();
-  const int status = pclose(pipe.release());
-  return {WEXITSTATUS(status), out};
-}
+cslam::test::RunResult run(const std::string& args) { return cslam::test::run_program("cslam-eval", args); }
 }  // namespace
 
 TEST(CslamEvalCli, AteOnRealGroundTruth) {

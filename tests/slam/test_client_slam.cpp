@@ -1,0 +1,112 @@
+// The per-client worker on bad input: it reports and skips, or loses tracking and recovers;
+// it never crashes or blocks.
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "bow/vocabulary.h"
+#include "common/run_program.h"
+#include "eval/trajectory_eval.h"
+#include "io/tum_dataset.h"
+#include "geometry/camera_io.h"
+#include "slam/client_slam.h"
+
+using namespace cslam;
+
+namespace {
+
+class ClientSlamTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir("cslam_client_slam");
+    const auto r =
+        test::run_program("cslam-synth", "--preset test-small --seed 5 --out " + (*dir_ / "scene") + " --log-level warn");
+    ASSERT_EQ(r.status, 0) << r.output;
+    vocabulary_ = new std::shared_ptr<const Vocabulary>(std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
+  }
+  static void TearDownTestSuite() {
+    delete vocabulary_;
+    delete dir_;
+  }
+  void SetUp() override {
+    dataset_ = open_tum_dataset(*dir_ / "scene/robot_1");
+    info_.id = 7;
+    info_.name = "robot";
+    info_.camera = load_camera_file(*dir_ / "scene/robot_1/camera.yaml");
+    SlamConfig cfg;
+    cfg.threaded = false;
+    slam_ = std::make_unique<ClientSlam>(info_, cfg, *vocabulary_);
+  }
+  RgbdFrame frame(int i) const {
+    const auto im = load_rgbd(dataset_.pairs.at(i));
+    RgbdFrame f;
+    f.client = info_.id;
+    f.seq = std::uint64_t(i);
+    f.timestamp = dataset_.pairs[i].rgb_time;
+    f.bgr = im.bgr;
+    f.depth = im.depth;
+    return f;
+  }
+
+  static test::TempDir* dir_;
+  static std::shared_ptr<const Vocabulary>* vocabulary_;
+  TumDataset dataset_;
+  ClientInfo info_;
+  std::unique_ptr<ClientSlam> slam_;
+};
+test::TempDir* ClientSlamTest::dir_ = nullptr;
+std::shared_ptr<const Vocabulary>* ClientSlamTest::vocabulary_ = nullptr;
+
+}  // namespace
+
+TEST_F(ClientSlamTest, RejectsMalformedFramesAndKeepsTracking) {
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+
+  RgbdFrame wrong_size = frame(10);
+  cv::resize(wrong_size.bgr, wrong_size.bgr, cv::Size(100, 80));
+  auto r = slam_->process(wrong_size);
+  EXPECT_EQ(r.outcome, FrameOutcome::kRejected);
+  EXPECT_NE(r.reject_reason.find("colour"), std::string::npos) << r.reject_reason;
+
+  RgbdFrame wrong_depth = frame(10);
+  wrong_depth.depth.convertTo(wrong_depth.depth, CV_32F);
+  EXPECT_EQ(slam_->process(wrong_depth).outcome, FrameOutcome::kRejected);
+
+  RgbdFrame old_time = frame(5);  // timestamp goes back
+  EXPECT_EQ(slam_->process(old_time).outcome, FrameOutcome::kRejected);
+
+  for (int i = 10; i < 20; ++i) EXPECT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  const auto s = slam_->snapshot();
+  EXPECT_EQ(s.frames_rejected, 3u);
+  EXPECT_EQ(s.frames_tracked, 20u);
+  EXPECT_EQ(slam_->trajectory().size(), 20u);
+}
+
+TEST_F(ClientSlamTest, BlackFramesAndMissingDepthLoseTrackingThenRecover) {
+  for (int i = 0; i < 15; ++i) ASSERT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  // Black image with no depth: no features, tracking is lost (not a crash).
+  RgbdFrame black = frame(15);
+  black.bgr.setTo(cv::Scalar(0, 0, 0));
+  black.depth.setTo(0);
+  EXPECT_EQ(slam_->process(black).outcome, FrameOutcome::kLost);
+  // Saturated image.
+  RgbdFrame white = frame(16);
+  white.bgr.setTo(cv::Scalar(255, 255, 255));
+  EXPECT_EQ(slam_->process(white).outcome, FrameOutcome::kLost);
+  // Valid frames again: relocalisation against the keyframe database brings tracking back.
+  int tracked_after = 0;
+  for (int i = 17; i < 40; ++i) tracked_after += slam_->process(frame(i)).outcome == FrameOutcome::kTracked ? 1 : 0;
+  EXPECT_GE(tracked_after, 20);
+  EXPECT_EQ(slam_->snapshot().maps, 1);
+  // The recovered poses are consistent with the ones before the loss.
+  const auto ate = compute_ate(*dataset_.groundtruth, slam_->trajectory(), Alignment::kSE3);
+  EXPECT_LT(ate.stats.rmse, 0.02);
+}
+
+TEST_F(ClientSlamTest, NoDepthAtAllNeverInitialises) {
+  for (int i = 0; i < 5; ++i) {
+    RgbdFrame f = frame(i);
+    f.depth.setTo(0);
+    EXPECT_EQ(slam_->process(f).outcome, FrameOutcome::kNotInitialized);
+  }
+  EXPECT_EQ(slam_->process(frame(5)).outcome, FrameOutcome::kTracked);  // first frame with depth initialises
+}

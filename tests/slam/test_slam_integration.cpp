@@ -1,0 +1,89 @@
+// End-to-end runs of the offline programs on a small synthetic scene with exact ground truth.
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "common/run_program.h"
+
+using cslam::test::run_program;
+using cslam::test::TempDir;
+
+namespace {
+
+// One small scene for the whole suite (2 robots x 60 frames, 320x240).
+class SlamIntegration : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir("cslam_slam_it");
+    const auto r = run_program("cslam-synth", "--preset test-small --seed 3 --out " + (*dir_ / "scene") + " --log-level warn");
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static std::string scene(const std::string& rel) { return *dir_ / ("scene/" + rel); }
+  static std::string tmp(const std::string& rel) { return *dir_ / rel; }
+  static double ate_rmse(const std::string& args) {
+    const auto r = run_program("cslam-eval", "ate " + args + " --json");
+    EXPECT_EQ(r.status, 0) << r.output;
+    return nlohmann::json::parse(r.output)["rmse"].get<double>();
+  }
+  static TempDir* dir_;
+};
+TempDir* SlamIntegration::dir_ = nullptr;
+
+}  // namespace
+
+TEST_F(SlamIntegration, SingleClientTracksEveryFrameWithinBound) {
+  const auto r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + tmp("traj.txt") +
+                                               " --keyframes " + tmp("kf.txt") + " --stats " + tmp("stats.json") +
+                                               " --sync --quiet --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto stats = nlohmann::json::parse(std::ifstream(tmp("stats.json")));
+  EXPECT_EQ(stats["frames"].get<int>(), 60);
+  EXPECT_EQ(stats["frames_lost"].get<int>(), 0);
+  EXPECT_EQ(stats["trajectory_poses"].get<int>(), 60);
+  EXPECT_GE(stats["keyframes"].get<int>(), 3);
+  // Exact depth and textures: the camera path is recovered to a few millimetres.
+  EXPECT_LT(ate_rmse(scene("robot_1/groundtruth.txt") + " " + tmp("traj.txt")), 0.015);
+}
+
+TEST_F(SlamIntegration, OfflineTwoClientsFuseIntoOneFrame) {
+  const auto r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
+                                               tmp("multi") + " --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto stats = nlohmann::json::parse(std::ifstream(tmp("multi/stats.json")));
+  ASSERT_EQ(stats["clients"].size(), 2u);
+  EXPECT_EQ(stats["clients"][0]["group"], stats["clients"][1]["group"]) << stats.dump(2);
+  EXPECT_TRUE(stats["clients"][0]["fused"].get<bool>());
+  ASSERT_GE(stats["fusion_events"].size(), 1u);
+  // Both clients in one frame: one alignment for both trajectories keeps the error small.
+  const double joint = ate_rmse(scene("robot_1/groundtruth.txt") + " " + tmp("multi/client_1.txt") + " --also " +
+                                scene("robot_2/groundtruth.txt") + " " + tmp("multi/client_2.txt"));
+  EXPECT_LT(joint, 0.02);
+  EXPECT_TRUE(std::ifstream(tmp("multi/fused_" + std::to_string(stats["clients"][0]["group"].get<int>()) + ".txt")).good());
+}
+
+TEST_F(SlamIntegration, OfflineTwoClientsWithoutFusionStayApart) {
+  const auto r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
+                                               tmp("apart") + " --no-fusion --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto stats = nlohmann::json::parse(std::ifstream(tmp("apart/stats.json")));
+  EXPECT_NE(stats["clients"][0]["group"], stats["clients"][1]["group"]);
+  EXPECT_EQ(stats["fusion_events"].size(), 0u);
+  // Each client's own frame starts at its first camera: a joint alignment cannot fit both.
+  const double joint = ate_rmse(scene("robot_1/groundtruth.txt") + " " + tmp("apart/client_1.txt") + " --also " +
+                                scene("robot_2/groundtruth.txt") + " " + tmp("apart/client_2.txt"));
+  EXPECT_GT(joint, 0.05);
+}
+
+TEST_F(SlamIntegration, BadArgumentsGiveOneLineErrors) {
+  auto r = run_program("cslam-slam", "--dataset /nonexistent --out " + tmp("x.txt"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("/nonexistent"), std::string::npos) << r.output;
+  r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + tmp("x.txt") + " --vocab /nonexistent.voc");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("nonexistent.voc"), std::string::npos) << r.output;
+}
