@@ -40,10 +40,18 @@ int cmd_ate(int argc, char** argv) {
       .flag("json", "print JSON instead of a table");
   if (!args.parse(argc, argv, 2)) return 0;
   std::vector<std::pair<Trajectory, Trajectory>> pairs;
-  pairs.emplace_back(read_tum_trajectory(args.positionals()[0]), read_tum_trajectory(args.positionals()[1]));
+  {
+    Trajectory gt = read_tum_trajectory(args.positionals()[0]);  // ground truth first: its errors are reported first
+    Trajectory est = read_tum_trajectory(args.positionals()[1]);
+    pairs.emplace_back(std::move(gt), std::move(est));
+  }
   const auto also = args.get_multi("also");
   if (also.size() % 2 != 0) throw ConfigError("--also takes pairs: GT EST [GT EST ...]");
-  for (size_t i = 0; i < also.size(); i += 2) pairs.emplace_back(read_tum_trajectory(also[i]), read_tum_trajectory(also[i + 1]));
+  for (size_t i = 0; i < also.size(); i += 2) {
+    Trajectory gt = read_tum_trajectory(also[i]);
+    Trajectory est = read_tum_trajectory(also[i + 1]);
+    pairs.emplace_back(std::move(gt), std::move(est));
+  }
   const auto r = compute_ate_joint(pairs, parse_alignment(args.get("align")), args.get_double("max-dt"));
   const auto aligned_out = args.get_multi("aligned");
   if (!aligned_out.empty() && aligned_out.size() != pairs.size())
