@@ -3,6 +3,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <shared_mutex>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
@@ -134,6 +135,46 @@ std::map<ClientId, Trajectory> CollaborativeSystem::trajectories() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   for (const auto& [id, p] : impl_->clients) out[id] = p->trajectory();
   return out;
+}
+
+std::vector<ViewerPoint> CollaborativeSystem::map_points(int group, std::size_t max_points) const {
+  std::vector<std::pair<ClientId, std::shared_ptr<Map>>> maps;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    for (const auto& [id, p] : impl_->clients)
+      if (p->slam() && impl_->group_of(*p) == group)
+        if (auto m = p->slam()->main_map()) maps.emplace_back(id, m);
+  }
+  std::vector<ViewerPoint> out;
+  std::size_t total = 0;
+  for (const auto& [id, m] : maps) {
+    std::shared_lock<std::shared_mutex> lock(m->mutex);
+    total += m->num_map_points();
+  }
+  const std::size_t step = max_points == 0 ? 1 : std::max<std::size_t>(1, (total + max_points - 1) / max_points);
+  for (const auto& [id, m] : maps) {
+    std::shared_lock<std::shared_mutex> lock(m->mutex);
+    std::size_t i = 0;
+    for (const auto& mp : m->map_points()) {
+      if (i++ % step != 0 || mp->bad) continue;
+      ViewerPoint v;
+      v.x = float(mp->position.x());
+      v.y = float(mp->position.y());
+      v.z = float(mp->position.z());
+      v.b = mp->color[0];
+      v.g = mp->color[1];
+      v.r = mp->color[2];
+      v.client = id;
+      out.push_back(v);
+    }
+  }
+  return out;
+}
+
+Trajectory CollaborativeSystem::keyframe_trajectory(ClientId client) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  auto it = impl_->clients.find(client);
+  return it == impl_->clients.end() ? Trajectory{} : it->second->keyframe_trajectory();
 }
 
 namespace {

@@ -31,6 +31,13 @@ struct ClientSnapshot {
   double last_timestamp = 0;
 };
 
+// A sparse map point for viewers: position in its group's frame, colour, owning client.
+struct ViewerPoint {
+  float x = 0, y = 0, z = 0;
+  std::uint8_t r = 0, g = 0, b = 0;
+  ClientId client = 0;
+};
+
 struct SystemSnapshot {
   double uptime_s = 0;
   std::vector<ClientSnapshot> clients;
@@ -66,6 +73,10 @@ class CollaborativeSystem {
   std::map<ClientId, Trajectory> trajectories() const;
   // Group id -> member clients (a client alone is a group of one).
   std::map<int, std::vector<ClientId>> groups() const;
+  // Sparse map points of a group's clients (every n-th point so that at most max_points come back).
+  std::vector<ViewerPoint> map_points(int group, std::size_t max_points = 50000) const;
+  // Keyframe poses of one client in its group's frame.
+  Trajectory keyframe_trajectory(ClientId client) const;
   // Writes client_K.txt (each in its group's frame), fused_G.txt (all frames of a group of two or
   // more clients, time-ordered), keyframes_K.txt and stats.json into dir (created if needed).
   void write_outputs(const std::string& dir) const;
