@@ -51,7 +51,9 @@ class EndToEnd : public ::testing::Test {
     data_ = test::scratch_dir("data");
     test::write_tiny_dataset(data_, 20);
   }
-  void TearDown() override { std::filesystem::remove_all(data_); }
+  void TearDown() override {
+    if (!HasFailure()) std::filesystem::remove_all(data_);
+  }
   std::string data_;
 };
 
