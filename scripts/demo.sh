@@ -5,5 +5,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
+bash scripts/install-web.sh
 bash scripts/build.sh
 exec bash scripts/run-demo.sh "$@"

@@ -8,11 +8,9 @@ PKGS=(
   libopencv-dev libeigen3-dev libceres-dev libpcl-dev
   libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler
   libcpp-httplib-dev libgtest-dev libspdlog-dev nlohmann-json3-dev libzstd-dev
+  nodejs chromium
 )
-# Extra packages for the browser test of the web viewer (set CSLAM_WITH_BROWSER=0 to skip).
-if [ "${CSLAM_WITH_BROWSER:-0}" = "1" ]; then
-  PKGS+=(chromium)
-fi
+# nodejs: the web viewer's npm packages (scripts/install-web.sh); chromium: its browser test.
 
 missing=()
 for p in "${PKGS[@]}"; do

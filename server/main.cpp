@@ -10,6 +10,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "server/http/http_server.h"
 #include "server/receiver.h"
 #include "system/collaborative_system.h"
 
@@ -45,6 +46,7 @@ int run(int argc, char** argv) {
       .option("log-interval", "seconds between progress lines", "5")
       .option("endpoint-file", "write the bound endpoint to this file once listening", "")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
+  cslam::http::declare_options(cli);
   if (!cli.parse(argc, argv)) return 0;
   cslam::set_log_level(cli.get("log-level"));
 
@@ -75,6 +77,8 @@ int run(int argc, char** argv) {
   cslam::CollaborativeSystem system(sc);
   zmq::context_t context(1);
   cslam::server::Receiver receiver(context, rc, system, done, stop);
+  cslam::http::HttpServer http(system, cslam::http::config_from(cli));  // reads snapshots only
+  http.start();
   install_signal_handlers(&stop);
   if (cli.has("endpoint-file")) {
     const std::string path = cli.get("endpoint-file"), tmp = path + ".tmp";
@@ -89,10 +93,10 @@ int run(int argc, char** argv) {
   system.finish();
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system.write_outputs(out_dir);
-  cslam::server::ServerStats stats = receiver.stats();
+  const cslam::server::ServerStats& stats = receiver.stats();
   const cslam::SystemSnapshot snapshot = system.snapshot();
   std::ofstream(out_dir + "/network_stats.json") << stats.to_json(snapshot, wall_s) << "\n";
-  for (const std::string& line : stats.progress_lines(snapshot, wall_s)) log->info("final {}", line);
+  for (const std::string& line : stats.summary_lines(snapshot, wall_s)) log->info("total {}", line);
   log->info("wrote trajectories and statistics to {}", out_dir);
   install_signal_handlers(nullptr);
   return 0;

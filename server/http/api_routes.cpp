@@ -1,0 +1,248 @@
+// The JSON API of the HTTP server (see README "HTTP API"): every handler reads one immutable
+// StatusCache snapshot or the reconstruction job table; none calls into the SLAM system.
+#include <cstring>
+#include <filesystem>
+#include <optional>
+#include <sstream>
+
+#include "core/error.h"
+#include "dense/trajectory_recon.h"
+#include "server/http/http_server.h"
+// After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
+#include "server/http/json_reply.h"
+
+namespace cslam::http {
+namespace {
+
+// A strictly parsed integer parameter: nullopt if absent; throws std::invalid_argument if malformed.
+std::optional<long> int_param(const httplib::Request& req, const std::string& name, long lo, long hi) {
+  if (!req.has_param(name.c_str())) return std::nullopt;
+  const std::string v = req.get_param_value(name.c_str());
+  std::size_t used = 0;
+  long x = 0;
+  try {
+    x = std::stol(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (v.empty() || used != v.size() || x < lo || x > hi)
+    throw std::invalid_argument("parameter " + name + " must be an integer in [" + std::to_string(lo) + ", " +
+                                std::to_string(hi) + "], got '" + v + "'");
+  return x;
+}
+
+std::optional<double> double_param(const httplib::Request& req, const std::string& name, double lo, double hi) {
+  if (!req.has_param(name.c_str())) return std::nullopt;
+  const std::string v = req.get_param_value(name.c_str());
+  std::size_t used = 0;
+  double x = 0;
+  try {
+    x = std::stod(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (v.empty() || used != v.size() || !(x >= lo && x <= hi))
+    throw std::invalid_argument("parameter " + name + " must be a number in [" + std::to_string(lo) + ", " +
+                                std::to_string(hi) + "], got '" + v + "'");
+  return x;
+}
+
+std::string param_or(const httplib::Request& req, const char* name, const std::string& fallback) {
+  return req.has_param(name) ? req.get_param_value(name) : fallback;
+}
+
+// Runs a handler body; std::invalid_argument becomes a 400 with its message.
+template <typename F>
+httplib::Server::Handler guarded(F f) {
+  return [f](const httplib::Request& req, httplib::Response& res) {
+    try {
+      f(req, res);
+    } catch (const std::invalid_argument& e) {
+      json_error(res, 400, e.what());
+    } catch (const ConfigError& e) {
+      json_error(res, 400, e.what());
+    }
+  };
+}
+
+void write_trajectory_json(nlohmann::json& out, ClientId id, int group, const Trajectory& t) {
+  nlohmann::json poses = nlohmann::json::array();
+  for (const StampedPose& p : t) {
+    const auto& x = p.T_world_cam.translation();
+    const auto& q = p.T_world_cam.rotation();
+    poses.push_back({p.timestamp, x.x(), x.y(), x.z(), q.x(), q.y(), q.z(), q.w()});
+  }
+  out.push_back({{"client", id}, {"group", group}, {"poses", std::move(poses)}});
+}
+
+}  // namespace
+
+void HttpServer::api_routes() {
+  httplib::Server& s = *server_;
+
+  s.Get("/api/status", [this](const httplib::Request&, httplib::Response& res) { json_reply(res, cache_.get()->status); });
+
+  s.Get(R"(/api/clients/([^/]+))", guarded([this](const httplib::Request& req, httplib::Response& res) {
+    const auto state = cache_.get();
+    const std::string id = req.matches[1];
+    for (const auto& [cid, j] : state->clients)
+      if (std::to_string(cid) == id) return json_reply(res, j);
+    json_error(res, 404, "unknown client " + id);
+  }));
+
+  s.Get("/api/fusion/events", [this](const httplib::Request&, httplib::Response& res) {
+    json_reply(res, {{"events", cache_.get()->events}});
+  });
+
+  s.Get("/api/trajectories", guarded([this](const httplib::Request& req, httplib::Response& res) {
+    const auto state = cache_.get();
+    const std::string client = param_or(req, "client", "all"), format = param_or(req, "format", "json");
+    if (format != "tum" && format != "json") throw std::invalid_argument("format must be tum or json, got '" + format + "'");
+    std::vector<ClientId> ids;
+    if (client == "all") {
+      for (const auto& [id, t] : state->trajectories) ids.push_back(id);
+    } else {
+      const long id = *int_param(req, "client", 0, 65535);
+      if (!state->trajectories.count(ClientId(id))) return json_error(res, 404, "unknown client " + client);
+      ids.push_back(ClientId(id));
+    }
+    auto group_of = [&state](ClientId id) {
+      const auto it = state->group_of.find(id);
+      return it == state->group_of.end() ? -1 : it->second;
+    };
+    if (format == "tum") {
+      std::ostringstream o;
+      o << "# timestamp x y z qx qy qz qw (camera-to-world, fused frame of each client's group)\n";
+      for (ClientId id : ids) {
+        o << "# client " << id << " group " << group_of(id) << "\n";
+        for (const StampedPose& p : state->trajectories.at(id)) o << format_tum_line(p) << "\n";
+      }
+      res.set_content(o.str(), "text/plain; charset=utf-8");
+      return;
+    }
+    nlohmann::json list = nlohmann::json::array();
+    for (ClientId id : ids) write_trajectory_json(list, id, group_of(id), state->trajectories.at(id));
+    json_reply(res, {{"trajectories", std::move(list)}, {"pose_fields", {"t", "x", "y", "z", "qx", "qy", "qz", "qw"}}});
+  }));
+
+  s.Get("/api/map/points", guarded([this](const httplib::Request& req, httplib::Response& res) {
+    const auto state = cache_.get();
+    const std::string format = param_or(req, "format", "json");
+    if (format != "bin" && format != "json") throw std::invalid_argument("format must be bin or json, got '" + format + "'");
+    const auto group = int_param(req, "group", -1, 1 << 30);
+    if (group && !state->groups.count(int(*group))) return json_error(res, 404, "unknown group " + std::to_string(*group));
+    std::vector<const ViewerPoint*> points;
+    std::vector<int> groups;
+    for (const auto& [g, list] : state->points) {
+      if (group && g != *group) continue;
+      for (const ViewerPoint& p : *list) {
+        points.push_back(&p);
+        groups.push_back(g);
+      }
+    }
+    res.set_header("X-Point-Count", std::to_string(points.size()));
+    if (format == "bin") {  // 16 bytes per point, little-endian: float32 x y z, uint8 r g b, uint8 client
+      std::string body(points.size() * 16, '\0');
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        const ViewerPoint& p = *points[i];
+        char* o = body.data() + i * 16;
+        std::memcpy(o, &p.x, 4);
+        std::memcpy(o + 4, &p.y, 4);
+        std::memcpy(o + 8, &p.z, 4);
+        const std::uint8_t tail[4] = {p.r, p.g, p.b, std::uint8_t(std::min<int>(p.client, 255))};
+        std::memcpy(o + 12, tail, 4);
+      }
+      res.set_content(body, "application/octet-stream");
+      return;
+    }
+    nlohmann::json list = nlohmann::json::array();
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const ViewerPoint& p = *points[i];
+      list.push_back({p.x, p.y, p.z, p.r, p.g, p.b, p.client, groups[i]});
+    }
+    json_reply(res, {{"fields", {"x", "y", "z", "r", "g", "b", "client", "group"}}, {"points", std::move(list)}});
+  }));
+
+  s.Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
+    res.set_content(cache_.get()->metrics, "text/plain; version=0.0.4; charset=utf-8");
+  });
+
+  s.Post("/api/reconstruction", guarded([this](const httplib::Request& req, httplib::Response& res) {
+    if (!config_.loopback() && config_.token.empty())
+      return json_error(res, 403, "POST needs --http-token when the server is bound beyond loopback");
+    const auto state = cache_.get();
+    int group = -1;
+    if (const auto g = int_param(req, "group", -1, 1 << 30)) {
+      group = int(*g);
+      if (!state->groups.count(group)) return json_error(res, 404, "unknown group " + std::to_string(group));
+    } else {  // the largest group
+      for (const auto& [g, members] : state->groups)
+        if (group < 0 || members.size() > state->groups.at(group).size()) group = g;
+      if (group < 0) return json_error(res, 409, "no client yet");
+    }
+    DenseConfig dc;
+    dc.voxel_size = double_param(req, "voxel", 0.002, 1.0).value_or(0.02);
+    dc.stride = int(int_param(req, "stride", 1, 64).value_or(4));
+    dc.build_mesh = int_param(req, "mesh", 0, 1).value_or(1) == 1;
+    dc.tsdf.voxel_size = float(dc.voxel_size);
+    dc.tsdf.truncation = float(4 * dc.voxel_size);
+    dc.threads = 1;  // leave the cores to SLAM
+    dc.tsdf.threads = 1;
+    dc.validate();  // ConfigError: 400
+    if (config_.datasets_dir.empty())
+      return json_error(res, 503, "reconstruction needs the clients' images: start cslam-server with --datasets-dir DIR");
+    std::vector<DatasetPoses> sources;
+    for (ClientId id : state->groups.at(group)) {
+      const auto traj = state->trajectories.find(id);
+      if (traj == state->trajectories.end() || traj->second.empty()) continue;
+      const std::filesystem::path root(config_.datasets_dir);
+      const std::string name = state->clients.count(id) ? state->clients.at(id).value("name", "") : "";
+      std::vector<std::filesystem::path> candidates;
+      if (!name.empty()) candidates.push_back(root / name);
+      candidates.push_back(root / ("robot_" + std::to_string(id)));
+      candidates.push_back(root / ("client_" + std::to_string(id)));
+      std::string dir;
+      for (const auto& p : candidates)
+        if (std::filesystem::exists(p / "rgb.txt")) {
+          dir = p.string();
+          break;
+        }
+      if (dir.empty()) return json_error(res, 409, "no dataset folder for client " + std::to_string(id) + " under " + root.string());
+      sources.push_back({dir, traj->second, dataset_camera(dir, config_.recon_camera)});
+    }
+    if (sources.empty()) return json_error(res, 409, "group " + std::to_string(group) + " has no poses yet");
+    const auto id = jobs_.start(group, std::move(sources), dc);
+    if (!id) return json_error(res, 409, "a reconstruction is already running");
+    json_reply(res, {{"job", *id}, {"group", group}, {"status_url", "/api/reconstruction/" + *id}}, 202);
+  }));
+
+  s.Get(R"(/api/reconstruction/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
+    const auto v = jobs_.view(req.matches[1]);
+    if (!v) return json_error(res, 404, "unknown reconstruction job " + std::string(req.matches[1]));
+    nlohmann::json j = {{"job", v->id},         {"group", v->group},          {"state", v->state},
+                        {"progress", v->progress}, {"frames_done", v->frames_done}, {"frames_total", v->frames_total},
+                        {"frames_used", v->frames_used}, {"points", v->points}, {"triangles", v->triangles},
+                        {"message", v->message},   {"elapsed_s", v->elapsed_s}};
+    if (v->state == "done") {
+      j["cloud_url"] = "/api/reconstruction/" + v->id + "/cloud.ply";
+      if (v->triangles > 0) j["mesh_url"] = "/api/reconstruction/" + v->id + "/mesh.ply";
+    }
+    json_reply(res, j);
+  });
+
+  auto download = [this](bool mesh) {
+    return [this, mesh](const httplib::Request& req, httplib::Response& res) {
+      const std::string id = req.matches[1];
+      const auto v = jobs_.view(id);
+      if (!v) return json_error(res, 404, "unknown reconstruction job " + id);
+      const auto bytes = mesh ? jobs_.mesh_ply(id) : jobs_.cloud_ply(id);
+      if (!bytes) return json_error(res, v->state == "done" ? 404 : 409, "job " + id + " is " + v->state + (v->state == "done" ? " without a mesh" : ""));
+      res.set_header("Content-Disposition", "attachment; filename=\"" + id + (mesh ? "_mesh" : "_cloud") + ".ply\"");
+      res.set_content(*bytes, "application/octet-stream");
+    };
+  };
+  s.Get(R"(/api/reconstruction/([^/]+)/cloud\.ply)", download(false));
+  s.Get(R"(/api/reconstruction/([^/]+)/mesh\.ply)", download(true));
+}
+
+}  // namespace cslam::http

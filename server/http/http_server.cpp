@@ -1,0 +1,139 @@
+#include "server/http/http_server.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+#include "core/log.h"
+// After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
+#include "server/http/json_reply.h"
+
+#ifndef CSLAM_WEB_DIR
+#define CSLAM_WEB_DIR "web"
+#endif
+
+namespace cslam::http {
+
+bool HttpConfig::loopback() const { return bind == "127.0.0.1" || bind == "localhost" || bind == "::1"; }
+
+void declare_options(CliArgs& cli) {
+  cli.option("http", "HTTP status API and web viewer port (0: any free port, off: disabled)", "8080")
+      .option("http-bind", "address the HTTP server binds (beyond loopback POST needs --http-token)", "127.0.0.1")
+      .option("http-token", "require 'Authorization: Bearer TOKEN' on every API request", "")
+      .option("web-root", "folder of the web viewer (index.html, viewer.js, node_modules/three)", CSLAM_WEB_DIR)
+      .option("http-port-file", "write the bound HTTP port to this file once listening", "")
+      .option("datasets-dir", "reconstruction over HTTP: per-client TUM folders DIR/<name>, DIR/robot_K or DIR/client_K", "")
+      .option("recon-camera", "camera preset or file for reconstruction datasets without camera.yaml", "tum1");
+}
+
+HttpConfig config_from(const CliArgs& cli) {
+  HttpConfig c;
+  const std::string port = cli.get("http");
+  if (port == "off") {
+    c.enabled = false;
+  } else {
+    try {
+      std::size_t used = 0;
+      c.port = std::stoi(port, &used);
+      if (used != port.size() || c.port < 0 || c.port > 65535) throw std::invalid_argument(port);
+    } catch (const std::exception&) {
+      throw ConfigError("cslam-server: --http must be a port 0..65535 or 'off', got '" + port + "'");
+    }
+  }
+  c.bind = cli.get("http-bind");
+  c.token = cli.get("http-token");
+  c.web_root = cli.get("web-root");
+  c.port_file = cli.get("http-port-file");
+  c.datasets_dir = cli.get("datasets-dir");
+  c.recon_camera = cli.get("recon-camera");
+  return c;
+}
+
+HttpServer::HttpServer(const CollaborativeSystem& system, HttpConfig config)
+    : config_(std::move(config)), system_(system), cache_(system, config_.cache), server_(std::make_unique<httplib::Server>()) {
+  routes();
+}
+
+HttpServer::~HttpServer() { stop(); }
+
+bool HttpServer::start() {
+  auto log = logger("http");
+  if (!config_.enabled) return false;
+  if (!std::filesystem::exists(std::filesystem::path(config_.web_root) / "node_modules/three/build/three.module.js"))
+    log->warn("three.js not found under {}/node_modules (run scripts/install-web.sh): the viewer shows the client "
+              "table only", config_.web_root);
+  port_ = config_.port == 0 ? server_->bind_to_any_port(config_.bind) : (server_->bind_to_port(config_.bind, config_.port) ? config_.port : -1);
+  if (port_ < 0) {
+    log->error("HTTP: cannot bind {}:{} (in use?); continuing without the HTTP API", config_.bind, config_.port);
+    return false;
+  }
+  cache_.start();
+  listener_ = std::thread([this] { server_->listen_after_bind(); });
+  // Bound before listening: connections queue in the kernel's backlog until the loop runs.
+  if (!config_.port_file.empty()) {
+    const std::string tmp = config_.port_file + ".tmp";
+    std::ofstream(tmp) << port_ << "\n";
+    std::filesystem::rename(tmp, config_.port_file);
+  }
+  log->info("HTTP API and viewer on http://{}:{}/{}", config_.bind, port_, config_.token.empty() ? "" : " (token required)");
+  return true;
+}
+
+void HttpServer::stop() {
+  if (listener_.joinable()) {
+    server_->stop();
+    listener_.join();
+  }
+  cache_.stop();
+}
+
+void HttpServer::routes() {
+  httplib::Server& s = *server_;
+  s.set_read_timeout(5, 0);
+  s.set_write_timeout(5, 0);
+  s.set_keep_alive_timeout(2);
+  s.set_payload_max_length(64 * 1024);
+  s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    const bool api = req.path.rfind("/api/", 0) == 0 || req.path == "/metrics";
+    if (!api || config_.token.empty()) return httplib::Server::HandlerResponse::Unhandled;
+    if (req.get_header_value("Authorization") == "Bearer " + config_.token)
+      return httplib::Server::HandlerResponse::Unhandled;
+    res.set_header("WWW-Authenticate", "Bearer");
+    json_error(res, 401, "missing or wrong bearer token");
+    return httplib::Server::HandlerResponse::Handled;
+  });
+  s.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
+    if (res.body.empty()) json_error(res, res.status, res.status == 404 ? "no such resource: " + req.path : "request failed");
+  });
+  s.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+    std::string what = "internal error";
+    try {
+      if (ep) std::rethrow_exception(ep);
+    } catch (const std::exception& e) {
+      what = e.what();
+    } catch (...) {
+    }
+    json_error(res, 500, what);
+  });
+  api_routes();
+  static_routes();
+}
+
+void HttpServer::static_routes() {
+  auto file = [this](const std::string& name, const std::string& type) {
+    return [this, name, type](const httplib::Request&, httplib::Response& res) {
+      std::ifstream in(std::filesystem::path(config_.web_root) / name, std::ios::binary);
+      if (!in) return json_error(res, 404, "viewer file missing: " + name + " (web root " + config_.web_root + ")");
+      std::string body((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      res.set_header("Cache-Control", "no-cache");
+      res.set_content(body, type.c_str());
+    };
+  };
+  server_->Get("/", file("index.html", "text/html; charset=utf-8"));
+  server_->Get("/index.html", file("index.html", "text/html; charset=utf-8"));
+  server_->Get("/viewer.js", file("viewer.js", "text/javascript; charset=utf-8"));
+  // three.js (r160 is one ES module file) from the npm install, never from the internet.
+  server_->Get("/vendor/three.module.js", file("node_modules/three/build/three.module.js", "text/javascript; charset=utf-8"));
+}
+
+}  // namespace cslam::http

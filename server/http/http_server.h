@@ -1,0 +1,64 @@
+#pragma once
+// The embedded HTTP server of cslam-server (cpp-httplib): JSON status API, Prometheus metrics,
+// asynchronous dense reconstruction jobs and the web viewer's static files (web/). Handlers only
+// read the StatusCache snapshot; they never call into the SLAM system themselves.
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "core/cli.h"
+#include "server/http/recon_jobs.h"
+#include "server/http/status_cache.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace cslam::http {
+
+struct HttpConfig {
+  bool enabled = true;
+  int port = 8080;                // 0: any free port (see HttpServer::port())
+  std::string bind = "127.0.0.1";
+  std::string token;              // non-empty: every API request needs "Authorization: Bearer TOKEN"
+  std::string web_root;           // folder with index.html, viewer.js, node_modules/three
+  std::string port_file;          // written with the bound port once listening
+  std::string datasets_dir;       // reconstruction: DIR/<name>, DIR/robot_K or DIR/client_K per client
+  std::string recon_camera = "tum1";  // camera preset or file for datasets without camera.yaml
+  CacheConfig cache;
+  bool loopback() const;
+};
+
+// Declares --http, --http-bind, --http-token, --web-root, --http-port-file, --datasets-dir,
+// --recon-camera on a program's CliArgs, and reads them back (throws ConfigError on bad values).
+void declare_options(CliArgs& cli);
+HttpConfig config_from(const CliArgs& cli);
+
+class HttpServer {
+ public:
+  HttpServer(const CollaborativeSystem& system, HttpConfig config);
+  ~HttpServer();  // stop()
+  HttpServer(const HttpServer&) = delete;
+  HttpServer& operator=(const HttpServer&) = delete;
+
+  // Binds and starts the listener and the cache threads. Returns false (and logs why) if the
+  // port cannot be bound: SLAM keeps running without HTTP.
+  bool start();
+  void stop();  // idempotent; joins every thread (reconstruction jobs are cancelled)
+  int port() const { return port_; }
+
+ private:
+  void routes();
+  void api_routes();
+  void static_routes();
+
+  HttpConfig config_;
+  const CollaborativeSystem& system_;
+  StatusCache cache_;
+  ReconJobs jobs_;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread listener_;
+  int port_ = -1;
+};
+
+}  // namespace cslam::http

@@ -1,0 +1,191 @@
+#include "server/http/status_cache.h"
+
+#include <sstream>
+
+namespace cslam::http {
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+nlohmann::json pose_json(const SE3& T_world_cam, double timestamp) {
+  const auto& t = T_world_cam.translation();
+  const auto& q = T_world_cam.rotation();
+  return {{"timestamp", timestamp}, {"position", {t.x(), t.y(), t.z()}}, {"quaternion", {q.x(), q.y(), q.z(), q.w()}}};
+}
+
+// Prometheus label values: backslash, quote and newline escaped.
+std::string label(const std::string& v) {
+  std::string out;
+  for (char c : v) {
+    if (c == '\\' || c == '"') out += '\\';
+    if (c == '\n') { out += "\\n"; continue; }
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps, const std::string& connection) {
+  return {{"id", c.id},
+          {"name", c.name},
+          {"connection", connection},
+          {"tracking", to_string(c.tracking)},
+          {"frames_received", c.frames_submitted},
+          {"frames_processed", c.frames_processed},
+          {"frames_dropped", c.frames_rejected},
+          {"frames_lost", c.frames_lost},
+          {"queue_depth", c.queue_depth},
+          {"fps", fps},
+          {"input_fps", input_fps},
+          {"bandwidth_mbps", nullptr},  // byte counts live in the receiver thread (not published yet)
+          {"keyframes", c.keyframes},
+          {"map_points", c.map_points},
+          {"maps", c.maps},
+          {"group", c.group},
+          {"last_timestamp", c.last_timestamp}};
+}
+
+nlohmann::json event_json(const FusionEvent& e) {
+  return {{"time_s", e.wall_time_s}, {"kind", e.kind},          {"clients", {e.client_a, e.client_b}},
+          {"group", e.group},        {"inliers", e.inliers},    {"duration_ms", e.duration_ms},
+          {"query_timestamp", e.query_timestamp}, {"candidate_timestamp", e.candidate_timestamp}};
+}
+
+std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, double>& fps, std::size_t fusion_count) {
+  std::ostringstream o;
+  auto head = [&o](const char* name, const char* type, const char* help) {
+    o << "# HELP " << name << " " << help << "\n# TYPE " << name << " " << type << "\n";
+  };
+  auto per_client = [&](const char* name, const char* type, const char* help, auto value) {
+    head(name, type, help);
+    for (const ClientSnapshot& c : s.clients)
+      o << name << "{client=\"" << c.id << "\",name=\"" << label(c.name) << "\"} " << value(c) << "\n";
+  };
+  head("cslam_uptime_seconds", "gauge", "Seconds since the system started.");
+  o << "cslam_uptime_seconds " << s.uptime_s << "\n";
+  head("cslam_clients", "gauge", "Registered clients.");
+  o << "cslam_clients " << s.clients.size() << "\n";
+  per_client("cslam_frames_received_total", "counter", "Frames received (submitted to SLAM).",
+             [](const ClientSnapshot& c) { return c.frames_submitted; });
+  per_client("cslam_frames_processed_total", "counter", "Frames processed by SLAM.",
+             [](const ClientSnapshot& c) { return c.frames_processed; });
+  per_client("cslam_frames_dropped_total", "counter", "Frames rejected (bad images).",
+             [](const ClientSnapshot& c) { return c.frames_rejected; });
+  per_client("cslam_frames_lost_total", "counter", "Frames processed while tracking was lost.",
+             [](const ClientSnapshot& c) { return c.frames_lost; });
+  per_client("cslam_fps", "gauge", "Frames processed per second (last seconds).", [&fps](const ClientSnapshot& c) {
+    const auto it = fps.find(c.id);
+    return it == fps.end() ? 0.0 : it->second;
+  });
+  per_client("cslam_queue_depth", "gauge", "Frames queued before the SLAM worker.",
+             [](const ClientSnapshot& c) { return c.queue_depth; });
+  per_client("cslam_keyframes", "gauge", "Keyframes in the client's map.", [](const ClientSnapshot& c) { return c.keyframes; });
+  per_client("cslam_map_points", "gauge", "Map points in the client's map.", [](const ClientSnapshot& c) { return c.map_points; });
+  per_client("cslam_group", "gauge", "Fused group id of the client.", [](const ClientSnapshot& c) { return c.group; });
+  head("cslam_tracking_state", "gauge", "1 for the client's current tracking state.");
+  for (const ClientSnapshot& c : s.clients)
+    for (TrackingState st : {TrackingState::kNotInitialized, TrackingState::kTracking, TrackingState::kLost})
+      o << "cslam_tracking_state{client=\"" << c.id << "\",state=\"" << to_string(st) << "\"} " << (c.tracking == st ? 1 : 0)
+        << "\n";
+  head("cslam_fusion_events_total", "counter", "Accepted fusion and loop events.");
+  o << "cslam_fusion_events_total " << fusion_count << "\n";
+  return o.str();
+}
+
+StatusCache::StatusCache(const CollaborativeSystem& system, CacheConfig config)
+    : system_(system), config_(std::move(config)), state_(std::make_shared<CachedState>()) {}
+
+StatusCache::~StatusCache() { stop(); }
+
+void StatusCache::start() {
+  refresh();
+  if (!thread_.joinable()) thread_ = std::thread([this] { loop(); });
+}
+
+void StatusCache::stop() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+std::shared_ptr<const CachedState> StatusCache::get() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return state_;
+}
+
+void StatusCache::loop() {
+  const auto period = std::chrono::duration<double>(1.0 / std::max(0.1, config_.refresh_hz));
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (!wake_.wait_for(lock, period, [this] { return stop_; })) {
+    lock.unlock();
+    refresh();
+    lock.lock();
+  }
+}
+
+void StatusCache::refresh() {
+  auto next = std::make_shared<CachedState>();
+  const SystemSnapshot snap = system_.snapshot();
+  next->trajectories = system_.trajectories();
+  next->groups = system_.groups();
+  const double now = seconds_since(start_);
+  next->uptime_s = snap.uptime_s;
+  next->generation = ++generation_;
+
+  std::map<ClientId, double> fps_of;
+  nlohmann::json clients = nlohmann::json::array();
+  for (const ClientSnapshot& c : snap.clients) {
+    auto& samples = samples_[c.id];
+    samples.push_back({now, c.frames_submitted, c.frames_processed});
+    while (samples.size() > 2 && now - samples.front().t > 2.0) samples.pop_front();
+    double fps = 0, input_fps = 0;
+    if (samples.size() >= 2 && samples.back().t > samples.front().t) {
+      const double dt = samples.back().t - samples.front().t;
+      fps = double(samples.back().processed - samples.front().processed) / dt;
+      input_fps = double(samples.back().submitted - samples.front().submitted) / dt;
+    }
+    if (samples.size() < 2 || samples[samples.size() - 2].submitted != c.frames_submitted || !last_input_change_.count(c.id))
+      last_input_change_[c.id] = now;
+    const bool busy = c.queue_depth > 0 || now - last_input_change_[c.id] < config_.idle_after_s;
+    const std::string connection = c.frames_submitted == 0 ? "connected" : busy ? "streaming" : "idle";
+    fps_of[c.id] = fps;
+    nlohmann::json j = client_json(c, fps, input_fps, connection);
+    clients.push_back(j);
+    j["pose"] = pose_json(c.T_world_cam, c.last_timestamp);
+    next->clients[c.id] = std::move(j);
+    next->group_of[c.id] = c.group;
+  }
+  std::size_t fusions = 0;
+  next->events = nlohmann::json::array();
+  for (const FusionEvent& e : snap.events) {
+    next->events.push_back(event_json(e));
+    ++fusions;
+  }
+  next->status = {{"server", "cslam-server"},
+                  {"version", config_.version},
+                  {"uptime_s", snap.uptime_s},
+                  {"generation", next->generation},
+                  {"clients", std::move(clients)},
+                  {"groups", next->groups},
+                  {"fusion_events", fusions}};
+  next->metrics = metrics_text(snap, fps_of, fusions);
+
+  const auto previous = get();
+  if (now - last_points_t_ >= config_.points_refresh_s) {
+    last_points_t_ = now;
+    for (const auto& [group, members] : next->groups) 
+      next->points[group] = std::make_shared<const std::vector<ViewerPoint>>(system_.map_points(group, config_.max_map_points));
+  } else {
+    next->points = previous->points;  // shared, immutable
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  state_ = std::move(next);
+}
+
+}  // namespace cslam::http

@@ -1,0 +1,82 @@
+#pragma once
+// The HTTP layer's view of the system: a thread refreshes an immutable snapshot (status JSON,
+// events, metrics text, trajectories, groups, decimated map points) a few times per second from
+// CollaborativeSystem's snapshot calls. HTTP handlers only read the latest published snapshot
+// (a shared_ptr swap), so a slow or hostile HTTP client never holds a SLAM lock.
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "system/collaborative_system.h"
+
+namespace cslam::http {
+
+struct CacheConfig {
+  double refresh_hz = 5.0;           // status, events, metrics, trajectories
+  double points_refresh_s = 1.0;     // map points (the heaviest query) at most this often
+  std::size_t max_map_points = 20000;  // per group
+  double idle_after_s = 3.0;         // no new frame for this long: connection "idle"
+  std::string version = "0.1.0";
+};
+
+struct CachedState {
+  double uptime_s = 0;
+  std::uint64_t generation = 0;
+  nlohmann::json status;                          // body of GET /api/status
+  std::map<ClientId, nlohmann::json> clients;     // body of GET /api/clients/{id} (with pose)
+  nlohmann::json events;                          // body of GET /api/fusion/events
+  std::string metrics;                            // body of GET /metrics
+  std::map<ClientId, Trajectory> trajectories;    // each in its group's frame
+  std::map<ClientId, int> group_of;
+  std::map<int, std::vector<ClientId>> groups;
+  std::map<int, std::shared_ptr<const std::vector<ViewerPoint>>> points;  // per group, decimated
+};
+
+// Builds the status JSON/metrics from one system snapshot (pure; unit-tested).
+struct RateSample {
+  double t = 0;
+  std::uint64_t submitted = 0, processed = 0;
+};
+nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps, const std::string& connection);
+nlohmann::json event_json(const FusionEvent& e);
+std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, double>& fps, std::size_t fusion_count);
+
+class StatusCache {
+ public:
+  StatusCache(const CollaborativeSystem& system, CacheConfig config);
+  ~StatusCache();  // stops and joins the refresh thread
+  StatusCache(const StatusCache&) = delete;
+  StatusCache& operator=(const StatusCache&) = delete;
+
+  void start();        // starts the refresh thread (refresh() once first)
+  void stop();         // idempotent
+  void refresh();      // one refresh step (also usable without the thread, in tests)
+  std::shared_ptr<const CachedState> get() const;
+
+ private:
+  void loop();
+
+  const CollaborativeSystem& system_;
+  const CacheConfig config_;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  mutable std::mutex mutex_;  // guards state_ (pointer swap only) and stop_
+  std::condition_variable wake_;
+  bool stop_ = false;
+  std::shared_ptr<const CachedState> state_;
+  std::thread thread_;
+  // Refresh-thread-only bookkeeping.
+  std::map<ClientId, std::deque<RateSample>> samples_;
+  std::map<ClientId, double> last_input_change_;
+  double last_points_t_ = -1e9;
+  std::uint64_t generation_ = 0;
+};
+
+}  // namespace cslam::http
