@@ -207,7 +207,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
   e.client_a = p.client;
   e.client_b = other_client;
   e.group = kept;
-  e.inliers = v.refined_inliers;
+  e.inliers = v.final_inliers;
   e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
   e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   e.query_timestamp = p.kf->timestamp();
@@ -219,7 +219,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     events_.push_back(e);
   }
   logger("fusion")->info("fused client {} with client {} into group {}: {} inliers, {} projection matches, {:.1f} ms",
-                         p.client, other_client, kept, v.refined_inliers, v.projection_matches, e.duration_ms);
+                         p.client, other_client, kept, v.final_inliers, v.projection_matches, e.duration_ms);
 }
 
 }  // namespace cslam

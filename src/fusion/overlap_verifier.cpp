@@ -20,11 +20,13 @@ std::vector<char> has_point_mask(const KeyFrame& kf) {
   return mask;
 }
 
-// Counts keypoints of `query` that match (by descriptor) the candidate group's points projected
-// with S (query-camera <- candidate-camera).
-int count_projection_matches(const KeyFrame& query, const KeyFrame& candidate, const std::vector<KeyFrame*>& neighbours,
-                             const Sim3& S_q_c, double radius) {
+// Projects the candidate group's points into `query` with S (query-camera <- candidate-camera)
+// and matches them to keypoints by descriptor. Matched keypoints with depth give extra 3D-3D
+// correspondences for a second refinement. Returns the number of matches.
+int projection_matches(const KeyFrame& query, const KeyFrame& candidate, const std::vector<KeyFrame*>& neighbours,
+                       const Sim3& S_q_c, double radius, std::vector<Sim3Correspondence>& extra) {
   const FrameData& f = *query.data;
+  const FrameData& fc = *candidate.data;
   std::set<MapPoint*> points;
   auto collect = [&](const KeyFrame& kf) {
     for (const auto& mp : kf.map_points)
@@ -37,8 +39,9 @@ int count_projection_matches(const KeyFrame& query, const KeyFrame& candidate, c
   int matched = 0;
   const SE3 T_c_w = candidate.T_cam_world;
   for (MapPoint* mp : points) {
-    const Eigen::Vector3d pq = S_q_c * (T_c_w * mp->position);
-    if (pq.z() <= 0.1) continue;
+    const Eigen::Vector3d pc = T_c_w * mp->position;
+    const Eigen::Vector3d pq = S_q_c * pc;
+    if (pq.z() <= 0.1 || pc.z() <= 0.1) continue;
     const Eigen::Vector2d uv = f.camera.project(pq);
     if (!f.in_bounds(uv.x(), uv.y())) continue;
     const double dist = pq.norm();
@@ -54,10 +57,18 @@ int count_projection_matches(const KeyFrame& query, const KeyFrame& candidate, c
         best_idx = idx;
       }
     }
-    if (best <= 50) {
-      used[best_idx] = 1;
-      ++matched;
-    }
+    if (best > 50) continue;
+    used[best_idx] = 1;
+    ++matched;
+    if (!f.has_depth(best_idx)) continue;
+    Sim3Correspondence c;
+    c.p1 = f.unproject(best_idx);
+    c.p2 = pc;
+    c.uv1 = f.features.undistorted[best_idx];
+    c.uv2 = fc.camera.project(pc);
+    c.sigma2_1 = f.pyramid->sigma2[f.features.keypoints[best_idx].octave];
+    c.sigma2_2 = c.sigma2_1;
+    extra.push_back(c);
   }
   return matched;
 }
@@ -105,13 +116,25 @@ OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candid
     r.reason = "too few inliers after refinement";
     return r;
   }
-  r.S_query_candidate = refined.S_12;
+  std::vector<Sim3Correspondence> extra;
   r.projection_matches =
-      count_projection_matches(query, candidate, candidate_neighbours, refined.S_12, cfg.projection_radius);
+      projection_matches(query, candidate, candidate_neighbours, refined.S_12, cfg.projection_radius, extra);
   if (r.projection_matches < cfg.min_projection_matches) {
     r.reason = "projection check failed";
     return r;
   }
+  // Second refinement on the BoW inliers plus every match the projection found.
+  std::vector<Sim3Correspondence> all;
+  for (size_t i = 0; i < corr.size(); ++i)
+    if (refined.inlier[i]) all.push_back(corr[i]);
+  all.insert(all.end(), extra.begin(), extra.end());
+  const Sim3RefineResult final_fit = refine_sim3(refined.S_12, all, kq, kc, cfg.ransac.fix_scale);
+  r.final_inliers = final_fit.num_inliers;
+  if (final_fit.num_inliers < cfg.min_final_inliers) {
+    r.reason = "too few inliers after the projection refinement";
+    return r;
+  }
+  r.S_query_candidate = final_fit.S_12;
   r.accepted = true;
   return r;
 }

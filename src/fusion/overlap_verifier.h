@@ -18,13 +18,14 @@ struct OverlapVerifyConfig {
   int min_refined_inliers = 20;
   int min_projection_matches = 40;   // total matches confirmed by projection
   double projection_radius = 7.5;    // pixels at level 0
+  int min_final_inliers = 50;        // after refining on BoW inliers + projection matches
 };
 
 struct OverlapVerifyResult {
   bool accepted = false;
   std::string reason;                // why it was rejected
   Sim3 S_query_candidate;            // maps candidate-camera coordinates into query-camera coordinates
-  int bow_matches = 0, ransac_inliers = 0, refined_inliers = 0, projection_matches = 0;
+  int bow_matches = 0, ransac_inliers = 0, refined_inliers = 0, projection_matches = 0, final_inliers = 0;
 };
 
 OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candidate,

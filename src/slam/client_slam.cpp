@@ -36,13 +36,18 @@ ClientSlam::~ClientSlam() { finish(); }
 
 void ClientSlam::start_new_map() {
   if (mapper_) mapper_->finish();
+  if (loop_closer_) loop_closer_->finish();
   auto map = std::make_shared<Map>(info_.id, int(maps_.size()), ids_);
   auto mapper = std::make_unique<LocalMapper>(config_.mapper, map, config_.threaded);
-  if (listener_) {
+  loop_closer_ = std::make_unique<LoopCloser>(config_.loop, map, config_.threaded);
+  {
     const ClientId client = info_.id;
     std::weak_ptr<Map> weak = map;
-    mapper->set_on_processed([this, client, weak](const KeyFramePtr& kf) {
-      if (auto m = weak.lock()) listener_(client, m, kf);
+    LoopCloser* loop = loop_closer_.get();
+    mapper->set_on_processed([this, client, weak, loop](const KeyFramePtr& kf) {
+      loop->insert_keyframe(kf);
+      if (listener_)
+        if (auto m = weak.lock()) listener_(client, m, kf);
     });
   }
   {
@@ -82,9 +87,12 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   r.features = int(data->size());
   sw.reset();
   TrackResult t = tracker_->track(std::move(data));
-  if (!config_.threaded)
+  if (!config_.threaded) {
     while (mapper_->step()) {
     }
+    while (loop_closer_->step()) {
+    }
+  }
   r.track_ms = sw.ms();
   r.new_keyframe = t.new_keyframe;
   r.inliers = t.inliers;
@@ -183,6 +191,7 @@ ClientSlamTimings ClientSlam::timings() const {
     t.track_ms = track_ms_;
   }
   if (mapper_) t.mapper = mapper_->stats();
+  if (loop_closer_) t.loop = loop_closer_->stats();
   return t;
 }
 
@@ -195,6 +204,7 @@ void ClientSlam::finish() {
   if (finished_) return;
   finished_ = true;
   if (mapper_) mapper_->finish();
+  if (loop_closer_) loop_closer_->finish();
 }
 
 }  // namespace cslam

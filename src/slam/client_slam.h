@@ -37,6 +37,7 @@ struct ClientSlamSnapshot {
 struct ClientSlamTimings {
   std::vector<double> extract_ms, track_ms;  // per processed frame
   LocalMapperStats mapper;
+  LoopClosingStats loop;
 };
 
 // Told about every keyframe local mapping has finished (map fusion, loop detection listen).
@@ -84,6 +85,7 @@ class ClientSlam {
   KeyFrameListener listener_;
   std::vector<std::shared_ptr<Map>> maps_;
   std::unique_ptr<LocalMapper> mapper_;
+  std::unique_ptr<LoopCloser> loop_closer_;
   std::unique_ptr<Tracker> tracker_;
   double last_timestamp_ = -1e300;
   double lost_since_ = -1;

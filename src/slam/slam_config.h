@@ -1,6 +1,7 @@
 #pragma once
 // Configuration of one client's SLAM pipeline: plain structs with defaults.
 #include "features/orb_extractor.h"
+#include "loopclosing/loop_closer.h"
 #include "map/frame_data.h"
 #include "mapping/local_mapper.h"
 #include "tracking/tracker.h"
@@ -12,6 +13,7 @@ struct SlamConfig {
   RgbdParams rgbd;
   TrackerConfig tracker;
   LocalMapperConfig mapper;
+  LoopClosingConfig loop;
   int bow_direct_level = 2;       // vocabulary level of the direct index used by BoW matching (root = 0)
   double max_lost_seconds = 3.0;  // lost longer than this (and relocalisation failing): start a new map
   bool threaded = true;           // local mapping in its own thread

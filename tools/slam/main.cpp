@@ -53,6 +53,7 @@ int run(int argc, char** argv) {
       .flag("sync", "run local mapping inline (deterministic, slower)")
       .flag("no-local-ba", "disable local bundle adjustment (ablation)")
       .flag("no-fusion", "multi-client mode: disable map fusion (ablation)")
+      .flag("no-loop", "disable loop closing (ablation)")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -82,6 +83,7 @@ int run(int argc, char** argv) {
 
   SlamConfig config;
   config.threaded = !args.flag_set("sync");
+  config.loop.enabled = !args.flag_set("no-loop");
   config.mapper.local_ba = !args.flag_set("no-local-ba");
   ClientSlam slam(info, config, vocabulary);
 
@@ -160,8 +162,25 @@ int run(int argc, char** argv) {
       {"features_per_frame", summary_json(features)},
       {"local_mapping_step_ms", summary_json(t.mapper.step_ms)},
       {"keyframes_processed", t.mapper.keyframes_processed},
+      {"loops", t.loop.loops.size()},
+      {"loop_query_ms", summary_json(t.loop.query_ms)},
+      {"global_ba_ms", summary_json(t.loop.global_ba_ms)},
+      {"global_ba_completed", t.loop.global_ba_completed},
+      {"global_ba_discarded", t.loop.global_ba_discarded},
       {"keyframes_culled", t.mapper.keyframes_culled},
   };
+  nlohmann::json loops = nlohmann::json::array();
+  for (const auto& l : t.loop.loops)
+    loops.push_back({{"query_timestamp", l.query_timestamp}, {"candidate_timestamp", l.candidate_timestamp},
+                     {"inliers", l.inliers}, {"correction_ms", l.correction_ms}, {"pose_graph_ms", l.pose_graph_ms},
+                     {"correction_translation_m", l.T_correction.translation().norm()},
+                     {"correction_rotation_deg", l.T_correction.rotation_angle() * 180.0 / M_PI},
+                     {"T_query_candidate", format_tum_line({0.0, l.T_query_candidate})}});
+  stats["loop_events"] = loops;
+  for (const auto& l : t.loop.loops)
+    std::printf("loop: keyframe at %.3f -> keyframe at %.3f, %d inliers, correction %.3f m / %.2f deg, %.1f ms\n",
+                l.query_timestamp, l.candidate_timestamp, l.inliers, l.T_correction.translation().norm(),
+                l.T_correction.rotation_angle() * 180.0 / M_PI, l.correction_ms);
   if (args.has("stats")) std::ofstream(args.get("stats")) << stats.dump(2) << "\n";
   std::printf("frames %d tracked %llu lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
               "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",

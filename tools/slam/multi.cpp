@@ -84,6 +84,7 @@ int run_multi_client(const CliArgs& args) {
   config.vocabulary_path = args.get("vocab");
   config.slam.threaded = true;
   config.slam.mapper.local_ba = !args.flag_set("no-local-ba");
+  config.slam.loop.enabled = !args.flag_set("no-loop");
   config.fusion.enabled = !args.flag_set("no-fusion");
   CollaborativeSystem system(config);
   for (const auto& j : jobs) system.add_client(j.info);
