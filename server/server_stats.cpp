@@ -34,6 +34,26 @@ std::vector<std::string> ServerStats::progress_lines(const SystemSnapshot& snaps
   return lines;
 }
 
+std::vector<std::string> ServerStats::summary_lines(const SystemSnapshot& snapshot, double wall_s) const {
+  std::vector<std::string> lines;
+  const double dt = wall_s > 0 ? wall_s : 1.0;
+  for (const ClientSnapshot& c : snapshot.clients) {
+    auto it = clients_.find(c.id);
+    const ClientNetStats net = it == clients_.end() ? ClientNetStats() : it->second;
+    const Summary t = summarize(net.decode_dispatch_ms);
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "client %u: received %llu processed %llu dropped %llu | %.1f fps %.2f MB/s average over %.1f s | "
+                  "decode+dispatch median %.2f ms | %llu reconnects %llu timeouts",
+                  unsigned(c.id), (unsigned long long)net.frames_accepted, (unsigned long long)c.frames_processed,
+                  (unsigned long long)net.dropped_total(), double(c.frames_processed) / dt,
+                  double(net.bytes_received) / dt / 1e6, wall_s, t.median, (unsigned long long)net.reconnects,
+                  (unsigned long long)net.timeouts);
+    lines.emplace_back(buf);
+  }
+  return lines;
+}
+
 std::string ServerStats::to_json(const SystemSnapshot& snapshot, double wall_s) const {
   nlohmann::json j;
   j["wall_s"] = wall_s;

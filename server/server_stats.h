@@ -38,6 +38,9 @@ class ServerStats {
   // One log line per client since the previous call: frames received/processed/dropped, fps, MB/s.
   std::vector<std::string> progress_lines(const SystemSnapshot& snapshot, double elapsed_s);
 
+  // One line per client over the whole run: totals and average fps / MB/s over wall_s.
+  std::vector<std::string> summary_lines(const SystemSnapshot& snapshot, double wall_s) const;
+
   // Everything as JSON text (written to network_stats.json).
   std::string to_json(const SystemSnapshot& snapshot, double wall_s) const;
 
