@@ -12,7 +12,7 @@ shift $(( $# < 5 ? $# : 5 ))
 for run in $(seq 1 "$RUNS"); do
   TMP=$(mktemp -d)
   "$BIN/cslam-server" --bind 'tcp://127.0.0.1:*' --endpoint-file "$TMP/endpoint" --clients "$CLIENTS" \
-    --exit-when-done --no-slam --out-dir "$TMP/out" --log-level warn &
+    --exit-when-done --no-slam --out-dir "$TMP/out" --log-level warn --http off &
   SERVER=$!
   for _ in $(seq 100); do [ -s "$TMP/endpoint" ] && break; sleep 0.1; done
   EP=$(cat "$TMP/endpoint")

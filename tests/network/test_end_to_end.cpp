@@ -24,7 +24,8 @@ RunDirs make_run(const std::string& name) {
 
 std::vector<std::string> server_args(const RunDirs& r, int clients, std::vector<std::string> extra = {}) {
   std::vector<std::string> a = {kBin + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file",
-                                r.endpoint_file, "--out-dir", r.out, "--no-slam", "--log-interval", "1"};
+                                r.endpoint_file, "--out-dir", r.out, "--no-slam", "--log-interval", "1",
+                                "--http", "off"};  // no HTTP viewer: parallel runs must not share its port
   if (clients > 0) {
     a.insert(a.end(), {"--clients", std::to_string(clients), "--exit-when-done"});
   }
