@@ -37,7 +37,7 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
       return cam_index[k];
     };
     add_camera(kf, false);
-    for (KeyFrame* n : kf->covisibles())
+    for (KeyFrame* n : kf->best_covisibles(std::size_t(std::max(0, config_.local_ba_max_keyframes - 1))))
       if (!n->bad) add_camera(n, false);
     const size_t num_local = cameras.size();
     std::unordered_map<MapPoint*, int> point_index;

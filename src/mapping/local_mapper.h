@@ -22,6 +22,7 @@ struct LocalMapperConfig {
   int fuse_neighbours = 10, fuse_second_neighbours = 5;
   double redundant_ratio = 0.9;    // keyframe culling: share of its close points seen by >= 3 others
   bool local_ba = true;
+  int local_ba_max_keyframes = 20;   // free keyframes: the new one and its strongest covisible neighbours
   BaConfig ba;
   std::size_t queue_capacity = 8;
 };
