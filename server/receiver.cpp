@@ -127,7 +127,8 @@ void Receiver::on_hello(const std::string& routing_id, const wire::Hello& hello)
     info = wire::from_hello(hello, source);
     system_.add_client(info);  // keeps the map of a known client; throws if its camera changed
   } catch (const wire::WireError& e) {
-    drop(sessions_.by_client(ClientId(hello.client_id())), routing_id, error_reason(e.code()), e.what());
+    Session* known = hello.client_id() <= 0xffff ? sessions_.by_client(ClientId(hello.client_id())) : nullptr;
+    drop(known, routing_id, error_reason(e.code()), e.what());
     reply_error(routing_id, ClientId(hello.client_id()), 0, e.code(), e.what(), 0);
     return;
   } catch (const std::exception& e) {  // std::invalid_argument: camera differs from the registered one
@@ -210,7 +211,7 @@ void Receiver::on_frame(const std::string& routing_id, const wire::RgbdFrame& fr
   ++session->in_flight;
   session->last_seq = seq;
   ++net.frames_accepted;
-  net.decode_dispatch_ms.push_back(timer.ms());
+  if (net.decode_dispatch_ms.size() < kMaxTimingSamples) net.decode_dispatch_ms.push_back(timer.ms());
   stats_.note_frame(Clock::now());
 }
 
