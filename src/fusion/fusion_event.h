@@ -2,6 +2,7 @@
 #include <string>
 
 #include "core/ids.h"
+#include "geometry/se3.h"
 
 namespace cslam {
 
@@ -14,6 +15,7 @@ struct FusionEvent {
   double duration_ms = 0;  // detection hit to fused map
   std::string kind = "fusion";
   double query_timestamp = 0, candidate_timestamp = 0;  // frame times of the two keyframes
+  SE3 T_query_candidate;  // verified camera-to-camera transform (p_query = T * p_candidate)
 };
 
 }  // namespace cslam

@@ -212,6 +212,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
   e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   e.query_timestamp = p.kf->timestamp();
   e.candidate_timestamp = candidate_time;
+  e.T_query_candidate = v.S_query_candidate.to_se3();
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     for (auto& [m, g] : group_)

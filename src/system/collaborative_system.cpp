@@ -231,7 +231,8 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
     stats["fusion_events"].push_back({{"time_s", e.wall_time_s}, {"client_a", e.client_a}, {"client_b", e.client_b},
                                       {"group", e.group}, {"inliers", e.inliers}, {"duration_ms", e.duration_ms},
                                       {"kind", e.kind}, {"query_timestamp", e.query_timestamp},
-                                      {"candidate_timestamp", e.candidate_timestamp}});
+                                      {"candidate_timestamp", e.candidate_timestamp},
+                                      {"T_query_candidate", format_tum_line({0.0, e.T_query_candidate})}});
   std::ofstream(dir + "/stats.json") << stats.dump(2) << "\n";
 }
 
