@@ -80,7 +80,10 @@ void write_trajectory_json(nlohmann::json& out, ClientId id, int group, const Tr
 void HttpServer::api_routes() {
   httplib::Server& s = *server_;
 
-  s.Get("/api/status", [this](const httplib::Request&, httplib::Response& res) { json_reply(res, cache_.get()->status); });
+  s.Get("/api/status", [this](const httplib::Request&, httplib::Response& res) {
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(cache_.get()->status_body, "application/json");
+  });
 
   s.Get(R"(/api/clients/([^/]+))", guarded([this](const httplib::Request& req, httplib::Response& res) {
     const auto state = cache_.get();
@@ -91,7 +94,8 @@ void HttpServer::api_routes() {
   }));
 
   s.Get("/api/fusion/events", [this](const httplib::Request&, httplib::Response& res) {
-    json_reply(res, {{"events", cache_.get()->events}});
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(cache_.get()->events_body, "application/json");
   });
 
   s.Get("/api/trajectories", guarded([this](const httplib::Request& req, httplib::Response& res) {

@@ -162,9 +162,9 @@ void StatusCache::refresh() {
     next->group_of[c.id] = c.group;
   }
   std::size_t fusions = 0;
-  next->events = nlohmann::json::array();
+  nlohmann::json events = nlohmann::json::array();
   for (const FusionEvent& e : snap.events) {
-    next->events.push_back(event_json(e));
+    events.push_back(event_json(e));
     ++fusions;
   }
   next->status = {{"server", "cslam-server"},
@@ -174,6 +174,8 @@ void StatusCache::refresh() {
                   {"clients", std::move(clients)},
                   {"groups", next->groups},
                   {"fusion_events", fusions}};
+  next->status_body = next->status.dump();
+  next->events_body = nlohmann::json{{"events", std::move(events)}}.dump();
   next->metrics = metrics_text(snap, fps_of, fusions);
 
   const auto previous = get();

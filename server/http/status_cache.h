@@ -30,9 +30,10 @@ struct CacheConfig {
 struct CachedState {
   double uptime_s = 0;
   std::uint64_t generation = 0;
-  nlohmann::json status;                          // body of GET /api/status
+  nlohmann::json status;                          // GET /api/status
+  std::string status_body;                        // ... serialised once per refresh
   std::map<ClientId, nlohmann::json> clients;     // body of GET /api/clients/{id} (with pose)
-  nlohmann::json events;                          // body of GET /api/fusion/events
+  std::string events_body;                        // body of GET /api/fusion/events
   std::string metrics;                            // body of GET /metrics
   std::map<ClientId, Trajectory> trajectories;    // each in its group's frame
   std::map<ClientId, int> group_of;
