@@ -82,6 +82,19 @@ TEST_F(SlamIntegration, OfflineTwoClientsWithoutFusionStayApart) {
   EXPECT_GT(joint, 0.05);
 }
 
+TEST_F(SlamIntegration, ClientsInDifferentRoomsDoNotFuse) {
+  // A second room (another seed): same procedural texture style, different places. A wrong
+  // fusion is worse than none, so nothing may be fused here.
+  auto r = run_program("cslam-synth", "--preset test-small --seed 11 --repeat-texture --out " + tmp("other") + " --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + tmp("other/robot_2") + " --out-dir " +
+                                    tmp("rooms") + " --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto stats = nlohmann::json::parse(std::ifstream(tmp("rooms/stats.json")));
+  EXPECT_EQ(stats["fusion_events"].size(), 0u) << stats["fusion_events"].dump(2);
+  EXPECT_NE(stats["clients"][0]["group"], stats["clients"][1]["group"]);
+}
+
 TEST_F(SlamIntegration, BadArgumentsGiveOneLineErrors) {
   auto r = run_program("cslam-slam", "--dataset /nonexistent --out " + tmp("x.txt"));
   EXPECT_NE(r.status, 0);
