@@ -8,7 +8,7 @@ PKGS=(
   libopencv-dev libeigen3-dev libceres-dev libpcl-dev
   libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler
   libcpp-httplib-dev libgtest-dev libspdlog-dev nlohmann-json3-dev libzstd-dev
-  nodejs chromium
+  nodejs chromium curl
 )
 # nodejs: the web viewer's npm packages (scripts/install-web.sh); chromium: its browser test.
 

@@ -2,16 +2,20 @@
 # The demo pipeline with already-built programs (scripts/demo.sh installs and builds first):
 # synthetic 3-robot scene -> cslam-server + 3 cslam-client over loopback -> per-client SLAM ->
 # map fusion -> dense reconstruction -> per-client and fused ATE, cloud accuracy.
-# Options: --exit  stop at the end (the default until the web viewer exists)
-#          --rate R  client send rate (frames/s or 'max', default max)
+# The web viewer (http://127.0.0.1:8080/, CSLAM_HTTP_PORT to change) stays up until Ctrl-C.
+# Options: --exit    stop at the end instead of serving the viewer (for scripts)
+#          --rate R  client send rate (frames/s or 'max', default max; 30 = real time)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=build/bin
 OUT="${CSLAM_DEMO_OUT:-demo_out}"
 RATE=max
+EXIT=0
+FUSED=""
+HTTP_PORT="${CSLAM_HTTP_PORT:-8080}"
 while [ $# -gt 0 ]; do
   case "$1" in
-    --exit) shift ;;
+    --exit) EXIT=1; shift ;;
     --rate) RATE="$2"; shift 2 ;;
     *) echo "run-demo.sh: unknown option $1 (use --exit, --rate R)" >&2; exit 2 ;;
   esac
@@ -28,8 +32,11 @@ fi
 
 echo "== starting cslam-server and 3 clients over loopback"
 rm -rf "$RUN" && mkdir -p "$RUN"
-"$BIN/cslam-server" --bind 'tcp://127.0.0.1:*' --endpoint-file "$RUN/endpoint" --clients 3 --exit-when-done \
-  --out-dir "$RUN" --log-interval 10 > "$RUN/server.log" 2>&1 &
+EXIT_FLAG=()
+[ "$EXIT" = 1 ] && EXIT_FLAG=(--exit-when-done)
+"$BIN/cslam-server" --bind 'tcp://127.0.0.1:*' --endpoint-file "$RUN/endpoint" --clients 3 "${EXIT_FLAG[@]}" \
+  --out-dir "$RUN" --log-interval 10 --http "$HTTP_PORT" --http-port-file "$RUN/http_port" --datasets-dir "$SCENE" \
+  > "$RUN/server.log" 2>&1 &
 SERVER=$!
 trap 'kill $SERVER 2>/dev/null || true' EXIT
 for _ in $(seq 1 100); do [ -s "$RUN/endpoint" ] && break; sleep 0.1; done
@@ -42,8 +49,28 @@ for k in 1 2 3; do
   CLIENTS+=($!)
 done
 for pid in "${CLIENTS[@]}"; do wait "$pid" || { echo "a client failed; see $RUN/client_*.log" >&2; exit 1; }; done
-wait $SERVER || { echo "server failed; see $RUN/server.log" >&2; exit 1; }
-trap - EXIT
+if [ "$EXIT" = 1 ]; then
+  wait $SERVER || { echo "server failed; see $RUN/server.log" >&2; exit 1; }
+  trap - EXIT
+else
+  # The server keeps running for the viewer: take the trajectories from its HTTP API.
+  sleep 2  # let the fusion and loop threads look at the last keyframes
+  PORT=$(cat "$RUN/http_port" 2>/dev/null || echo "$HTTP_PORT")
+  for k in 1 2 3; do
+    curl -sf "http://127.0.0.1:$PORT/api/trajectories?client=$k&format=tum" > "$RUN/client_$k.txt" \
+      || { echo "cannot fetch trajectories from the HTTP API on port $PORT; see $RUN/server.log" >&2; exit 1; }
+  done
+  curl -sf "http://127.0.0.1:$PORT/api/status" > "$RUN/status.json" || true
+  FUSED=$(python3 - "$RUN/status.json" <<'PY' || true
+import json, sys
+s = json.load(open(sys.argv[1]))
+groups = {}
+for c in s.get("clients", []):
+    groups.setdefault(c.get("group"), []).append(c.get("id"))
+print(" ".join(str(g) for g, m in groups.items() if len(m) > 1))
+PY
+)
+fi
 grep -E "fused client|final client" "$RUN/server.log" || true
 
 echo "== accuracy (APE, metres, SE3 alignment)"
@@ -51,7 +78,7 @@ for k in 1 2 3; do
   printf "client %d: " "$k"
   "$BIN/cslam-eval" ate "$SCENE/robot_$k/groundtruth.txt" "$RUN/client_$k.txt" | tail -1
 done
-FUSED=$(ls "$RUN"/fused_*.txt 2>/dev/null | head -1 || true)
+[ "$EXIT" = 1 ] && FUSED=$(ls "$RUN"/fused_*.txt 2>/dev/null | head -1 || true)
 if [ -n "$FUSED" ]; then
   printf "fused group (all clients, one alignment): "
   "$BIN/cslam-eval" ate "$SCENE/robot_1/groundtruth.txt" "$RUN/client_1.txt" \
@@ -78,4 +105,14 @@ fi
 echo
 echo "outputs: $RUN"
 echo "  client_K.txt  trajectories (TUM, fused frame)   fused_*.txt  combined trajectory"
-echo "  cloud.ply / mesh.ply  dense reconstruction     stats.json   run statistics"
+echo "  cloud.ply / mesh.ply  dense reconstruction     stats.json   run statistics (written when the server stops)"
+if [ "$EXIT" = 0 ]; then
+  PORT=$(cat "$RUN/http_port" 2>/dev/null || echo "$HTTP_PORT")
+  echo
+  echo "web viewer: http://127.0.0.1:$PORT/   (Ctrl-C to stop the server; use --exit to skip this)"
+  trap 'kill -TERM $SERVER 2>/dev/null || true' INT TERM
+  wait $SERVER || true
+  wait $SERVER 2>/dev/null || true
+  trap - EXIT
+  echo "server stopped; final trajectories and stats.json in $RUN"
+fi
