@@ -68,8 +68,13 @@ bool HttpServer::start() {
     return false;
   }
   cache_.start();
-  listener_ = std::thread([this] { server_->listen_after_bind(); });
-  // Bound before listening: connections queue in the kernel's backlog until the loop runs.
+  listener_ = std::thread([this] {
+    server_->listen_after_bind();
+    listener_done_ = true;
+  });
+  // httplib's stop() is a no-op before the accept loop runs: wait (microseconds) until it does,
+  // so that a stop() right after start() cannot leave the listener blocked.
+  while (!server_->is_running() && !listener_done_) std::this_thread::yield();
   if (!config_.port_file.empty()) {
     const std::string tmp = config_.port_file + ".tmp";
     std::ofstream(tmp) << port_ << "\n";

@@ -2,6 +2,7 @@
 // The embedded HTTP server of cslam-server (cpp-httplib): JSON status API, Prometheus metrics,
 // asynchronous dense reconstruction jobs and the web viewer's static files (web/). Handlers only
 // read the StatusCache snapshot; they never call into the SLAM system themselves.
+#include <atomic>
 #include <memory>
 #include <string>
 #include <thread>
@@ -58,6 +59,7 @@ class HttpServer {
   ReconJobs jobs_;
   std::unique_ptr<httplib::Server> server_;
   std::thread listener_;
+  std::atomic<bool> listener_done_{false};
   int port_ = -1;
 };
 
