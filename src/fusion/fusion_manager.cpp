@@ -5,6 +5,7 @@
 
 #include "core/log.h"
 #include "core/stopwatch.h"
+#include "core/thread_priority.h"
 
 namespace cslam {
 
@@ -70,6 +71,7 @@ std::size_t FusionManager::dropped() const {
 }
 
 void FusionManager::run() {
+  lower_current_thread_priority();
   const auto period = std::chrono::duration<double>(1.0 / std::max(0.1, config_.rate_hz));
   std::unique_lock<std::mutex> lock(queue_mutex_);
   for (;;) {

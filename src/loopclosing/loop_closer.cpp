@@ -6,6 +6,7 @@
 #include "bow/vocabulary.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
+#include "core/thread_priority.h"
 #include "loopclosing/essential_graph.h"
 #include "match/projection_search.h"
 
@@ -42,6 +43,7 @@ bool LoopCloser::step() {
 }
 
 void LoopCloser::run() {
+  lower_current_thread_priority();
   for (;;) {
     KeyFramePtr kf;
     {
@@ -243,7 +245,11 @@ void LoopCloser::stop_global_ba() {
 
 void LoopCloser::start_global_ba() {
   stop_global_ba();
-  if (threaded_) gba_thread_ = std::thread([this] { run_global_ba(); });
+  if (threaded_)
+    gba_thread_ = std::thread([this] {
+      lower_current_thread_priority();
+      run_global_ba();
+    });
   else run_global_ba();
 }
 

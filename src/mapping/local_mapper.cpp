@@ -3,6 +3,7 @@
 #include <shared_mutex>
 
 #include "core/stopwatch.h"
+#include "core/thread_priority.h"
 #include "match/projection_search.h"
 
 namespace cslam {
@@ -44,6 +45,7 @@ bool LocalMapper::step() {
 }
 
 void LocalMapper::run() {
+  lower_current_thread_priority();
   for (;;) {
     KeyFramePtr kf;
     {

@@ -1,6 +1,7 @@
 #include "system/client_pipeline.h"
 
 #include "core/log.h"
+#include "core/thread_priority.h"
 
 namespace cslam {
 
@@ -31,6 +32,7 @@ void ClientPipeline::finish() {
 }
 
 void ClientPipeline::run() {
+  lower_current_thread_priority();
   while (auto frame = queue_.pop()) {
     if (slam_) {
       const ProcessResult r = slam_->process(*frame);
