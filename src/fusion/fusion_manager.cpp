@@ -1,5 +1,7 @@
 #include "fusion/fusion_manager.h"
 
+#include "fusion/place_candidates.h"
+
 #include <algorithm>
 #include <shared_mutex>
 
@@ -98,7 +100,7 @@ void FusionManager::process(const Pending& p) {
     const auto covisibles = p.kf->covisibles();
     if (covisibles.empty()) return;
     bow = p.kf->data->bow;
-    for (KeyFrame* c : covisibles) min_score = std::min(min_score, Vocabulary::score(bow, c->data->bow));
+    min_score = min_covisible_score(*p.kf);
     query_time = p.kf->timestamp();
   }
   std::vector<Registered> others;
@@ -117,24 +119,7 @@ void FusionManager::process(const Pending& p) {
     std::vector<ConsistencyChecker::Group> groups;
     {
       std::shared_lock<std::shared_mutex> lock(other->mutex);
-      KeyFrameDatabase::QueryParams qp;
-      qp.min_score = min_score;
-      const auto cands = other->database.query(
-          bow, qp, [](KeyFrameId) { return false; },
-          [&](KeyFrameId id) {
-            std::vector<KeyFrameId> out;
-            if (auto kf = other->keyframe(id))
-              for (KeyFrame* n : kf->best_covisibles(10)) out.push_back(n->id);
-            return out;
-          });
-      for (const auto& c : cands) {
-        ConsistencyChecker::Group g;
-        g.candidate = c.id;
-        g.members.push_back(c.id);
-        if (auto kf = other->keyframe(c.id))
-          for (KeyFrame* n : kf->covisibles()) g.members.push_back(n->id);
-        groups.push_back(std::move(g));
-      }
+      groups = query_candidate_groups(*other, bow, min_score, [](KeyFrameId) { return false; });
     }
     std::vector<KeyFrameId> consistent;
     {

@@ -7,6 +7,7 @@
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "core/thread_priority.h"
+#include "fusion/place_candidates.h"
 #include "loopclosing/essential_graph.h"
 #include "match/projection_search.h"
 
@@ -92,28 +93,10 @@ bool LoopCloser::detect(const KeyFramePtr& kf, KeyFramePtr& candidate, OverlapVe
     if (had_loop_ && kf->id.seq < last_loop_seq_ + std::uint32_t(config_.min_keyframe_gap)) return false;
     const auto covisibles = kf->covisibles();
     if (covisibles.empty()) return false;
-    double min_score = 1.0;
-    for (KeyFrame* c : covisibles) min_score = std::min(min_score, Vocabulary::score(kf->data->bow, c->data->bow));
     std::unordered_set<KeyFrameId> excluded{kf->id};
     for (KeyFrame* c : covisibles) excluded.insert(c->id);
-    KeyFrameDatabase::QueryParams qp;
-    qp.min_score = min_score;
-    const auto cands = map_->database.query(
-        kf->data->bow, qp, [&](KeyFrameId id) { return excluded.count(id) > 0; },
-        [&](KeyFrameId id) {
-          std::vector<KeyFrameId> out;
-          if (auto k = map_->keyframe(id))
-            for (KeyFrame* n : k->best_covisibles(10)) out.push_back(n->id);
-          return out;
-        });
-    for (const auto& c : cands) {
-      ConsistencyChecker::Group g;
-      g.candidate = c.id;
-      g.members.push_back(c.id);
-      if (auto k = map_->keyframe(c.id))
-        for (KeyFrame* n : k->covisibles()) g.members.push_back(n->id);
-      groups.push_back(std::move(g));
-    }
+    groups = query_candidate_groups(*map_, kf->data->bow, min_covisible_score(*kf),
+                                    [&](KeyFrameId id) { return excluded.count(id) > 0; });
   }
   const auto consistent = consistency_.update(groups);
   bool found = false;

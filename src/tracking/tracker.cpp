@@ -182,16 +182,10 @@ int Tracker::optimize_frame_pose(Frame& frame) const {
   return r.num_inliers;
 }
 
-bool Tracker::track_with_motion_model(Frame& frame) {
-  frame.T_cam_world = velocity_ * last_->T_cam_world;
-  frame.has_pose = true;
-  int n = search_by_projection(frame, *last_, config_.motion_radius, true);
-  if (n < config_.min_motion_matches) {
-    std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
-    n = search_by_projection(frame, *last_, 2 * config_.motion_radius, true);
-  }
-  if (n < config_.min_motion_matches) return false;
-  optimize_frame_pose(frame);
+namespace {
+// Removes the matches the pose optimisation rejected; returns how many remaining matches are map
+// points (not visual-odometry points of the previous frame).
+int drop_outliers_count_map_points(Frame& frame) {
   int good = 0;
   for (size_t i = 0; i < frame.map_points.size(); ++i) {
     if (!frame.map_points[i]) continue;
@@ -202,7 +196,21 @@ bool Tracker::track_with_motion_model(Frame& frame) {
       ++good;
     }
   }
-  return good >= config_.min_pose_inliers;
+  return good;
+}
+}  // namespace
+
+bool Tracker::track_with_motion_model(Frame& frame) {
+  frame.T_cam_world = velocity_ * last_->T_cam_world;
+  frame.has_pose = true;
+  int n = search_by_projection(frame, *last_, config_.motion_radius, true);
+  if (n < config_.min_motion_matches) {
+    std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+    n = search_by_projection(frame, *last_, 2 * config_.motion_radius, true);
+  }
+  if (n < config_.min_motion_matches) return false;
+  optimize_frame_pose(frame);
+  return drop_outliers_count_map_points(frame) >= config_.min_pose_inliers;
 }
 
 bool Tracker::track_reference_keyframe(Frame& frame) {
@@ -214,17 +222,7 @@ bool Tracker::track_reference_keyframe(Frame& frame) {
   std::fill(frame.outlier.begin(), frame.outlier.end(), 0);
   frame.T_cam_world = last_ ? last_->T_cam_world : reference_kf_->T_cam_world;
   optimize_frame_pose(frame);
-  int good = 0;
-  for (size_t i = 0; i < frame.map_points.size(); ++i) {
-    if (!frame.map_points[i]) continue;
-    if (frame.outlier[i]) {
-      frame.map_points[i].reset();
-      frame.outlier[i] = 0;
-    } else if (!frame.map_points[i]->observations.empty()) {
-      ++good;
-    }
-  }
-  return good >= config_.min_pose_inliers;
+  return drop_outliers_count_map_points(frame) >= config_.min_pose_inliers;
 }
 
 void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
