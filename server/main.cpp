@@ -104,14 +104,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const cslam::ConfigError& e) {
-    std::cerr << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "cslam-server: " << e.what() << "\n";
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return cslam::run_main("cslam-server", argc, argv, run); }

@@ -79,14 +79,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const cslam::ConfigError& e) {
-    std::cerr << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "cslam-bench-dispatch: " << e.what() << "\n";
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return cslam::run_main("cslam-bench-dispatch", argc, argv, run); }

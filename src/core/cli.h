@@ -46,4 +46,8 @@ class CliArgs {
   std::vector<std::string> positional_values_;
 };
 
+// The body of every program's main(): runs `run`, prints a one-line error on failure and returns
+// the exit code (configuration/usage errors 2, anything else 1).
+int run_main(const char* program, int argc, char** argv, int (*run)(int, char**));
+
 }  // namespace cslam

@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/error.h"
+
 namespace cslam {
 
 SplitResult split_sequence(int n, int k, double eta) {
@@ -28,6 +30,20 @@ SplitResult split_sequence(int n, int k, double eta) {
     r.ranges.push_back(fr);
   }
   return r;
+}
+
+double parse_overlap_rate(std::string text) {
+  const bool percent = !text.empty() && text.back() == '%';
+  if (percent) text.pop_back();
+  size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size()) throw ConfigError("overlap rate expects a number such as 0.05 or 5%");
+  return percent ? v / 100.0 : v;
 }
 
 }  // namespace cslam

@@ -1,5 +1,6 @@
 #pragma once
 // The paper's split of one sequence of N frames into K clients with overlap rate eta.
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -21,5 +22,8 @@ struct SplitResult {
 // Values are rounded to the nearest frame. Throws std::invalid_argument if N < K, K < 1 or
 // eta outside [0, 1).
 SplitResult split_sequence(int num_frames, int clients, double overlap_rate);
+
+// "0.05" or "5%" -> 0.05; throws ConfigError on anything else.
+double parse_overlap_rate(std::string text);
 
 }  // namespace cslam

@@ -116,16 +116,7 @@ int cmd_split(int argc, char** argv) {
       .option("overlap", "overlap rate eta, as a fraction (0.05) or percent (5%)")
       .flag("json", "print JSON");
   if (!args.parse(argc, argv, 2)) return 0;
-  std::string o = args.get("overlap");
-  bool percent = !o.empty() && o.back() == '%';
-  if (percent) o.pop_back();
-  double eta = 0;
-  try {
-    eta = std::stod(o);
-  } catch (const std::exception&) {
-    throw ConfigError("--overlap expects a number such as 0.05 or 5%");
-  }
-  if (percent) eta /= 100.0;
+  const double eta = parse_overlap_rate(args.get("overlap"));
   const auto r = split_sequence(args.get_int("frames"), args.get_int("clients"), eta);
   if (args.flag_set("json")) {
     nlohmann::json j;

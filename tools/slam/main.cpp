@@ -16,6 +16,7 @@
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "eval/stats.h"
+#include "eval/stats_json.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 #include "multi.h"
@@ -25,10 +26,6 @@ using namespace cslam;
 
 namespace {
 
-nlohmann::json summary_json(const std::vector<double>& v) {
-  const Summary s = summarize(v);
-  return {{"n", s.n}, {"median", s.median}, {"mean", s.mean}, {"p95", s.p95}, {"min", s.min}, {"max", s.max}};
-}
 
 double peak_rss_mb() {
   rusage ru{};

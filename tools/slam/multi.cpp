@@ -35,18 +35,6 @@ PinholeCamera camera_for(const CliArgs& args, const std::string& dir) {
   return load_camera(name);
 }
 
-double parse_overlap(std::string text) {
-  bool percent = !text.empty() && text.back() == '%';
-  if (percent) text.pop_back();
-  double v = 0;
-  try {
-    v = std::stod(text);
-  } catch (const std::exception&) {
-    throw ConfigError("--overlap expects a rate such as 0.05 or 5%");
-  }
-  return percent ? v / 100.0 : v;
-}
-
 }  // namespace
 
 int run_multi_client(const CliArgs& args) {
@@ -67,7 +55,7 @@ int run_multi_client(const CliArgs& args) {
     const std::string dir = args.get("dataset");
     const TumDataset ds = open_tum_dataset(dir);
     const int k = args.get_int("clients");
-    const SplitResult split = split_sequence(int(ds.pairs.size()), k, parse_overlap(args.get("overlap")));
+    const SplitResult split = split_sequence(int(ds.pairs.size()), k, parse_overlap_rate(args.get("overlap")));
     for (int c = 0; c < k; ++c) {
       ClientJob j;
       j.info.id = ClientId(c + 1);
