@@ -10,6 +10,7 @@
 
 #include "core/log.h"
 #include "eval/stats.h"
+#include "eval/stats_json.h"
 #include "system/client_pipeline.h"
 
 namespace cslam {
@@ -178,10 +179,6 @@ Trajectory CollaborativeSystem::keyframe_trajectory(ClientId client) const {
 }
 
 namespace {
-nlohmann::json summary_json(const std::vector<double>& v) {
-  const Summary s = summarize(v);
-  return {{"n", s.n}, {"median", s.median}, {"mean", s.mean}, {"p95", s.p95}, {"min", s.min}, {"max", s.max}};
-}
 }  // namespace
 
 void CollaborativeSystem::write_outputs(const std::string& dir) const {
