@@ -37,6 +37,9 @@ EssentialGraph build_essential_graph(const Map& map, const EssentialGraphInput& 
     for (KeyFrame* other : links) add(kf, other, initial(kf), initial(other), g.new_loop_edges);
   for (KeyFrame* kf : g.keyframes) {
     if (kf->parent && !kf->parent->bad) add(kf, kf->parent.get(), measured(kf), measured(kf->parent.get()), g.spanning_edges);
+    // Not yet connected by local mapping: tied to the keyframe it was tracked against.
+    if (kf->awaiting_connection() && !kf->creation_reference->bad)
+      add(kf, kf->creation_reference.get(), Sim3(kf->T_cam_creation_ref).inverse(), Sim3(), g.spanning_edges);
     for (KeyFrame* l : kf->loop_edges) add(kf, l, measured(kf), measured(l), g.loop_edges);
     for (KeyFrame* c : kf->covisibles_with_weight(in.min_covisibility_weight))
       add(kf, c, measured(kf), measured(c), g.covisibility_edges);

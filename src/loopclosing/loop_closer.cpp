@@ -139,10 +139,15 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
     // Neighbourhood moved rigidly with the query keyframe.
     std::vector<KeyFrame*> neighbourhood = kf->covisibles();
     neighbourhood.push_back(kf.get());
+    // Keyframes tracking created that local mapping has not connected yet are the newest ones,
+    // next to the query keyframe: they move rigidly with it (no fusion or links until connected).
+    std::vector<KeyFrame*> rigid = neighbourhood;
+    for (const auto& k : map_->keyframes())
+      if (!k->bad && k->awaiting_connection() && k != kf) rigid.push_back(k.get());
     EssentialGraphInput in;
     in.min_covisibility_weight = config_.covisibility_edge_weight;
     std::map<KeyFrame*, SE3> before;
-    for (KeyFrame* n : neighbourhood) {
+    for (KeyFrame* n : rigid) {
       if (n->bad) continue;
       before[n] = n->T_cam_world;
       const SE3 T_n_kf = n->T_cam_world * T_w_kf_old;
@@ -152,7 +157,7 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
     event.T_correction = T_kf_w_corrected.inverse() * kf->T_cam_world;
     // Points seen by the neighbourhood move with the keyframe that sees them (once each).
     std::unordered_set<MapPoint*> moved;
-    for (KeyFrame* n : neighbourhood) {
+    for (KeyFrame* n : rigid) {
       if (n->bad) continue;
       const SE3 delta = in.initial_T_cam_world[n].inverse() * before[n];  // T_w_new * T_old_w
       for (const auto& mp : n->map_points)
@@ -302,8 +307,8 @@ bool LoopCloser::run_global_ba() {
       std::map<KeyFrame*, SE3> moved_old_pose;
       for (const auto& kf : map_->keyframes()) {
         if (correction.count(kf.get())) continue;
-        KeyFrame* anc = kf->parent.get();
-        while (anc && !correction.count(anc)) anc = anc->parent.get();
+        KeyFrame* anc = kf->anchor();
+        while (anc && !correction.count(anc)) anc = anc->anchor();
         if (!anc) continue;
         // Keep its pose relative to the corrected ancestor.
         const SE3 T_kf_anc_old = kf->T_cam_world * (anc->T_cam_world * correction[anc].inverse()).inverse();
@@ -317,6 +322,7 @@ bool LoopCloser::run_global_ba() {
         if (it != moved_old_pose.end()) mp->position = mp->reference->T_world_cam() * (it->second * mp->position);
       }
       for (const auto& mp : map_->map_points()) map_->update_map_point(mp.get());
+      map_->note_big_change();  // tracking re-derives its last pose from its reference keyframe
       applied = true;
     }
   }

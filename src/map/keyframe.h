@@ -65,6 +65,10 @@ class KeyFrame {
   std::set<KeyFrame*> children;
   std::set<KeyFrame*> loop_edges;
   bool first_connection = true;
+  // The keyframe tracking created this one against, and the pose relative to it; kept until local
+  // mapping connects it (parent set), so corrections made meanwhile can carry it along.
+  std::shared_ptr<KeyFrame> creation_reference;
+  SE3 T_cam_creation_ref;
 
   bool bad = false;
   int no_erase = 0;           // > 0 while loop closing / fusion use it (culling is deferred)
@@ -72,6 +76,10 @@ class KeyFrame {
   SE3 T_cam_parent;           // valid once bad: pose relative to its parent
 
   SE3 T_world_cam() const { return T_cam_world.inverse(); }
+  // The keyframe whose correction this one follows: its spanning-tree parent, or, before local
+  // mapping has connected it, the keyframe it was tracked against.
+  KeyFrame* anchor() const { return parent ? parent.get() : creation_reference.get(); }
+  bool awaiting_connection() const { return !parent && creation_reference; }
   Eigen::Vector3d center() const { return T_world_cam().translation(); }
   double timestamp() const { return data->timestamp; }
 

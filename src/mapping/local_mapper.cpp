@@ -125,6 +125,7 @@ void LocalMapper::insert_into_map(KeyFrame* kf) {
     }
   }
   map_->update_connections(kf);
+  if (kf->parent) kf->creation_reference.reset();  // the spanning tree carries it from now on
 }
 
 void LocalMapper::cull_map_points(KeyFrame* kf) {

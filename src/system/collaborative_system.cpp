@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "eval/stats.h"
 #include "eval/stats_json.h"
+#include "system/loop_stats_json.h"
 #include "system/client_pipeline.h"
 
 namespace cslam {
@@ -205,6 +206,7 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
       for (size_t i = 0; i < t.track_ms.size(); ++i) total.push_back(t.track_ms[i] + t.extract_ms[i]);
       cj["extract_plus_track_ms"] = summary_json(total);
       cj["local_ba_ms"] = summary_json(t.mapper.ba_ms);
+      add_loop_stats(cj, t.loop);
     }
     stats["clients"].push_back(cj);
   }

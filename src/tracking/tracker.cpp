@@ -332,6 +332,10 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
     if (map_->big_change_index() != tracked_change_index_) return nullptr;  // map moved meanwhile: next frame
     kf = std::make_shared<KeyFrame>(map_->ids().next_keyframe(), frame.data, frame.T_cam_world);
+    if (frame.reference && !frame.reference->bad) {
+      kf->creation_reference = frame.reference;
+      kf->T_cam_creation_ref = frame.T_cam_world * frame.reference->T_world_cam();
+    }
     for (size_t i = 0; i < f.size(); ++i)
       if (frame.map_points[i] && !frame.map_points[i]->bad && !frame.outlier[i]) kf->map_points[i] = frame.map_points[i];
     std::vector<std::pair<float, int>> by_depth;

@@ -13,7 +13,8 @@
 using namespace cslam;
 
 namespace cslam {
-int cmd_cloud(int argc, char** argv);  // cloud_cmd.cpp
+int cmd_cloud(int argc, char** argv);   // cloud_cmd.cpp
+int cmd_events(int argc, char** argv);  // events_cmd.cpp
 }
 
 namespace {
@@ -138,6 +139,7 @@ const char* kUsage =
     "  rpe GT EST [--delta 1s] [--json]                              relative pose error\n"
     "  split --frames N --clients K --overlap ETA                    the paper's client frame ranges\n"
     "  cloud REF.ply TEST.ply [--match-bbox] [--json]                Hausdorff / C2C / completeness of a cloud\n"
+    "  events STATS.json --gt GT [--offset S|auto --est EST]         loop / fusion transforms vs ground truth\n"
     "Run 'cslam-eval COMMAND --help' for a command's options.\n";
 
 }  // namespace
@@ -153,6 +155,7 @@ int main(int argc, char** argv) {
     if (cmd == "rpe") return cmd_rpe(argc, argv);
     if (cmd == "split") return cmd_split(argc, argv);
     if (cmd == "cloud") return cslam::cmd_cloud(argc, argv);
+    if (cmd == "events") return cslam::cmd_events(argc, argv);
     std::cerr << "cslam-eval: unknown command '" << cmd << "'\n" << kUsage;
     return 2;
   } catch (const std::exception& e) {

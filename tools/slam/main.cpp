@@ -17,6 +17,7 @@
 #include "core/stopwatch.h"
 #include "eval/stats.h"
 #include "eval/stats_json.h"
+#include "system/loop_stats_json.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 #include "multi.h"
@@ -159,21 +160,9 @@ int run(int argc, char** argv) {
       {"features_per_frame", summary_json(features)},
       {"local_mapping_step_ms", summary_json(t.mapper.step_ms)},
       {"keyframes_processed", t.mapper.keyframes_processed},
-      {"loops", t.loop.loops.size()},
-      {"loop_query_ms", summary_json(t.loop.query_ms)},
-      {"global_ba_ms", summary_json(t.loop.global_ba_ms)},
-      {"global_ba_completed", t.loop.global_ba_completed},
-      {"global_ba_discarded", t.loop.global_ba_discarded},
       {"keyframes_culled", t.mapper.keyframes_culled},
   };
-  nlohmann::json loops = nlohmann::json::array();
-  for (const auto& l : t.loop.loops)
-    loops.push_back({{"query_timestamp", l.query_timestamp}, {"candidate_timestamp", l.candidate_timestamp},
-                     {"inliers", l.inliers}, {"correction_ms", l.correction_ms}, {"pose_graph_ms", l.pose_graph_ms},
-                     {"correction_translation_m", l.T_correction.translation().norm()},
-                     {"correction_rotation_deg", l.T_correction.rotation_angle() * 180.0 / M_PI},
-                     {"T_query_candidate", format_tum_line({0.0, l.T_query_candidate})}});
-  stats["loop_events"] = loops;
+  add_loop_stats(stats, t.loop);
   for (const auto& l : t.loop.loops)
     std::printf("loop: keyframe at %.3f -> keyframe at %.3f, %d inliers, correction %.3f m / %.2f deg, %.1f ms\n",
                 l.query_timestamp, l.candidate_timestamp, l.inliers, l.T_correction.translation().norm(),
