@@ -128,7 +128,7 @@ void draw_axes(std::string& out, const Panel& p, const Frame& f) {
   out += "<rect x=\"" + fmt("%.1f", f.left) + "\" y=\"" + fmt("%.1f", f.top) + "\" width=\"" + fmt("%.1f", f.width) +
          "\" height=\"" + fmt("%.1f", f.height) + "\" fill=\"#ffffff\" stroke=\"#444444\" stroke-width=\"1\"/>\n";
   const auto xt = nice_ticks(f.x.lo, f.x.hi, std::max(3, int(f.width / 90)));
-  const auto yt = nice_ticks(f.y.lo, f.y.hi, std::max(3, int(f.height / 45)));
+  const auto yt = nice_ticks(f.y.lo, f.y.hi, std::max(4, int(f.height / 40)));
   const double xstep = xt.size() > 1 ? xt[1] - xt[0] : 1.0, ystep = yt.size() > 1 ? yt[1] - yt[0] : 1.0;
   for (double t : xt) {
     const double x = f.px(t);

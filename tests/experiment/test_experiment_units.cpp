@@ -151,6 +151,16 @@ TEST(Plots, RollPitchYaw) {
   EXPECT_NEAR(r.roll, 0.1 * 180 / M_PI, 1e-9);
 }
 
+TEST(Plots, RotationVector) {
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 2).normalized()));
+  const Eigen::Vector3d v = rotation_vector_deg(q);
+  EXPECT_NEAR(v.norm(), 0.5 * 180 / M_PI, 1e-9);
+  EXPECT_NEAR(v.x() * 2, v.y(), 1e-9);
+  // q and -q are the same rotation
+  EXPECT_NEAR((rotation_vector_deg(Eigen::Quaterniond(-q.coeffs())) - v).norm(), 0.0, 1e-9);
+  EXPECT_NEAR(rotation_vector_deg(Eigen::Quaterniond::Identity()).norm(), 0.0, 1e-12);
+}
+
 TEST(Summaries, MedianRunIsShownAndTimeIsRelativeToSingle) {
   RunConfig single, two;
   single.name = "single";

@@ -60,8 +60,12 @@ std::vector<Trajectory> groundtruth_lines(const RunDetail& d, bool split) {
   return out;
 }
 
-// A trajectory component over time; angles get a NaN (a break) where they wrap around.
-Series component(const Trajectory& traj, double origin, int which, const std::string& color, const std::string& label) {
+// A trajectory component over time: position x/y/z, or the rotation relative to the reference
+// camera pose as its rotation vector's components along that camera's x, y, z axes (3, 4, 5).
+// Unlike Euler angles these have no gimbal lock; past 180 degrees in total they wrap, and the
+// line breaks there (NaN).
+Series component(const Trajectory& traj, double origin, int which, const SE3& reference, const std::string& color,
+                 const std::string& label) {
   Series s;
   s.color = color;
   s.label = label;
@@ -70,8 +74,7 @@ Series component(const Trajectory& traj, double origin, int which, const std::st
     if (which < 3) {
       v = p.T_world_cam.translation()[which];
     } else {
-      const Rpy r = roll_pitch_yaw_deg(p.T_world_cam);
-      v = which == 3 ? r.roll : which == 4 ? r.pitch : r.yaw;
+      v = rotation_vector_deg(reference.rotation().conjugate() * p.T_world_cam.rotation())[which - 3];
       if (!s.y.empty() && std::isfinite(s.y.back()) && std::abs(v - s.y.back()) > 180) {
         s.x.push_back(kNaN);
         s.y.push_back(kNaN);
@@ -171,23 +174,35 @@ Panel xy_panel(const ConfigSummary& s, const RunDetail& d) {
 }
 
 std::vector<Panel> pose_panels(const ConfigSummary& s, const RunDetail& d) {
-  static const char* kNames[] = {"x (m)", "y (m)", "z (m)", "roll (deg)", "pitch (deg)", "yaw (deg)"};
+  static const char* kNames[] = {"x (m)", "y (m)", "z (m)", "rotation about camera x (tilt)", "rotation about camera y (pan)",
+                                 "rotation about camera z (roll)"};
   const RunRecord& r = *s.representative;
+  // Rotations relative to the first ground-truth pose (or the first estimate without ground truth).
+  SE3 reference;
+  for (const auto& t : d.tracks) {
+    const Trajectory& src = !t.groundtruth.empty() && d.aligned ? t.groundtruth : t.estimate;
+    if (!src.empty()) {
+      reference = src.front().T_world_cam;
+      break;
+    }
+  }
   std::vector<Panel> panels;
   for (int which : {0, 3, 1, 4, 2, 5}) {  // two columns: position left, rotation right
     Panel p;
-    p.title = kNames[which];
+    p.title = which < 3 ? std::string(kNames[which]) : std::string(kNames[which]) + " since the first pose, rotation vector";
     p.x_label = "time since the sequence start (s)";
-    p.y_label = kNames[which];
+    static const char* kShort[] = {"x (m)", "y (m)", "z (m)", "tilt (deg)", "pan (deg)", "roll (deg)"};
+    p.y_label = kShort[which];
     bool first = true;
     for (const auto& gt : groundtruth_lines(d, s.config->split)) {
-      Series g = component(gt, d.time_origin, which, report::kGroundTruthColor, first ? "ground truth" : "");
+      Series g = component(gt, d.time_origin, which, reference, report::kGroundTruthColor, first ? "ground truth" : "");
       g.width = 1.0;
       g.dashed = true;
       first = false;
       p.series.push_back(g);
     }
-    for (const auto& t : d.tracks) p.series.push_back(component(t.estimate, d.time_origin, which, client_color(t.id), "client " + std::to_string(t.id)));
+    for (const auto& t : d.tracks)
+      p.series.push_back(component(t.estimate, d.time_origin, which, reference, client_color(t.id), "client " + std::to_string(t.id)));
     add_fusion_vlines(p, r, d.time_origin);
     panels.push_back(p);
   }
@@ -253,6 +268,14 @@ std::vector<Panel> overview_panels(const std::vector<ConfigSummary>& summaries) 
 }
 
 }  // namespace
+
+Eigen::Vector3d rotation_vector_deg(const Eigen::Quaterniond& q_in) {
+  Eigen::Quaterniond q = q_in.normalized();
+  if (q.w() < 0) q.coeffs() *= -1;
+  const double n = q.vec().norm();
+  if (n < 1e-12) return 2.0 * q.vec() * 180.0 / M_PI;
+  return q.vec() / n * (2.0 * std::atan2(n, q.w()) * 180.0 / M_PI);
+}
 
 Rpy roll_pitch_yaw_deg(const SE3& T) {
   const Eigen::Matrix3d R = T.R();

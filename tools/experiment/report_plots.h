@@ -20,6 +20,9 @@ using DetailMap = std::map<std::pair<std::string, int>, RunDetail>;  // (config,
 std::vector<std::string> write_figures(const std::string& out_dir, std::vector<ConfigSummary>& summaries, const DetailMap& details,
                                        std::size_t max_points = 400);
 
+// Rotation vector (axis times angle, degrees; angle in [0, 180]) of a rotation.
+Eigen::Vector3d rotation_vector_deg(const Eigen::Quaterniond& q);
+
 // Roll, pitch, yaw (degrees) of R = Rz(yaw) Ry(pitch) Rx(roll).
 struct Rpy {
   double roll = 0, pitch = 0, yaw = 0;
