@@ -51,7 +51,8 @@ nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps
 nlohmann::json event_json(const FusionEvent& e) {
   return {{"time_s", e.wall_time_s}, {"kind", e.kind},          {"clients", {e.client_a, e.client_b}},
           {"group", e.group},        {"inliers", e.inliers},    {"duration_ms", e.duration_ms},
-          {"query_timestamp", e.query_timestamp}, {"candidate_timestamp", e.candidate_timestamp}};
+          {"query_timestamp", e.query_timestamp}, {"candidate_timestamp", e.candidate_timestamp},
+          {"seam_points", e.seam_points}, {"seam_edges", e.seam_edges}};
 }
 
 std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, double>& fps, std::size_t fusion_count) {

@@ -1,5 +1,6 @@
 #pragma once
 #include <string>
+#include <vector>
 
 #include "core/ids.h"
 #include "geometry/se3.h"
@@ -16,6 +17,15 @@ struct FusionEvent {
   std::string kind = "fusion";
   double query_timestamp = 0, candidate_timestamp = 0;  // frame times of the two keyframes
   SE3 T_query_candidate;  // verified camera-to-camera transform (p_query = T * p_candidate)
+  int seam_points = 0;     // points found in both maps and linked (estimated as one)
+  int seam_edges = 0;      // cross-map covisibility edges (keyframe pairs sharing >= 15 points)
+};
+
+// Global BA over the maps of fused groups (background, after each fusion).
+struct GroupBaStats {
+  int started = 0, completed = 0, discarded = 0;
+  std::vector<double> ms;  // completed runs, wall time
+  int last_keyframes = 0, last_points = 0, last_linked_points = 0;
 };
 
 }  // namespace cslam

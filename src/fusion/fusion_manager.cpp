@@ -2,6 +2,9 @@
 
 #include "fusion/place_candidates.h"
 
+#include "globalba/global_ba.h"
+#include "map/map_locks.h"
+
 #include <algorithm>
 #include <shared_mutex>
 
@@ -54,6 +57,8 @@ void FusionManager::finish() {
   }
   queue_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  // The fusion thread has ended: the group BA it started is ours to join (and is let complete).
+  if (group_ba_thread_.joinable()) group_ba_thread_.join();
 }
 
 int FusionManager::group_of(const Map* map) const {
@@ -65,6 +70,11 @@ int FusionManager::group_of(const Map* map) const {
 std::vector<FusionEvent> FusionManager::events() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   return events_;
+}
+
+GroupBaStats FusionManager::group_ba_stats() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return group_ba_stats_;
 }
 
 std::size_t FusionManager::dropped() const {
@@ -134,14 +144,10 @@ void FusionManager::process(const Pending& p) {
     for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
       OverlapVerifyResult v;
       SE3 T_wq_wc;
-      double cand_time = 0;
+      KeyFramePtr cand;
       {
-        // Two shared locks, taken in address order.
-        Map* first = p.map.get() < other.get() ? p.map.get() : other.get();
-        Map* second = first == p.map.get() ? other.get() : p.map.get();
-        std::shared_lock<std::shared_mutex> l1(first->mutex);
-        std::shared_lock<std::shared_mutex> l2(second->mutex);
-        KeyFramePtr cand = other->keyframe(consistent[i]);
+        auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), other.get()});
+        cand = other->keyframe(consistent[i]);
         if (!cand || cand->bad || p.kf->bad) continue;
         v = verify_overlap(*p.kf, *cand, cand->best_covisibles(10), config_.verify);
         if (!v.accepted) {
@@ -152,17 +158,17 @@ void FusionManager::process(const Pending& p) {
         }
         // T_wq_wc = T_wq_camq * S_camq_camc * T_camc_wc
         T_wq_wc = p.kf->T_world_cam() * v.S_query_candidate.to_se3() * cand->T_cam_world;
-        cand_time = cand->timestamp();
       }
       (void)query_time;
-      fuse(p, other, other_reg.client, T_wq_wc, v, cand_time, hit);
+      fuse(p, other, other_reg.client, cand, T_wq_wc, v, hit);
       return;
     }
   }
 }
 
-void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const SE3& T_wq_wc,
-                         const OverlapVerifyResult& v, double candidate_time, std::chrono::steady_clock::time_point hit) {
+void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client,
+                         const KeyFramePtr& candidate, const SE3& T_wq_wc, const OverlapVerifyResult& v,
+                         std::chrono::steady_clock::time_point hit) {
   // Members of both groups, and which group moves (the one with fewer keyframes).
   std::vector<std::shared_ptr<Map>> group_q, group_c;
   int gq = -1, gc = -1;
@@ -185,10 +191,21 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     }
     return n;
   };
+  stop_group_ba();  // its result would be discarded by the move anyway
   const bool move_candidate_side = keyframes_of(group_c) <= keyframes_of(group_q);
   const auto& moving = move_candidate_side ? group_c : group_q;
   const SE3 T_new_old = move_candidate_side ? T_wq_wc : T_wq_wc.inverse();
   for (const auto& m : moving) transform_map(*m, T_new_old);
+  // The seam: points both maps hold around the match, linked; cross-map covisibility.
+  const std::shared_ptr<Map>& kept_map = move_candidate_side ? p.map : other;
+  const std::shared_ptr<Map>& moved_map = move_candidate_side ? other : p.map;
+  const KeyFramePtr& kept_kf = move_candidate_side ? p.kf : candidate;
+  const KeyFramePtr& moved_kf = move_candidate_side ? candidate : p.kf;
+  Seam seam;
+  {
+    auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({kept_map.get(), moved_map.get()});
+    if (!kept_kf->bad && !moved_kf->bad) seam = connect_seam(*kept_map, *kept_kf, *moved_map, *moved_kf, config_.seam);
+  }
   const int kept = move_candidate_side ? gq : gc;
   FusionEvent e;
   e.client_a = p.client;
@@ -198,16 +215,89 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
   e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
   e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   e.query_timestamp = p.kf->timestamp();
-  e.candidate_timestamp = candidate_time;
+  e.candidate_timestamp = candidate->timestamp();
   e.T_query_candidate = v.S_query_candidate.to_se3();
+  e.seam_points = int(seam.points.size());
+  e.seam_edges = int(seam.edges.size());
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     for (auto& [m, g] : group_)
       if (g == gq || g == gc) g = kept;
     events_.push_back(e);
+    seams_.push_back({kept_map, moved_map, std::move(seam)});
   }
-  logger("fusion")->info("fused client {} with client {} into group {}: {} inliers, {} projection matches, {:.1f} ms",
-                         p.client, other_client, kept, v.final_inliers, v.projection_matches, e.duration_ms);
+  logger("fusion")->info("fused client {} with client {} into group {}: {} inliers, {} projection matches, {} seam points, "
+                         "{} cross-map covisibility edges, {:.1f} ms",
+                         p.client, other_client, kept, v.final_inliers, v.projection_matches, e.seam_points, e.seam_edges,
+                         e.duration_ms);
+  start_group_ba(kept);
+}
+
+void FusionManager::stop_group_ba() {
+  group_ba_abort_ = true;
+  if (group_ba_thread_.joinable()) group_ba_thread_.join();
+  group_ba_abort_ = false;
+}
+
+void FusionManager::start_group_ba(int group) {
+  stop_group_ba();
+  if (!config_.group_ba) return;
+  group_ba_thread_ = std::thread([this, group] {
+    lower_current_thread_priority();
+    run_group_ba_of(group);
+  });
+}
+
+bool FusionManager::run_group_ba(const Map* map) {
+  const int g = group_of(map);
+  return g >= 0 && run_group_ba_of(g);
+}
+
+bool FusionManager::run_group_ba_of(int group) {
+  Stopwatch sw;
+  std::vector<std::shared_ptr<Map>> members;  // kept alive for the run
+  std::vector<std::pair<MapPointPtr, MapPointPtr>> links;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (const auto& r : registry_)
+      if (auto m = r.map.lock())
+        if (group_.at(m.get()) == group) members.push_back(m);
+    for (const auto& s : seams_) {
+      auto a = s.kept_map.lock(), b = s.moved_map.lock();
+      if (!a || !b || group_.at(a.get()) != group || group_.at(b.get()) != group) continue;
+      for (const auto& l : s.seam.points) links.emplace_back(l.kept, l.moved);
+    }
+    ++group_ba_stats_.started;
+  }
+  if (members.size() < 2) return false;
+  // The largest map first: its origin holds the gauge.
+  std::vector<Map*> maps;
+  for (const auto& m : members) maps.push_back(m.get());
+  GlobalBa gba;
+  {
+    auto locks = lock_maps<std::shared_lock<std::shared_mutex>>(maps);
+    std::stable_sort(maps.begin(), maps.end(), [](const Map* a, const Map* b) { return a->num_keyframes() > b->num_keyframes(); });
+    gba.snapshot(maps, links);
+  }
+  const BaResult r = gba.solve(config_.group_ba_iterations, &group_ba_abort_);
+  bool applied = false;
+  {
+    auto locks = lock_maps<std::unique_lock<std::shared_mutex>>(maps);
+    applied = gba.apply(r);
+  }
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  if (applied) {
+    ++group_ba_stats_.completed;
+    group_ba_stats_.ms.push_back(sw.ms());
+    group_ba_stats_.last_keyframes = int(gba.num_keyframes());
+    group_ba_stats_.last_points = int(gba.num_points());
+    group_ba_stats_.last_linked_points = int(links.size());
+    logger("fusion")->info("group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms", group,
+                           maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms());
+  } else {
+    ++group_ba_stats_.discarded;
+  }
+  return applied;
 }
 
 }  // namespace cslam

@@ -3,7 +3,10 @@
 // whether new keyframes of one client's map overlap another client's map (BoW query of the other
 // map's database above the keyframe's own covisibility score, 3-consecutive consistency, RANSAC
 // SE3/Sim3, projection check) and, when they do, moves every map of the smaller group into the
-// other group's frame. Tracking goes on: frame poses are kept relative to reference keyframes.
+// other group's frame, links the points the two maps share around the match (seam), and runs a
+// global BA over every map of the new group in the background, linked points estimated as one.
+// Tracking goes on: frame poses are kept relative to reference keyframes.
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <deque>
@@ -16,6 +19,7 @@
 #include "bow/vocabulary.h"
 #include "fusion/fusion_event.h"
 #include "fusion/overlap_verifier.h"
+#include "fusion/seam.h"
 #include "loop/consistency.h"
 #include "map/map.h"
 
@@ -28,6 +32,9 @@ struct FusionConfig {
   std::size_t max_candidates = 3;    // verified per detection
   std::size_t queue_capacity = 512;  // pending keyframes (oldest dropped beyond)
   OverlapVerifyConfig verify;
+  SeamConfig seam;
+  bool group_ba = true;              // global BA over a fused group after each fusion
+  int group_ba_iterations = 10;
 };
 
 // Moves a whole map by T_new_old (keyframe poses and points); requires no lock held by the caller.
@@ -42,12 +49,15 @@ class FusionManager {
 
   // Called by local-mapping threads after a keyframe is processed.
   void notify(ClientId client, const std::shared_ptr<Map>& map, const KeyFramePtr& kf);
-  // Processes what is queued, then stops the thread. Idempotent.
+  // Processes what is queued, lets a running group BA complete, then stops the threads. Idempotent.
   void finish();
 
   int group_of(const Map* map) const;  // -1 if unknown
   std::vector<FusionEvent> events() const;
+  GroupBaStats group_ba_stats() const;
   std::size_t dropped() const;
+  // Runs the group BA of `map`'s group now on the calling thread (tests). False if discarded.
+  bool run_group_ba(const Map* map);
 
  private:
   struct Pending {
@@ -61,8 +71,15 @@ class FusionManager {
   };
   void run();
   void process(const Pending& p);
-  void fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const SE3& T_wq_wc,
-            const OverlapVerifyResult& v, double candidate_time, std::chrono::steady_clock::time_point hit);
+  void fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const KeyFramePtr& candidate,
+            const SE3& T_wq_wc, const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
+  void start_group_ba(int group);
+  bool run_group_ba_of(int group);
+  void stop_group_ba();
+  struct StoredSeam {
+    std::weak_ptr<Map> kept_map, moved_map;
+    Seam seam;
+  };
 
   FusionConfig config_;
   std::shared_ptr<const Vocabulary> vocabulary_;
@@ -79,7 +96,11 @@ class FusionManager {
   std::map<const Map*, int> group_;
   std::map<std::pair<const Map*, const Map*>, ConsistencyChecker> consistency_;
   std::vector<FusionEvent> events_;
+  std::vector<StoredSeam> seams_;
+  GroupBaStats group_ba_stats_;
   std::thread thread_;
+  std::thread group_ba_thread_;  // owned by the fusion thread (started, aborted, joined there)
+  std::atomic<bool> group_ba_abort_{false};
 };
 
 }  // namespace cslam

@@ -1,5 +1,7 @@
 #include "loopclosing/loop_closer.h"
 
+#include "globalba/global_ba.h"
+
 #include <shared_mutex>
 #include <unordered_set>
 
@@ -247,84 +249,16 @@ bool LoopCloser::run_global_ba() {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     ++stats_.global_ba_started;
   }
-  BaProblem prob;
-  std::vector<KeyFramePtr> cameras;
-  std::vector<MapPointPtr> points;
-  std::uint64_t change = 0;
+  GlobalBa gba;
   {
     std::shared_lock<std::shared_mutex> lock(map_->mutex);
-    change = map_->big_change_index();
-    std::map<KeyFrame*, int> index;
-    for (const auto& kf : map_->keyframes()) {
-      if (kf->bad) continue;
-      index[kf.get()] = int(cameras.size());
-      cameras.push_back(kf);
-      const auto& c = kf->data->camera;
-      prob.cameras.push_back({kf->T_cam_world, {c.fx, c.fy, c.cx, c.cy, kf->data->rgbd.bf}, kf == map_->origin()});
-    }
-    for (const auto& mp : map_->map_points()) {
-      if (mp->bad) continue;
-      const int p = int(points.size());
-      bool any = false;
-      for (const auto& [kf, idx] : mp->observations) {
-        auto it = index.find(kf);
-        if (it == index.end()) continue;
-        const FrameData& f = *kf->data;
-        BaObservation o;
-        o.camera = it->second;
-        o.point = p;
-        o.uv = f.features.undistorted[idx];
-        o.u_right = f.u_right[idx];
-        o.inv_sigma2 = f.pyramid->inv_sigma2[f.features.keypoints[idx].octave];
-        prob.observations.push_back(o);
-        any = true;
-      }
-      if (!any) continue;
-      points.push_back(mp);
-      prob.points.push_back(mp->position);
-    }
+    gba.snapshot({map_.get()});
   }
-  BaConfig cfg;
-  cfg.first_iterations = config_.global_ba_iterations;
-  cfg.second_iterations = 0;
-  const BaResult r = bundle_adjust(prob, cfg, &gba_abort_);
+  const BaResult r = gba.solve(config_.global_ba_iterations, &gba_abort_);
   bool applied = false;
-  if (!r.aborted) {
+  {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
-    if (map_->big_change_index() == change) {
-      // Keyframes created meanwhile follow their parent's correction through the spanning tree.
-      std::map<KeyFrame*, SE3> correction;  // T_w_new * T_old_w as a right factor on T_cam_world
-      for (size_t c = 0; c < cameras.size(); ++c) {
-        if (cameras[c]->bad) continue;
-        correction[cameras[c].get()] = cameras[c]->T_world_cam() * r.T_cam_world[c];  // T_w_old_cam * T_cam_w_new
-        cameras[c]->T_cam_world = r.T_cam_world[c];
-      }
-      std::unordered_set<MapPoint*> optimised;
-      for (size_t p = 0; p < points.size(); ++p) {
-        optimised.insert(points[p].get());
-        if (!points[p]->bad) points[p]->position = r.points[p];
-      }
-      std::map<KeyFrame*, SE3> moved_old_pose;
-      for (const auto& kf : map_->keyframes()) {
-        if (correction.count(kf.get())) continue;
-        KeyFrame* anc = kf->anchor();
-        while (anc && !correction.count(anc)) anc = anc->anchor();
-        if (!anc) continue;
-        // Keep its pose relative to the corrected ancestor.
-        const SE3 T_kf_anc_old = kf->T_cam_world * (anc->T_cam_world * correction[anc].inverse()).inverse();
-        moved_old_pose[kf.get()] = kf->T_cam_world;
-        kf->T_cam_world = T_kf_anc_old * anc->T_cam_world;
-      }
-      // Points of those keyframes follow their reference keyframe.
-      for (const auto& mp : map_->map_points()) {
-        if (optimised.count(mp.get())) continue;
-        auto it = moved_old_pose.find(mp->reference);
-        if (it != moved_old_pose.end()) mp->position = mp->reference->T_world_cam() * (it->second * mp->position);
-      }
-      for (const auto& mp : map_->map_points()) map_->update_map_point(mp.get());
-      map_->note_big_change();  // tracking re-derives its last pose from its reference keyframe
-      applied = true;
-    }
+    applied = gba.apply(r);
   }
   std::lock_guard<std::mutex> lock(stats_mutex_);
   if (applied) {

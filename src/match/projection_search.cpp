@@ -208,45 +208,48 @@ int search_by_projection_keyframe(Frame& cur, const KeyFrame& source, const std:
   return n;
 }
 
+int match_point_in_keyframe(const MapPoint& mp, const KeyFrame& kf, double th) {
+  const FrameData& f = *kf.data;
+  const Eigen::Vector3d pc = kf.T_cam_world * mp.position;
+  if (pc.z() <= 0) return -1;
+  const Eigen::Vector2d uv = f.camera.project(pc);
+  if (!f.in_bounds(uv.x(), uv.y())) return -1;
+  const Eigen::Vector3d po = mp.position - kf.center();
+  const double dist = po.norm();
+  if (dist < mp.min_valid_distance() || dist > mp.max_valid_distance()) return -1;
+  if (po.dot(mp.normal) < 0.5 * dist) return -1;
+  const int level = mp.predict_level(dist, *f.pyramid);
+  const double r = th * f.pyramid->scale[level];
+  const auto cands = f.grid.features_in_area(uv.x(), uv.y(), r);
+  const double ur = uv.x() - f.rgbd.bf / pc.z();
+  int best = 256, best_idx = -1;
+  for (int idx : cands) {
+    const auto& kp = f.features.keypoints[idx];
+    if (kp.octave < level - 1 || kp.octave > level) continue;
+    const double ex = uv.x() - f.features.undistorted[idx].x(), ey = uv.y() - f.features.undistorted[idx].y();
+    double e2 = ex * ex + ey * ey;
+    double th_chi2 = 5.99;
+    if (f.u_right[idx] >= 0) {
+      const double er = ur - f.u_right[idx];
+      e2 += er * er;
+      th_chi2 = 7.8;
+    }
+    if (e2 * f.pyramid->inv_sigma2[kp.octave] > th_chi2) continue;
+    const int d = hamming_distance(mp.descriptor, f.features.descriptors[idx]);
+    if (d < best) {
+      best = d;
+      best_idx = idx;
+    }
+  }
+  return best <= kThLow ? best_idx : -1;
+}
+
 int fuse(Map& map, KeyFrame* kf, const std::vector<MapPointPtr>& points, double th) {
-  const FrameData& f = *kf->data;
-  const SE3 Tcw = kf->T_cam_world;
-  const Eigen::Vector3d center = kf->center();
   int n = 0;
   for (const auto& mp : points) {
     if (!mp || mp->bad || mp->in_keyframe(kf)) continue;
-    const Eigen::Vector3d pc = Tcw * mp->position;
-    if (pc.z() <= 0) continue;
-    const Eigen::Vector2d uv = f.camera.project(pc);
-    if (!f.in_bounds(uv.x(), uv.y())) continue;
-    const Eigen::Vector3d po = mp->position - center;
-    const double dist = po.norm();
-    if (dist < mp->min_valid_distance() || dist > mp->max_valid_distance()) continue;
-    if (po.dot(mp->normal) < 0.5 * dist) continue;
-    const int level = mp->predict_level(dist, *f.pyramid);
-    const double r = th * f.pyramid->scale[level];
-    const auto cands = f.grid.features_in_area(uv.x(), uv.y(), r);
-    const double ur = uv.x() - f.rgbd.bf / pc.z();
-    int best = 256, best_idx = -1;
-    for (int idx : cands) {
-      const auto& kp = f.features.keypoints[idx];
-      if (kp.octave < level - 1 || kp.octave > level) continue;
-      const double ex = uv.x() - f.features.undistorted[idx].x(), ey = uv.y() - f.features.undistorted[idx].y();
-      double e2 = ex * ex + ey * ey;
-      double th_chi2 = 5.99;
-      if (f.u_right[idx] >= 0) {
-        const double er = ur - f.u_right[idx];
-        e2 += er * er;
-        th_chi2 = 7.8;
-      }
-      if (e2 * f.pyramid->inv_sigma2[kp.octave] > th_chi2) continue;
-      const int d = hamming_distance(mp->descriptor, f.features.descriptors[idx]);
-      if (d < best) {
-        best = d;
-        best_idx = idx;
-      }
-    }
-    if (best > kThLow) continue;
+    const int best_idx = match_point_in_keyframe(*mp, *kf, th);
+    if (best_idx < 0) continue;
     if (auto existing = kf->map_points[best_idx]; existing && !existing->bad) {
       if (existing->observations.size() > mp->observations.size()) map.replace_map_point(mp, existing);
       else map.replace_map_point(existing, mp);

@@ -37,6 +37,10 @@ int search_by_bow(const KeyFrame& kf, const FrameData& frame, std::vector<MapPoi
 int search_by_projection_keyframe(Frame& current, const KeyFrame& source, const std::set<MapPoint*>& already,
                                   double radius, int max_distance);
 
+// Keypoint of `kf` that map point `mp` projects onto and matches (frustum, scale, reprojection and
+// descriptor checks; radius th x scale), or -1. Reads only: shared lock.
+int match_point_in_keyframe(const MapPoint& mp, const KeyFrame& kf, double th = 3.0);
+
 // Projects points into a keyframe and fuses duplicates: a point whose best keypoint already has
 // a point is merged with it (the one with more observations survives), otherwise an observation
 // is added. Requires the unique map lock. Returns the number of fused/added points.

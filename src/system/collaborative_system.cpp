@@ -112,7 +112,10 @@ SystemSnapshot CollaborativeSystem::snapshot() const {
     s.clients.push_back(p->snapshot());
     s.clients.back().group = impl_->group_of(*p);
   }
-  if (impl_->fusion) s.events = impl_->fusion->events();
+  if (impl_->fusion) {
+    s.events = impl_->fusion->events();
+    s.group_ba = impl_->fusion->group_ba_stats();
+  }
   return s;
 }
 
@@ -231,7 +234,15 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
                                       {"group", e.group}, {"inliers", e.inliers}, {"duration_ms", e.duration_ms},
                                       {"kind", e.kind}, {"query_timestamp", e.query_timestamp},
                                       {"candidate_timestamp", e.candidate_timestamp},
+                                      {"seam_points", e.seam_points}, {"seam_edges", e.seam_edges},
                                       {"T_query_candidate", format_tum_line({0.0, e.T_query_candidate})}});
+  stats["group_ba"] = {{"started", snap.group_ba.started},
+                       {"completed", snap.group_ba.completed},
+                       {"discarded", snap.group_ba.discarded},
+                       {"ms", summary_json(snap.group_ba.ms)},
+                       {"last_keyframes", snap.group_ba.last_keyframes},
+                       {"last_points", snap.group_ba.last_points},
+                       {"last_linked_points", snap.group_ba.last_linked_points}};
   std::ofstream(dir + "/stats.json") << stats.dump(2) << "\n";
 }
 

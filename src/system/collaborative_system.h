@@ -42,6 +42,7 @@ struct SystemSnapshot {
   double uptime_s = 0;
   std::vector<ClientSnapshot> clients;
   std::vector<FusionEvent> events;
+  GroupBaStats group_ba;
 };
 
 class ClientPipeline;

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/map_checks.h"
 #include "common/run_program.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
@@ -11,24 +12,7 @@
 
 using namespace cslam;
 
-namespace {
-
-void expect_consistent(const Map& map) {
-  for (const auto& kf : map.keyframes()) {
-    EXPECT_TRUE(kf->T_cam_world.is_finite());
-    for (size_t i = 0; i < kf->map_points.size(); ++i) {
-      const auto& mp = kf->map_points[i];
-      if (!mp || mp->bad) continue;
-      EXPECT_TRUE(mp->position.allFinite());
-      auto it = mp->observations.find(kf.get());
-      ASSERT_NE(it, mp->observations.end()) << "point lists no observation back to its keyframe";
-      EXPECT_EQ(it->second, int(i));
-    }
-    for (const auto& [other, w] : kf->connections) EXPECT_EQ(other->weight(kf.get()), w);
-  }
-}
-
-}  // namespace
+using test::expect_consistent;
 
 TEST(GlobalBa, InterruptedManyTimesLeavesMapConsistent) {
   test::TempDir dir("cslam_gba");

@@ -1,4 +1,6 @@
 // End to end over loopback TCP with the real programs: cslam-server and cslam-client processes.
+#include <algorithm>
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -77,6 +79,41 @@ TEST_F(EndToEnd, TwoClientProcessesServerExitsByItself) {
     EXPECT_EQ(c["goodbyes"], 1);
     EXPECT_EQ(c["frames_accepted"], c["frames_processed"]);
   }
+  if (!HasFailure()) std::filesystem::remove_all(r.dir);
+}
+
+// Full SLAM over the network: two robots of the small synthetic scene stream to the server, whose
+// fusion thread fuses their maps; stats.json shows the fusion event and one group.
+TEST_F(EndToEnd, TwoRobotsFuseOverTheNetwork) {
+  const RunDirs r = make_run("e2e_fusion");
+  test::ChildProcess synth({kBin + "/cslam-synth", "--preset", "test-small", "--seed", "5", "--out", r.dir + "/scene",
+                           "--log-level", "warn"},
+                          r.dir + "/synth.log");
+  ASSERT_EQ(synth.wait(120), 0) << "see " << r.dir << "/synth.log";
+  auto args = server_args(r, 2);
+  args.erase(std::find(args.begin(), args.end(), "--no-slam"));
+  test::ChildProcess server(args, r.dir + "/server.log");
+  const auto endpoint = test::wait_for_file_line(r.endpoint_file, 10);
+  ASSERT_TRUE(endpoint) << "server did not start, see " << r.dir << "/server.log";
+  test::ChildProcess c1(client_args(*endpoint, 1, r.dir + "/scene/robot_1", "1:", "30"), r.dir + "/client1.log");
+  test::ChildProcess c2(client_args(*endpoint, 2, r.dir + "/scene/robot_2", "1:", "30"), r.dir + "/client2.log");
+  EXPECT_EQ(c1.wait(120), 0) << "see " << r.dir << "/client1.log";
+  EXPECT_EQ(c2.wait(120), 0) << "see " << r.dir << "/client2.log";
+  EXPECT_EQ(server.wait(120), 0) << "see " << r.dir << "/server.log";
+  const auto stats = read_json(r.out + "/stats.json");
+  ASSERT_GE(stats["fusion_events"].size(), 1u) << stats.dump(2);
+  const auto& e = stats["fusion_events"][0];
+  EXPECT_GT(e["inliers"].get<int>(), 0);
+  EXPECT_GT(e["seam_points"].get<int>(), 0);
+  ASSERT_EQ(stats["clients"].size(), 2u);
+  EXPECT_EQ(stats["clients"][0]["group"], stats["clients"][1]["group"]);
+  EXPECT_TRUE(stats["clients"][0]["fused"].get<bool>());
+  bool fused_file = false;
+  for (const auto& entry : std::filesystem::directory_iterator(r.out))
+    fused_file = fused_file || entry.path().filename().string().rfind("fused_", 0) == 0;
+  EXPECT_TRUE(fused_file) << "no fused_G.txt in " << r.out;
+  EXPECT_EQ(test::trajectory_lines(r.out + "/client_1.txt").size(), 60u);
+  EXPECT_EQ(test::trajectory_lines(r.out + "/client_2.txt").size(), 60u);
   if (!HasFailure()) std::filesystem::remove_all(r.dir);
 }
 

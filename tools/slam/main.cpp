@@ -51,6 +51,7 @@ int run(int argc, char** argv) {
       .flag("sync", "run local mapping inline (deterministic, slower)")
       .flag("no-local-ba", "disable local bundle adjustment (ablation)")
       .flag("no-fusion", "multi-client mode: disable map fusion (ablation)")
+      .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");

@@ -1,0 +1,77 @@
+#include "fusion/seam.h"
+
+#include <map>
+#include <set>
+
+#include "match/projection_search.h"
+
+namespace cslam {
+
+namespace {
+
+std::vector<KeyFrame*> neighbourhood(KeyFrame& kf, int n) {
+  std::vector<KeyFrame*> out = kf.best_covisibles(std::size_t(n));
+  out.push_back(&kf);
+  return out;
+}
+
+std::vector<MapPointPtr> points_of(const std::vector<KeyFrame*>& kfs) {
+  std::vector<MapPointPtr> out;
+  std::set<MapPoint*> seen;
+  for (KeyFrame* kf : kfs)
+    for (const auto& mp : kf->map_points)
+      if (mp && !mp->bad && seen.insert(mp.get()).second) out.push_back(mp);
+  return out;
+}
+
+}  // namespace
+
+Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& moved_kf, const SeamConfig& config) {
+  const auto kept_side = neighbourhood(kept_kf, config.neighbours);
+  const auto moved_side = neighbourhood(moved_kf, config.neighbours);
+  // Votes for (moved point -> kept point) from both projection directions.
+  std::map<std::pair<MapPoint*, MapPoint*>, int> votes;
+  std::map<MapPoint*, MapPointPtr> owner;
+  auto vote = [&](const MapPointPtr& moved, const MapPointPtr& kept) {
+    if (!moved || !kept || moved->bad || kept->bad) return;
+    owner[moved.get()] = moved;
+    owner[kept.get()] = kept;
+    ++votes[{moved.get(), kept.get()}];
+  };
+  for (const auto& mp : points_of(moved_side))
+    for (KeyFrame* k : kept_side) {
+      const int idx = match_point_in_keyframe(*mp, *k, config.radius);
+      if (idx >= 0) vote(mp, k->map_points[idx]);
+    }
+  for (const auto& mp : points_of(kept_side))
+    for (KeyFrame* m : moved_side) {
+      const int idx = match_point_in_keyframe(*mp, *m, config.radius);
+      if (idx >= 0) vote(m->map_points[idx], mp);
+    }
+  // One partner per point: strongest votes first.
+  std::vector<std::pair<int, std::pair<MapPoint*, MapPoint*>>> ranked;
+  for (const auto& [pair, n] : votes) ranked.push_back({n, pair});
+  std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::set<MapPoint*> used;
+  Seam seam;
+  std::map<std::pair<KeyFrame*, KeyFrame*>, int> weight;
+  for (const auto& [n, pair] : ranked) {
+    auto [moved, kept] = pair;
+    if (used.count(moved) || used.count(kept)) continue;
+    used.insert(moved);
+    used.insert(kept);
+    seam.points.push_back({owner[kept], owner[moved]});
+    moved->position = kept->position;
+    moved_map.update_map_point(moved);
+    for (const auto& [a, ia] : kept->observations)
+      for (const auto& [b, ib] : moved->observations) ++weight[{a, b}];
+  }
+  for (const auto& [pair, w] : weight) {
+    if (w < config.min_edge_weight) continue;
+    KeyFramePtr a = kept_map.shared(pair.first), b = moved_map.shared(pair.second);
+    if (a && b && !a->bad && !b->bad) seam.edges.push_back({a, b, w});
+  }
+  return seam;
+}
+
+}  // namespace cslam
