@@ -51,12 +51,13 @@ nlohmann::json describe(const Scene& scene, const TrajectoryPlan& plan, const Sy
   j["scene"] = {{"width", s.width}, {"depth", s.depth}, {"height", s.height}, {"furniture", s.furniture},
                 {"cylinder_fraction", s.cylinder_fraction}, {"cylinder_sides", s.cylinder_sides}, {"texel_size", s.texel_size},
                 {"walkway_margin", s.walkway_margin}, {"furniture_clearance", s.furniture_clearance},
-                {"repeat_texture", s.repeat_texture}, {"ambient", s.ambient}};
+                {"repeat_texture", s.repeat_texture}, {"shared_poster_seed", s.shared_poster_seed}, {"ambient", s.ambient}};
   j["walkway"] = {{"center", {scene.walkway.center.x(), scene.walkway.center.y()}}, {"a", scene.walkway.a}, {"b", scene.walkway.b}};
   for (const auto& f : scene.furniture)
     j["furniture"].push_back({{"kind", f.kind == Furniture::Kind::Box ? "box" : "cylinder"},
                               {"center", {f.center.x(), f.center.y()}}, {"half_x", f.half_x}, {"half_y", f.half_y},
                               {"radius", f.radius}, {"height", f.height}});
+  for (const auto& c : scene.shared_posters) j["shared_posters"].push_back({c.x(), c.y(), c.z()});
   for (const auto& r : scene.repeated_patches)
     j["repeated_patches"].push_back({{"face_a", scene.faces[r.face_a].name}, {"face_b", scene.faces[r.face_b].name},
                                      {"center_a", vec(r.center_a)}, {"center_b", vec(r.center_b)},

@@ -195,6 +195,25 @@ void add_repeated_patch(Scene& scene, Rng& rng) {
   scene.repeated_patches.push_back(r);
 }
 
+void add_shared_poster(Scene& scene, Rng& rng) {
+  // The same poster (its own seed, independent of the room's) every ~2 m along both long walls,
+  // so that robots of any room see it.
+  const double pu = 1.2, pv = 0.9, texel = scene.config.texel_size, t0 = 0.7;
+  const cv::Mat poster = make_albedo_texture(pu, pv, texel, scene.config.shared_poster_seed);
+  for (int fi : {2, 4}) {
+    const Face& f = scene.faces[fi];
+    if (f.size_u < pu + 0.4 || f.size_v < pv + 0.8) continue;
+    cv::Mat& tex = scene.textures[f.texture].mip[0];
+    for (double s0 = rng.uniform(0.2, 0.8); s0 + pu + 0.2 <= f.size_u; s0 += 2.0) {
+      const cv::Rect dst(static_cast<int>((f.tex_u0 + s0) / texel), static_cast<int>((f.tex_v0 + t0) / texel), poster.cols,
+                         poster.rows);
+      if ((dst & cv::Rect(0, 0, tex.cols, tex.rows)) != dst) continue;
+      poster.copyTo(tex(dst));
+      scene.shared_posters.push_back(f.point(s0 + pu / 2, t0 + pv / 2));
+    }
+  }
+}
+
 double irradiance(const Scene& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
   double sum = 0;
   for (const auto& l : scene.lights) {
@@ -324,6 +343,7 @@ Scene make_scene(const SceneConfig& config) {
     scene.lights.push_back({Eigen::Vector3d(W * (lx[i] + rng.uniform(-0.1, 0.1)), D * (ly[i] + rng.uniform(-0.1, 0.1)), H - 0.3), 0.75});
   build_geometry(scene);
   if (config.repeat_texture) add_repeated_patch(scene, rng);
+  if (config.shared_poster_seed != 0) add_shared_poster(scene, rng);
   bake_lighting(scene);
   return scene;
 }

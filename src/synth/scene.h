@@ -28,6 +28,10 @@ struct SceneConfig {
   double furniture_clearance = 0.7;
   // A 1.2 m x 0.9 m texture patch copied onto two different walls (place-recognition trap).
   bool repeat_texture = false;
+  // Non-zero: a 1.2 m x 0.9 m poster generated from this seed alone is put every ~2 m along both
+  // long walls, so
+  // rooms of different seeds given the same poster seed share that texture (cross-room trap).
+  std::uint64_t shared_poster_seed = 0;
   double ambient = 0.45;  // ambient share of the lighting, the rest is Lambertian from point lights
 
   // Throws ConfigError naming the first impossible value.
@@ -97,6 +101,7 @@ struct Scene {
   std::vector<Light> lights;
   Walkway walkway;
   std::vector<RepeatedPatch> repeated_patches;
+  std::vector<Eigen::Vector3d> shared_posters;  // centres of the --shared-poster copies
 
   // True if p is inside the room and outside every piece of furniture.
   bool is_free(const Eigen::Vector3d& p) const;

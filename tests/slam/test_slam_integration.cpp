@@ -83,16 +83,31 @@ TEST_F(SlamIntegration, OfflineTwoClientsWithoutFusionStayApart) {
 }
 
 TEST_F(SlamIntegration, ClientsInDifferentRoomsDoNotFuse) {
-  // A second room (another seed): same procedural texture style, different places. A wrong
-  // fusion is worse than none, so nothing may be fused here.
-  auto r = run_program("cslam-synth", "--preset test-small --seed 11 --repeat-texture --out " + tmp("other") + " --log-level warn");
-  ASSERT_EQ(r.status, 0) << r.output;
-  r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + tmp("other/robot_2") + " --out-dir " +
-                                    tmp("rooms") + " --log-level warn");
+  // Two rooms (different seeds): same procedural texture style, different places, and the same
+  // poster on the long walls of both (--shared-poster), plus a patch repeated inside each room.
+  // A wrong fusion is worse than none, so nothing may be fused here.
+  for (const char* room : {"room_a --seed 3", "room_b --seed 11"}) {
+    const std::string name = std::string(room).substr(0, 6);
+    auto r = run_program("cslam-synth", "--preset test-small --seed " + std::string(room).substr(14) +
+                                            " --shared-poster 77 --repeat-texture --out " + tmp(name) + " --log-level warn");
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  // Clients 1, 3: robots of room a; clients 2, 4: robots of room b. Each room's robots share places.
+  auto r = run_program("cslam-slam", "--datasets " + tmp("room_a/robot_1") + " " + tmp("room_b/robot_1") + " " +
+                                         tmp("room_a/robot_2") + " " + tmp("room_b/robot_2") + " --out-dir " + tmp("rooms") +
+                                         " --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   const auto stats = nlohmann::json::parse(std::ifstream(tmp("rooms/stats.json")));
-  EXPECT_EQ(stats["fusion_events"].size(), 0u) << stats["fusion_events"].dump(2);
-  EXPECT_NE(stats["clients"][0]["group"], stats["clients"][1]["group"]);
+  for (const auto& e : stats["fusion_events"])
+    EXPECT_EQ(e["client_a"].get<int>() % 2, e["client_b"].get<int>() % 2) << "fused across rooms: " << e.dump();
+  const auto& c = stats["clients"];
+  EXPECT_NE(c[0]["group"], c[1]["group"]);
+  EXPECT_NE(c[0]["group"], c[3]["group"]);
+  EXPECT_NE(c[2]["group"], c[1]["group"]);
+  EXPECT_NE(c[2]["group"], c[3]["group"]);
+  // The control: within each room the robots do fuse.
+  EXPECT_EQ(c[0]["group"], c[2]["group"]);
+  EXPECT_EQ(c[1]["group"], c[3]["group"]);
 }
 
 TEST_F(SlamIntegration, BadArgumentsGiveOneLineErrors) {

@@ -49,6 +49,8 @@ int run(int argc, char** argv) {
       .flag("single", "single-robot mode (one robot, with a loop unless --no-loop)")
       .flag("whole", "one long sequence OUT/whole/ visiting every robot's path in turn (for cslam-eval split)")
       .flag("repeat-texture", "copy one poster-sized texture patch onto two different walls (place-recognition trap)")
+      .option("shared-poster", "put a poster generated from this seed (not the room's) every ~2 m along both long walls: rooms of\n"
+                               "      different --seed with the same --shared-poster share it (cross-room place-recognition trap)", "")
       .flag("force", "replace OUT if it exists");
   if (!args.parse(argc, argv)) return 0;
   set_log_level(args.get("log-level"));
@@ -75,6 +77,12 @@ int run(int argc, char** argv) {
   if (args.flag_set("no-loop")) c.trajectory.loop = false;
   c.render.degradation.enabled = args.flag_set("noise");
   c.scene.repeat_texture = args.flag_set("repeat-texture");
+  if (given("shared-poster")) {
+    const std::string text = args.get("shared-poster");
+    if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos || text.size() > 19 || std::stoull(text) == 0)
+      throw ConfigError("cslam-synth: --shared-poster expects a positive integer seed, got '" + text + "'");
+    c.scene.shared_poster_seed = static_cast<std::uint64_t>(std::stoull(text));
+  }
   c.output.out_dir = args.get("out");
   c.output.whole = args.flag_set("whole");
   c.output.overwrite = args.flag_set("force");
