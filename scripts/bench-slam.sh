@@ -41,9 +41,14 @@ for mode in noloop loop; do
   for k in frames_lost wall_time_s peak_rss_mb keyframes loops; do
     for r in $(seq 1 "$RUNS"); do json_get "$OUT/rpy_${mode}_$r.json" "$k"; done | summary "$k"
   done
-  for k in extract_ms.median track_ms.median extract_plus_track_ms.median local_ba_ms.median loop_query_ms.median; do
+  for k in extract_ms.median track_ms.median extract_plus_track_ms.median local_ba_ms.median loop_query_ms.median global_ba_ms.median; do
     for r in $(seq 1 "$RUNS"); do json_get "$OUT/rpy_${mode}_$r.json" "$k"; done | summary "$k (per-run median)"
   done
+done
+echo "-- fr1/rpy loops vs ground truth (interpolated; time offset estimated from each run's trajectory)"
+for r in $(seq 1 "$RUNS"); do
+  "$BIN/cslam-eval" events "$OUT/rpy_loop_$r.json" --gt "$D/groundtruth.txt" --offset auto --est "$OUT/rpy_loop_$r.txt" | sed "s/^/run $r: /"
+  "$BIN/cslam-eval" events "$OUT/rpy_loop_$r.json" --gt "$D/groundtruth.txt" | tail -n +3 | sed "s/^/run $r, offset 0: /"
 done
 echo "-- synthetic demo, single robot each, loop closing on"
 for k in 1 2 3; do
@@ -64,7 +69,9 @@ if [ "${CSLAM_BENCH_FUSION:-1}" = 1 ]; then
       dir="$OUT/multi_${k}_${eta%\%}"
       "$BIN/cslam-slam" --dataset "$D" --camera tum1 --clients "$k" --overlap "$eta" --out-dir "$dir" --log-level warn > "$dir.log" 2>&1 || true
       printf "K=%d eta=%-5s " "$k" "$eta"
-      grep -E "SLAM time|combined ATE|fusion:" "$dir.log" | tr '\n' ' '; echo
+      grep -E "SLAM time|combined ATE|fusion:|group global BA" "$dir.log" | tr '\n' ' '; echo
+      "$BIN/cslam-eval" events "$dir/stats.json" --gt "$D/groundtruth.txt" --offset auto --est "$(ls "$dir"/fused_*.txt | head -1)" | sed "s/^/    /" || true
+      "$BIN/cslam-eval" events "$dir/stats.json" --gt "$D/groundtruth.txt" | tail -n 1 | sed "s/^/    offset 0: /" || true
     done
   done
 fi

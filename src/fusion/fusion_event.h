@@ -19,6 +19,7 @@ struct FusionEvent {
   SE3 T_query_candidate;  // verified camera-to-camera transform (p_query = T * p_candidate)
   int seam_points = 0;     // points found in both maps and linked (estimated as one)
   int seam_edges = 0;      // cross-map covisibility edges (keyframe pairs sharing >= 15 points)
+  int keyframes_moved = 0, keyframes_kept = 0;  // keyframes of the moved and the kept group
 };
 
 // Global BA over the maps of fused groups (background, after each fusion).

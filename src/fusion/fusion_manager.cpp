@@ -192,7 +192,8 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     return n;
   };
   stop_group_ba();  // its result would be discarded by the move anyway
-  const bool move_candidate_side = keyframes_of(group_c) <= keyframes_of(group_q);
+  const std::size_t kf_q = keyframes_of(group_q), kf_c = keyframes_of(group_c);
+  const bool move_candidate_side = kf_c <= kf_q;
   const auto& moving = move_candidate_side ? group_c : group_q;
   const SE3 T_new_old = move_candidate_side ? T_wq_wc : T_wq_wc.inverse();
   for (const auto& m : moving) transform_map(*m, T_new_old);
@@ -219,6 +220,8 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
   e.T_query_candidate = v.S_query_candidate.to_se3();
   e.seam_points = int(seam.points.size());
   e.seam_edges = int(seam.edges.size());
+  e.keyframes_moved = int(move_candidate_side ? kf_c : kf_q);
+  e.keyframes_kept = int(move_candidate_side ? kf_q : kf_c);
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     for (auto& [m, g] : group_)
@@ -226,10 +229,10 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     events_.push_back(e);
     seams_.push_back({kept_map, moved_map, std::move(seam)});
   }
-  logger("fusion")->info("fused client {} with client {} into group {}: {} inliers, {} projection matches, {} seam points, "
-                         "{} cross-map covisibility edges, {:.1f} ms",
-                         p.client, other_client, kept, v.final_inliers, v.projection_matches, e.seam_points, e.seam_edges,
-                         e.duration_ms);
+  logger("fusion")->info("fused client {} with client {} into group {} ({} keyframes moved onto {}): {} inliers, {} "
+                         "projection matches, {} seam points, {} cross-map covisibility edges, {:.1f} ms",
+                         p.client, other_client, kept, e.keyframes_moved, e.keyframes_kept, v.final_inliers,
+                         v.projection_matches, e.seam_points, e.seam_edges, e.duration_ms);
   start_group_ba(kept);
 }
 

@@ -235,6 +235,7 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
                                       {"kind", e.kind}, {"query_timestamp", e.query_timestamp},
                                       {"candidate_timestamp", e.candidate_timestamp},
                                       {"seam_points", e.seam_points}, {"seam_edges", e.seam_edges},
+                                      {"keyframes_moved", e.keyframes_moved}, {"keyframes_kept", e.keyframes_kept},
                                       {"T_query_candidate", format_tum_line({0.0, e.T_query_candidate})}});
   stats["group_ba"] = {{"started", snap.group_ba.started},
                        {"completed", snap.group_ba.completed},

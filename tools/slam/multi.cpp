@@ -111,10 +111,10 @@ int run_multi_client(const CliArgs& args) {
   nlohmann::json summary = {{"slam_time_s", slam_time}, {"clients", jobs.size()}};
   std::printf("SLAM time %.2f s for %zu clients\n", slam_time, jobs.size());
   for (const auto& e : snap.events)
-    std::printf("fusion: client %u + client %u -> group %d at %.2f s (frame time %.3f), %d inliers, %d seam points, "
-                "%d cross-map edges, %.1f ms\n",
-                e.client_a, e.client_b, e.group, e.wall_time_s, e.query_timestamp, e.inliers, e.seam_points, e.seam_edges,
-                e.duration_ms);
+    std::printf("fusion: client %u + client %u -> group %d at %.2f s (frame time %.3f), %d inliers, %d + %d keyframes, "
+                "%d seam points, %d cross-map edges, %.1f ms\n",
+                e.client_a, e.client_b, e.group, e.wall_time_s, e.query_timestamp, e.inliers, e.keyframes_moved,
+                e.keyframes_kept, e.seam_points, e.seam_edges, e.duration_ms);
   if (snap.group_ba.started > 0) {
     const Summary gba = summarize(snap.group_ba.ms);
     std::printf("group global BA: %d started, %d completed, %d discarded, median %.0f ms\n", snap.group_ba.started,
