@@ -192,7 +192,10 @@ void draw_panel(std::string& out, const Panel& p, double left, double top, doubl
   const double ypad = (f.y.hi - f.y.lo) * 0.04;
   if (!(p.y_from_zero && f.y.lo == 0.0)) f.y.lo -= ypad;
   f.y.hi += ypad;
-  if (p.equal_aspect) {  // metres per pixel equal on both axes, data centred
+  if (p.equal_aspect) {  // metres per pixel equal on both axes, data centred, a margin around it
+    const double xpad = (f.x.hi - f.x.lo) * 0.04;
+    f.x.lo -= xpad;
+    f.x.hi += xpad;
     const double s = std::max((f.x.hi - f.x.lo) / f.width, (f.y.hi - f.y.lo) / f.height);
     const double cx = (f.x.lo + f.x.hi) / 2, cy = (f.y.lo + f.y.hi) / 2;
     f.x = Range{cx - s * f.width / 2, cx + s * f.width / 2};

@@ -69,16 +69,20 @@ Series component(const Trajectory& traj, double origin, int which, const SE3& re
   Series s;
   s.color = color;
   s.label = label;
+  Eigen::Vector3d previous(kNaN, kNaN, kNaN);
   for (const auto& p : traj) {
     double v;
     if (which < 3) {
       v = p.T_world_cam.translation()[which];
     } else {
-      v = rotation_vector_deg(reference.rotation().conjugate() * p.T_world_cam.rotation())[which - 3];
-      if (!s.y.empty() && std::isfinite(s.y.back()) && std::abs(v - s.y.back()) > 180) {
+      const Eigen::Vector3d r = rotation_vector_deg(reference.rotation().conjugate() * p.T_world_cam.rotation());
+      v = r[which - 3];
+      // Past 180 degrees the rotation vector flips to the other side: break the line there.
+      if (previous.allFinite() && (r - previous).norm() > 90) {
         s.x.push_back(kNaN);
         s.y.push_back(kNaN);
       }
+      previous = r;
     }
     s.x.push_back(p.timestamp - origin);
     s.y.push_back(v);
