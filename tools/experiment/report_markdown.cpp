@@ -159,8 +159,9 @@ void expectations(std::ostream& md, const std::vector<ConfigSummary>& summaries)
     md << "n/a (no successful single-client baseline or collaborative run).\n";
   else
     md << "median over configurations " << format_number(r.median, 2) << " (" << format_number(r.min, 2) << "–"
-       << format_number(r.max, 2) << "); " << (r.max < 1 ? "every" : r.min < 1 ? "some" : "no")
-       << " collaborative configuration finished faster than "
+       << format_number(r.max, 2) << "); "
+       << (r.max < 1 ? "every collaborative configuration" : r.min < 1 ? "some collaborative configurations" : "no collaborative configuration")
+       << " finished faster than "
        << (split ? "the single-client run" : "the single runs one after the other") << " on this machine.\n";
   int better_or_equal = 0, total = 0;
   std::string pairs;
