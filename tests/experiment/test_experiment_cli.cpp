@@ -123,6 +123,8 @@ TEST_F(ExperimentCli, QuickRunWritesAWellFormedReportWithSaneNumbers) {
     EXPECT_EQ(r["status"], "ok") << r["error"];
     EXPECT_GT(col(r, "slam_time_s"), 0.0);
     EXPECT_LT(col(r, "slam_time_s"), 120.0);
+    EXPECT_GT(col(r, "slam_cpu_s"), 0.0);
+    EXPECT_GE(col(r, "other_cpu_cores"), 0.0);
     EXPECT_LT(col(r, "ate_rmse_m"), 0.05);  // exact synthetic data: millimetres in practice
     EXPECT_LE(col(r, "ate_min_m"), col(r, "ate_rmse_m"));
     EXPECT_LE(col(r, "ate_rmse_m"), col(r, "ate_max_m"));

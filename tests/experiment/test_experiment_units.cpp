@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "eval/split.h"
 #include "experiment_config.h"
+#include "machine_info.h"
 #include "process.h"
 #include "report_plots.h"
 #include "report_writer.h"
@@ -242,4 +243,20 @@ TEST(Process, ExitCodesSignalsAndDeadlines) {
     EXPECT_LT(std::chrono::duration<double>(Clock::now() - start).count(), 10.0);
   }
   EXPECT_THROW(ChildProcess({"/nonexistent/program"}, dir / "e.log"), std::runtime_error);
+}
+
+TEST(Machine, CpuAccountingSeesTheChildrensWork) {
+  test::TempDir dir("cslam_exp_cpu");
+  const CpuSample before = cpu_sample();
+  {
+    ChildProcess busy({"/bin/sh", "-c", "i=0; while [ $i -lt 300000 ]; do i=$((i+1)); done"}, dir / "busy.log");
+    ASSERT_EQ(wait_any({&busy}, Clock::now() + std::chrono::seconds(60)), 0);
+    EXPECT_TRUE(busy.succeeded());
+  }
+  const CpuSample after = cpu_sample();
+  ASSERT_TRUE(before.valid && after.valid);
+  EXPECT_GT(own_cpu_seconds(before, after), 0.05);
+  const double other = other_cpu_cores(before, after);
+  EXPECT_GE(other, 0.0);
+  EXPECT_LE(other, machine_info().cores + 0.5);
 }

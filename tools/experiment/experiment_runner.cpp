@@ -96,10 +96,12 @@ std::string progress_line(int index, int total, const RunRecord& r) {
     std::snprintf(buf, sizeof buf, "[%d/%d] %s r%d: FAILED (%s)", index, total, r.config.c_str(), r.repeat, r.error.c_str());
     return buf;
   }
-  std::snprintf(buf, sizeof buf, "[%d/%d] %s r%d: SLAM %.2f s, APE RMSE %s m, %s, frames lost %d, Hausdorff(bbox) %s m, load %.2f",
-                index, total, r.config.c_str(), r.repeat, r.slam_time_s, report::format_number(r.ate.rmse, 4).c_str(),
+  std::snprintf(buf, sizeof buf,
+                "[%d/%d] %s r%d: SLAM %.2f s (CPU %.1f s), APE RMSE %s m, %s, frames lost %d, Hausdorff(bbox) %s m, "
+                "other processes %.2f cores",
+                index, total, r.config.c_str(), r.repeat, r.slam_time_s, r.slam_cpu_s, report::format_number(r.ate.rmse, 4).c_str(),
                 r.clients == 1 ? "single" : r.all_fused ? "fused" : "NOT fused", r.frames_lost,
-                report::format_number(r.cloud.hausdorff_bbox, 4).c_str(), r.load_before);
+                report::format_number(r.cloud.hausdorff_bbox, 4).c_str(), r.other_cpu_cores);
   return buf;
 }
 
@@ -160,7 +162,11 @@ int run_experiment(const ExperimentOptions& o) {
         fs::remove_all(rec.run_dir);
         fs::create_directories(rec.run_dir);
         rec.load_before = load_average_1min();
+        const CpuSample cpu_before = cpu_sample();
         const RunOutcome outcome = run_slam(cfg, o, rec.run_dir);
+        const CpuSample cpu_after = cpu_sample();
+        rec.slam_cpu_s = own_cpu_seconds(cpu_before, cpu_after);
+        rec.other_cpu_cores = other_cpu_cores(cpu_before, cpu_after);
         rec.process_wall_s = outcome.process_wall_s;
         rec.error = outcome.error;
         if (outcome.ok) {

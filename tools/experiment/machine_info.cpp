@@ -1,5 +1,7 @@
 #include "machine_info.h"
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <ctime>
 #include <filesystem>
@@ -7,7 +9,9 @@
 #include <sstream>
 #include <thread>
 
+#include <sys/resource.h>
 #include <sys/utsname.h>
+#include <unistd.h>
 
 #include "process.h"
 
@@ -46,6 +50,34 @@ double load_average_1min() {
   double v = NAN;
   if (!(in >> v)) return NAN;
   return v;
+}
+
+CpuSample cpu_sample() {
+  CpuSample c;
+  c.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  auto seconds = [](const timeval& t) { return double(t.tv_sec) + double(t.tv_usec) * 1e-6; };
+  rusage self{}, children{};
+  getrusage(RUSAGE_SELF, &self);
+  getrusage(RUSAGE_CHILDREN, &children);
+  c.own_s = seconds(self.ru_utime) + seconds(self.ru_stime) + seconds(children.ru_utime) + seconds(children.ru_stime);
+  std::ifstream stat("/proc/stat");
+  std::string cpu;
+  double user = 0, nice = 0, system = 0, idle = 0, iowait = 0, irq = 0, softirq = 0, steal = 0;
+  if (stat >> cpu >> user >> nice >> system >> idle >> iowait >> irq >> softirq >> steal && cpu == "cpu") {
+    const double hz = double(::sysconf(_SC_CLK_TCK));
+    c.machine_busy_s = (user + nice + system + irq + softirq + steal) / hz;  // guest time is inside user
+    c.valid = hz > 0;
+  }
+  return c;
+}
+
+double own_cpu_seconds(const CpuSample& before, const CpuSample& after) { return after.own_s - before.own_s; }
+
+double other_cpu_cores(const CpuSample& before, const CpuSample& after) {
+  const double wall = after.wall_s - before.wall_s;
+  if (!before.valid || !after.valid || wall <= 0) return NAN;
+  const double other = (after.machine_busy_s - before.machine_busy_s) - own_cpu_seconds(before, after);
+  return std::max(0.0, other / wall);  // clock-tick rounding can make it slightly negative
 }
 
 std::string source_revision(const std::string& source_dir, const std::string& log_path) {

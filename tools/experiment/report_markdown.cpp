@@ -203,13 +203,16 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
   md << "- Machine: " << meta.machine.cores << " cores, " << meta.machine.cpu_model << ", " << format_number(meta.machine.memory_gb, 1)
      << " GB, " << meta.machine.kernel << ". Load average (1/5/15 min) before: " << meta.load_before
      << ", after: " << meta.load_after << ".";
-  std::vector<double> loads;
+  std::vector<double> others;
   for (const auto& s : summaries)
-    for (const auto* r : s.runs) loads.push_back(r->load_before);
-  const auto ls = spread(loads);
-  if (ls.n) md << " 1-min load when each run started: " << format_spread(ls, 2) << ".";
-  if (ls.n && ls.max > 0.75 * meta.machine.cores)
-    md << " **The machine was busy during some runs** (other work shares these cores), so times are pessimistic and noisy.";
+    for (const auto* r : s.runs) others.push_back(r->other_cpu_cores);
+  const auto os = spread(others);
+  if (os.n)
+    md << " CPU used by other processes while the SLAM ran (machine busy time minus the runs' own): "
+       << format_spread(os, 2) << " cores (median, min–max over runs).";
+  if (os.n && os.max > 0.25)
+    md << " **Other work shared these cores during some runs**, so their times are pessimistic; compare the CPU seconds "
+          "(All runs) and the `other_cpu_cores` column of results.csv.";
   md << "\n- Started " << meta.started << ", finished " << meta.finished << " (" << format_number(meta.total_s / 60.0, 1)
      << " min in total, including reconstruction and evaluation).\n";
   md << "- Reconstruction for Table III: voxel " << format_number(o.recon.voxel, 3) << " m, pixel stride " << o.recon.stride
@@ -267,12 +270,12 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
 
   md << "## All runs\n\n";
   report::Table t;
-  t.header = {"simulation", "η", "repeat", "status", "SLAM time (s)", "processes (s)", "load", "APE RMSE (m)", "fused",
+  t.header = {"simulation", "η", "repeat", "status", "SLAM time (s)", "CPU (s)", "other processes (cores)", "APE RMSE (m)", "fused",
               "fusion events (query c@frame ↔ candidate c@frame, time)", "Hausdorff bbox (m)", "error"};
   for (const auto& s : summaries)
     for (const auto* r : s.runs)
       t.rows.push_back({r->label, eta_cell(*s.config), std::to_string(r->repeat), r->ok ? "ok" : "**failed**",
-                        format_number(r->slam_time_s, 2), format_number(r->process_wall_s, 2), format_number(r->load_before, 2),
+                        format_number(r->slam_time_s, 2), format_number(r->slam_cpu_s, 1), format_number(r->other_cpu_cores, 2),
                         m(r->ate.rmse), r->ok ? (r->clients == 1 ? "–" : r->all_fused ? "yes" : "no") : "",
                         fusion_events_text(*r), m(r->cloud.hausdorff_bbox), r->error.empty() ? r->ate.note : r->error});
   md << report::to_markdown(t);

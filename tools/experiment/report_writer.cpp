@@ -56,6 +56,8 @@ const std::vector<Metric>& metrics() {
       {"process_wall_s", 2, [](const RunRecord& r) { return r.process_wall_s; }},
       {"receive_span_s", 2, [](const RunRecord& r) { return r.receive_span_s; }},
       {"load_before", 2, [](const RunRecord& r) { return r.load_before; }},
+      {"slam_cpu_s", 2, [](const RunRecord& r) { return r.slam_cpu_s; }},
+      {"other_cpu_cores", 2, [](const RunRecord& r) { return r.other_cpu_cores; }},
       {"frames_lost", 0, [](const RunRecord& r) { return r.ok ? double(r.frames_lost) : kNaN; }},
       {"groups", 0, [](const RunRecord& r) { return r.ok ? double(r.groups) : kNaN; }},
       {"fusions", 0, [](const RunRecord& r) { return r.ok ? double(r.fusions.size()) : kNaN; }},

@@ -65,7 +65,9 @@ struct RunRecord {
   bool ok = false;
   std::string error;       // why the run failed (exit status, timeout, missing output)
   std::string run_dir;
-  double load_before = kNaN;  // 1-minute load average when the run started
+  double load_before = kNaN;  // 1-minute load average when the run started (includes the previous run)
+  double slam_cpu_s = kNaN;   // CPU seconds of the run's processes (all threads, user + system)
+  double other_cpu_cores = kNaN;  // cores used by everything else on the machine meanwhile
   double slam_time_s = kNaN;  // see docs/experiments.md: start of SLAM to the last frame processed
   double process_wall_s = kNaN;  // harness clock: first process started to last process exited
   double receive_span_s = kNaN;  // network: first to last frame accepted by the server
