@@ -189,6 +189,36 @@ TEST(Summaries, MedianRunIsShownAndTimeIsRelativeToSingle) {
   EXPECT_EQ(s[1].representative->ate.rmse, 0.01);  // lower median of {0.01, 0.03}
 }
 
+TEST(Summaries, TimeRatioPrefersRunsWithoutOtherLoad) {
+  RunConfig single, two, three;
+  single.name = "single";
+  two.name = "k2";
+  two.clients = 2;
+  three.name = "k3";
+  three.clients = 3;
+  struct Row {
+    const char* config;
+    double time, other;
+  };
+  const Row rows[] = {{"single", 10, 0.0}, {"single", 20, 0.9}, {"k2", 8, 0.1}, {"k2", 18, 0.9}, {"k3", 16, 0.8}, {"k3", 14, 0.9}};
+  std::vector<RunRecord> rec;
+  for (const auto& r : rows) {
+    RunRecord x;
+    x.config = r.config;
+    x.ok = true;
+    x.slam_time_s = r.time;
+    x.other_cpu_cores = r.other;
+    rec.push_back(x);
+  }
+  const auto s = summarize({single, two, three}, rec);
+  EXPECT_NEAR(s[1].time_ratio, 0.8, 1e-12);  // quiet runs: 8 / 10
+  EXPECT_TRUE(s[1].time_ratio_quiet);
+  EXPECT_NEAR(s[2].time_ratio, 15.0 / 15.0, 1e-12);  // no quiet k3 run: all runs, 15 / 15
+  EXPECT_FALSE(s[2].time_ratio_quiet);
+  EXPECT_TRUE(is_quiet(rec[2]));
+  EXPECT_FALSE(is_quiet(rec[1]));
+}
+
 TEST(Summaries, FusionTexts) {
   RunRecord r;
   ClientRecord a, b;

@@ -65,17 +65,23 @@ std::string m(double v) { return format_number(v, 4); }
 
 void table_two(std::ostream& md, const std::vector<ConfigSummary>& summaries) {
   report::Table t;
-  t.header = {"simulation", "η", "runs ok", "SLAM time (s)", "time / single", "APE max (m)", "APE min (m)", "APE mean (m)",
-              "APE RMSE (m)", "APE std (m)", "fused", "first fusion (s)", "fused at frame", "frames lost"};
-  t.align = {'l', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'l', 'r', 'l', 'r'};
+  t.header = {"simulation", "η", "runs ok", "SLAM time (s)", "SLAM time, no other load (s)", "CPU (s)", "time / single",
+              "APE max (m)", "APE min (m)", "APE mean (m)", "APE RMSE (m)", "APE std (m)", "fused", "first fusion (s)",
+              "fused at frame", "frames lost"};
+  t.align = {'l', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'l', 'r', 'l', 'r'};
   for (const auto& s : summaries) {
     const RunConfig& c = *s.config;
     if (s.ok == 0) {
       t.rows.push_back({c.label, eta_cell(c), runs_cell(s), failure_cell(s)});
       continue;
     }
+    std::vector<double> quiet;
+    for (const auto* r : s.runs)
+      if (r->ok && is_quiet(*r)) quiet.push_back(r->slam_time_s);
+    const std::string quiet_cell = quiet.empty() ? "none" : format_spread(spread(quiet), 2) + " (" + std::to_string(quiet.size()) + " run" + (quiet.size() > 1 ? "s" : "") + ")";
     t.rows.push_back({c.label, eta_cell(c), runs_cell(s), format_spread(over_ok(s, [](const RunRecord& r) { return r.slam_time_s; }), 2),
-                      format_number(s.time_ratio, 2), format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.max; }), 4),
+                      quiet_cell, format_spread(over_ok(s, [](const RunRecord& r) { return r.slam_cpu_s; }), 1),
+                      format_number(s.time_ratio, 2) + (std::isfinite(s.time_ratio) && !s.time_ratio_quiet ? " †" : ""), format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.max; }), 4),
                       format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.min; }), 4),
                       format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.mean; }), 4),
                       format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.rmse; }), 4),
@@ -154,7 +160,7 @@ void expectations(std::ostream& md, const std::vector<ConfigSummary>& summaries)
                           std::to_string(int(s.runs.size()) - fused) + " of " + std::to_string(s.runs.size()) + " runs)");
   }
   const report::Spread r = spread(ratios);
-  md << "- **SLAM time, collaborative / single**: ";
+  md << "- **SLAM time, collaborative / single** (time / single in Table II): ";
   if (r.n == 0)
     md << "n/a (no successful single-client baseline or collaborative run).\n";
   else
@@ -233,7 +239,10 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
      << (summaries.empty() || summaries.front().config->split ? "" : " (here the sum of the single runs of every dataset: one robot covering every path)")
      << ".\n\n";
 
-  md << "## Table II — SLAM time and accuracy\n\nMedian over successful runs, (min–max) when they differ.\n\n";
+  md << "## Table II — SLAM time and accuracy\n\nMedian over successful runs, (min–max) when they differ. "
+     << "\"No other load\": runs during which other processes took less than " << format_number(kQuietOtherCores, 2)
+     << " cores; time / single uses those runs when the configuration and the baseline both have some (else all runs, "
+        "marked †). CPU = CPU seconds of all the run's processes.\n\n";
   table_two(md, summaries);
   bool any_failed = false;
   for (const auto& s : summaries)

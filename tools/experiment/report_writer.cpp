@@ -113,29 +113,36 @@ std::vector<ConfigSummary> summarize(const std::vector<RunConfig>& configs, cons
   }
   // SLAM-time ratio to the single-client baseline: the "single" run of the whole sequence, or
   // with one dataset per client the sum of the single runs (one robot covering every path).
-  auto median_time = [](const ConfigSummary& s) {
+  // Runs without other load are used when every configuration involved has some.
+  auto times = [](const ConfigSummary& s, bool quiet_only) {
     std::vector<double> v;
     for (const auto* r : s.runs)
-      if (r->ok) v.push_back(r->slam_time_s);
+      if (r->ok && (!quiet_only || is_quiet(*r))) v.push_back(r->slam_time_s);
     return report::spread(v);
   };
-  double baseline = 0;
-  int singles = 0;
-  bool complete = true;
-  for (const auto& s : out) {
-    if (s.config->clients != 1) continue;
-    const auto t = median_time(s);
-    ++singles;
-    if (t.n == 0) complete = false;
-    baseline += t.median;
-  }
-  if (singles == 0 || !complete) return out;
-  for (auto& s : out) {
-    const auto t = median_time(s);
-    if (t.n > 0 && (s.config->clients > 1 || singles == 1)) s.time_ratio = t.median / baseline;
+  for (bool quiet : {true, false}) {
+    double baseline = 0;
+    int singles = 0;
+    bool complete = true;
+    for (const auto& s : out) {
+      if (s.config->clients != 1) continue;
+      const auto t = times(s, quiet);
+      ++singles;
+      complete = complete && t.n > 0;
+      baseline += t.median;
+    }
+    if (singles == 0 || !complete) continue;
+    for (auto& s : out) {
+      const auto t = times(s, quiet);
+      if (std::isfinite(s.time_ratio) || t.n == 0 || (s.config->clients == 1 && singles > 1)) continue;
+      s.time_ratio = t.median / baseline;
+      s.time_ratio_quiet = quiet;
+    }
   }
   return out;
 }
+
+bool is_quiet(const RunRecord& r) { return std::isfinite(r.other_cpu_cores) && r.other_cpu_cores < kQuietOtherCores; }
 
 std::string fused_frames_text(const RunRecord& r) {
   std::string out;
@@ -215,7 +222,9 @@ void write_json(const std::string& path, const ReportMeta& meta, const std::vect
   for (const auto& s : summaries) {
     nlohmann::json c = {{"config", s.config->name}, {"label", s.config->label}, {"clients", s.config->clients},
                         {"overlap_percent", number(s.config->overlap_percent)}, {"runs", s.runs.size()}, {"ok", s.ok},
-                        {"slam_time_ratio_to_single", number(s.time_ratio)}, {"figures", s.figures},
+                        {"slam_time_ratio_to_single", number(s.time_ratio)},
+                        {"slam_time_ratio_basis", std::isfinite(s.time_ratio) ? (s.time_ratio_quiet ? "runs without other load" : "all runs") : ""},
+                        {"figures", s.figures},
                         {"representative_repeat", s.representative ? s.representative->repeat : 0}};
     int fused = 0;
     for (const auto* r : s.runs) fused += r->ok && r->all_fused && r->clients > 1;

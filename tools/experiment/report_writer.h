@@ -29,8 +29,14 @@ struct ConfigSummary {
   int ok = 0;
   const RunRecord* representative = nullptr;  // the run the figures show (median combined ATE RMSE)
   double time_ratio = kNaN;                   // median SLAM time / the single-client baseline's
+  bool time_ratio_quiet = false;              // ... from runs without other load on both sides
   std::vector<std::string> figures;           // relative paths of its SVGs
 };
+
+// A run during which other processes took less than kQuietOtherCores cores: its SLAM time is
+// not inflated by other work on the machine.
+constexpr double kQuietOtherCores = 0.25;
+bool is_quiet(const RunRecord& r);
 
 std::vector<ConfigSummary> summarize(const std::vector<RunConfig>& configs, const std::vector<RunRecord>& records);
 
