@@ -207,7 +207,8 @@ TEST_F(ExperimentCli, FailingRunsAreReportedAndTheHarnessContinues) {
   EXPECT_EQ(r.status, 3) << r.output;
   j = nlohmann::json::parse(slurp(path("timeout/results.json")));
   ASSERT_EQ(j["runs"].size(), 3u);
-  for (const auto& run : j["runs"]) EXPECT_NE(run["error"].get<std::string>().find("timeout after"), std::string::npos) << run["error"];
+  // Either the run itself overran ("timeout after ...") or its server had not even started.
+  for (const auto& run : j["runs"]) EXPECT_NE(run["error"].get<std::string>().find("timeout"), std::string::npos) << run["error"];
 }
 
 TEST_F(ExperimentCli, BadArgumentsGiveOneLineErrors) {
