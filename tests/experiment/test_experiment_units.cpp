@@ -166,6 +166,7 @@ TEST(Summaries, MedianRunIsShownAndTimeIsRelativeToSingle) {
   RunConfig single, two;
   single.name = "single";
   single.clients = 1;
+  single.split = two.split = true;  // one sequence split: the baseline is the whole-sequence run
   two.name = "k2_eta5";
   two.clients = 2;
   two.overlap_percent = 5;
@@ -191,6 +192,7 @@ TEST(Summaries, MedianRunIsShownAndTimeIsRelativeToSingle) {
 
 TEST(Summaries, TimeRatioPrefersRunsWithoutOtherLoad) {
   RunConfig single, two, three;
+  single.split = two.split = three.split = true;
   single.name = "single";
   two.name = "k2";
   two.clients = 2;
@@ -217,6 +219,28 @@ TEST(Summaries, TimeRatioPrefersRunsWithoutOtherLoad) {
   EXPECT_FALSE(s[2].time_ratio_quiet);
   EXPECT_TRUE(is_quiet(rec[2]));
   EXPECT_FALSE(is_quiet(rec[1]));
+}
+
+TEST(Summaries, DatasetsModeBaselineIsTheSingleRunsOfTheSameDatasets) {
+  std::vector<RunConfig> configs(4);
+  for (int d = 0; d < 3; ++d) {
+    configs[d].name = "single_robot_" + std::to_string(d + 1);
+    configs[d].specs = {{1, "/s/robot_" + std::to_string(d + 1), 1, 300}};
+  }
+  configs[3].name = "k2";
+  configs[3].clients = 2;
+  configs[3].specs = {{1, "/s/robot_1", 1, 300}, {2, "/s/robot_2", 1, 300}};
+  std::vector<RunRecord> rec(4);
+  const double times[] = {7, 8, 100, 12};
+  for (int i = 0; i < 4; ++i) {
+    rec[i].config = configs[i].name;
+    rec[i].ok = true;
+    rec[i].slam_time_s = times[i];
+    rec[i].other_cpu_cores = 0;
+  }
+  const auto s = summarize(configs, rec);
+  EXPECT_NEAR(s[3].time_ratio, 12.0 / 15.0, 1e-12);  // robot_3's single run is not part of it
+  EXPECT_TRUE(std::isnan(s[0].time_ratio) || std::abs(s[0].time_ratio - 1.0) < 1e-12);
 }
 
 TEST(Summaries, FusionTexts) {

@@ -120,21 +120,32 @@ std::vector<ConfigSummary> summarize(const std::vector<RunConfig>& configs, cons
       if (r->ok && (!quiet_only || is_quiet(*r))) v.push_back(r->slam_time_s);
     return report::spread(v);
   };
-  for (bool quiet : {true, false}) {
-    double baseline = 0;
-    int singles = 0;
-    bool complete = true;
+  // The single-client configurations a configuration is compared with: the whole-sequence run
+  // (split), or the single runs of exactly the datasets it uses (one dataset per client).
+  auto baseline_of = [&out](const ConfigSummary& c) {
+    std::vector<const ConfigSummary*> base;
     for (const auto& s : out) {
       if (s.config->clients != 1) continue;
-      const auto t = times(s, quiet);
-      ++singles;
-      complete = complete && t.n > 0;
-      baseline += t.median;
+      if (c.config->clients == 1 ? &s == &c
+                                 : s.config->split || std::any_of(c.config->specs.begin(), c.config->specs.end(),
+                                                                  [&](const ClientSpec& x) { return x.dataset == s.config->specs.at(0).dataset; }))
+        base.push_back(&s);
     }
-    if (singles == 0 || !complete) continue;
+    return base;
+  };
+  for (bool quiet : {true, false}) {
     for (auto& s : out) {
+      if (std::isfinite(s.time_ratio)) continue;
+      const auto base = baseline_of(s);
       const auto t = times(s, quiet);
-      if (std::isfinite(s.time_ratio) || t.n == 0 || (s.config->clients == 1 && singles > 1)) continue;
+      double baseline = 0;
+      bool complete = !base.empty() && t.n > 0;
+      for (const auto* b : base) {
+        const auto bt = times(*b, quiet);
+        complete = complete && bt.n > 0;
+        baseline += bt.median;
+      }
+      if (!complete || baseline <= 0) continue;
       s.time_ratio = t.median / baseline;
       s.time_ratio_quiet = quiet;
     }
