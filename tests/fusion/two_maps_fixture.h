@@ -11,6 +11,7 @@
 #include "io/tum_dataset.h"
 #include "map/map.h"
 #include "slam/client_slam.h"
+#include "slam/feed_dataset.h"
 
 namespace cslam::test {
 
@@ -29,15 +30,7 @@ inline ClientMap build_client_map(const std::string& robot_dir, ClientId id, con
   cfg.threaded = false;
   cfg.loop.enabled = false;
   ClientSlam slam(info, cfg, voc);
-  for (const auto& p : ds.pairs) {
-    const auto im = load_rgbd(p);
-    RgbdFrame f;
-    f.client = id;
-    f.timestamp = p.rgb_time;
-    f.bgr = im.bgr;
-    f.depth = im.depth;
-    slam.process(f);
-  }
+  feed_pairs(slam, id, ds.pairs);
   slam.finish();
   ClientMap out;
   out.map = slam.main_map();

@@ -24,6 +24,7 @@
 #include "io/tum_dataset.h"
 #include "map/map_locks.h"
 #include "slam/client_slam.h"
+#include "slam/feed_dataset.h"
 
 using namespace cslam;
 
@@ -46,15 +47,7 @@ std::shared_ptr<Map> build_map(const std::string& dir, const std::string& range,
   cfg.loop.enabled = false;
   ClientSlam slam(info, cfg, voc);
   const auto [first, last] = parse_range(range, int(ds.pairs.size()));
-  for (const auto& p : select_range(ds.pairs, first, last)) {
-    const auto im = load_rgbd(p);
-    RgbdFrame f;
-    f.client = id;
-    f.timestamp = p.rgb_time;
-    f.bgr = im.bgr;
-    f.depth = im.depth;
-    slam.process(f);
-  }
+  feed_pairs(slam, id, select_range(ds.pairs, first, last));
   slam.finish();
   return slam.main_map();
 }
