@@ -105,7 +105,6 @@ void FusionManager::process(const Pending& p) {
   const Map& map = *p.map;
   BowVector bow;
   double min_score = 1.0;
-  double query_time = 0;
   {
     std::shared_lock<std::shared_mutex> lock(p.map->mutex);
     if (p.kf->bad) return;
@@ -113,7 +112,6 @@ void FusionManager::process(const Pending& p) {
     if (covisibles.empty()) return;
     bow = p.kf->data->bow;
     min_score = min_covisible_score(*p.kf);
-    query_time = p.kf->timestamp();
   }
   std::vector<Registered> others;
   int my_group = -1;
@@ -161,7 +159,6 @@ void FusionManager::process(const Pending& p) {
         // T_wq_wc = T_wq_camq * S_camq_camc * T_camc_wc
         T_wq_wc = p.kf->T_world_cam() * v.S_query_candidate.to_se3() * cand->T_cam_world;
       }
-      (void)query_time;
       fuse(p, other, other_reg.client, cand, T_wq_wc, v, hit);
       return;
     }
