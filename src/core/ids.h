@@ -30,6 +30,15 @@ struct KeyFrameTag { static constexpr const char* prefix = "kf"; };
 struct MapPointTag { static constexpr const char* prefix = "mp"; };
 struct FrameTag { static constexpr const char* prefix = "f"; };
 
+// Orders objects held by pointer (keyframes, map points) by their id, never by address: iteration
+// order, and every result that depends on it, is then the same in every run of the same input.
+struct ById {
+  template <typename T>
+  bool operator()(const T* a, const T* b) const {
+    return a->id < b->id;
+  }
+};
+
 using KeyFrameId = ClientSeqId<KeyFrameTag>;
 using MapPointId = ClientSeqId<MapPointTag>;
 using FrameId = ClientSeqId<FrameTag>;

@@ -27,7 +27,7 @@ int projection_matches(const KeyFrame& query, const KeyFrame& candidate, const s
                        const Sim3& S_q_c, double radius, std::vector<Sim3Correspondence>& extra) {
   const FrameData& f = *query.data;
   const FrameData& fc = *candidate.data;
-  std::set<MapPoint*> points;
+  std::set<MapPoint*, ById> points;
   auto collect = [&](const KeyFrame& kf) {
     for (const auto& mp : kf.map_points)
       if (mp && !mp->bad) points.insert(mp.get());

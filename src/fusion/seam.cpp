@@ -30,13 +30,13 @@ Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& mo
   const auto kept_side = neighbourhood(kept_kf, config.neighbours);
   const auto moved_side = neighbourhood(moved_kf, config.neighbours);
   // Votes for (moved point -> kept point) from both projection directions.
-  std::map<std::pair<MapPoint*, MapPoint*>, int> votes;
-  std::map<MapPoint*, MapPointPtr> owner;
+  std::map<std::pair<MapPointId, MapPointId>, int> votes;
+  std::map<MapPointId, MapPointPtr> owner;
   auto vote = [&](const MapPointPtr& moved, const MapPointPtr& kept) {
     if (!moved || !kept || moved->bad || kept->bad) return;
-    owner[moved.get()] = moved;
-    owner[kept.get()] = kept;
-    ++votes[{moved.get(), kept.get()}];
+    owner[moved->id] = moved;
+    owner[kept->id] = kept;
+    ++votes[{moved->id, kept->id}];
   };
   for (const auto& mp : points_of(moved_side))
     for (KeyFrame* k : kept_side) {
@@ -49,26 +49,27 @@ Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& mo
       if (idx >= 0) vote(m->map_points[idx], mp);
     }
   // One partner per point: strongest votes first.
-  std::vector<std::pair<int, std::pair<MapPoint*, MapPoint*>>> ranked;
+  std::vector<std::pair<int, std::pair<MapPointId, MapPointId>>> ranked;
   for (const auto& [pair, n] : votes) ranked.push_back({n, pair});
   std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   std::set<MapPoint*> used;
   Seam seam;
-  std::map<std::pair<KeyFrame*, KeyFrame*>, int> weight;
+  std::map<std::pair<KeyFrameId, KeyFrameId>, int> weight;
   for (const auto& [n, pair] : ranked) {
-    auto [moved, kept] = pair;
+    MapPoint* moved = owner[pair.first].get();
+    MapPoint* kept = owner[pair.second].get();
     if (used.count(moved) || used.count(kept)) continue;
     used.insert(moved);
     used.insert(kept);
-    seam.points.push_back({owner[kept], owner[moved]});
+    seam.points.push_back({owner[pair.second], owner[pair.first]});
     moved->position = kept->position;
     moved_map.update_map_point(moved);
     for (const auto& [a, ia] : kept->observations)
-      for (const auto& [b, ib] : moved->observations) ++weight[{a, b}];
+      for (const auto& [b, ib] : moved->observations) ++weight[{a->id, b->id}];
   }
   for (const auto& [pair, w] : weight) {
     if (w < config.min_edge_weight) continue;
-    KeyFramePtr a = kept_map.shared(pair.first), b = moved_map.shared(pair.second);
+    KeyFramePtr a = kept_map.keyframe(pair.first), b = moved_map.keyframe(pair.second);
     if (a && b && !a->bad && !b->bad) seam.edges.push_back({a, b, w});
   }
   return seam;

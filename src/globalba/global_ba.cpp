@@ -14,7 +14,7 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps, const std::vector<std::pa
   problem_ = {};
   cameras_.clear();
   points_.clear();
-  std::map<KeyFrame*, int> index;
+  std::map<KeyFrame*, int, ById> index;
   for (Map* map : maps_) {
     change_index_.push_back(map->big_change_index());
     for (const auto& kf : map->keyframes()) {
@@ -75,7 +75,7 @@ bool GlobalBa::apply(const BaResult& r) {
   for (size_t m = 0; m < maps_.size(); ++m)
     if (maps_[m]->big_change_index() != change_index_[m]) return false;
   // Optimised keyframes; each one's correction as a right factor on T_cam_world.
-  std::map<KeyFrame*, SE3> correction;
+  std::map<KeyFrame*, SE3, ById> correction;
   for (size_t c = 0; c < cameras_.size(); ++c) {
     if (cameras_[c]->bad) continue;
     correction[cameras_[c].get()] = cameras_[c]->T_world_cam() * r.T_cam_world[c];
@@ -89,7 +89,7 @@ bool GlobalBa::apply(const BaResult& r) {
     }
   for (Map* map : maps_) {
     // Keyframes created meanwhile keep their pose relative to the nearest optimised anchor.
-    std::map<KeyFrame*, SE3> moved_old_pose;
+    std::map<KeyFrame*, SE3, ById> moved_old_pose;
     for (const auto& kf : map->keyframes()) {
       if (correction.count(kf.get())) continue;
       KeyFrame* anc = kf->anchor();

@@ -15,7 +15,7 @@ namespace cslam {
 
 struct EssentialGraph {
   std::vector<KeyFrame*> keyframes;                 // node i
-  std::map<KeyFrame*, int> index;
+  std::map<KeyFrame*, int, ById> index;
   std::vector<PoseGraphNode> nodes;
   std::vector<PoseGraphEdge> edges;
   int spanning_edges = 0, loop_edges = 0, covisibility_edges = 0, new_loop_edges = 0;
@@ -23,12 +23,12 @@ struct EssentialGraph {
 
 struct EssentialGraphInput {
   // Poses the nodes start from (corrected ones for the loop neighbourhood), by keyframe.
-  std::map<KeyFrame*, SE3> initial_T_cam_world;
+  std::map<KeyFrame*, SE3, ById> initial_T_cam_world;
   // Poses the edges are measured from (before correction), by keyframe; others use T_cam_world.
-  std::map<KeyFrame*, SE3> measured_T_cam_world;
+  std::map<KeyFrame*, SE3, ById> measured_T_cam_world;
   // New links created by the loop (keyframe -> keyframes it is now connected to across the loop).
-  std::map<KeyFrame*, std::set<KeyFrame*>> new_connections;
-  std::set<KeyFrame*> fixed;
+  std::map<KeyFrame*, std::set<KeyFrame*, ById>, ById> new_connections;
+  std::set<KeyFrame*, ById> fixed;
   int min_covisibility_weight = 100;
 };
 

@@ -148,7 +148,7 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
       if (!k->bad && k->awaiting_connection() && k != kf) rigid.push_back(k.get());
     EssentialGraphInput in;
     in.min_covisibility_weight = config_.covisibility_edge_weight;
-    std::map<KeyFrame*, SE3> before;
+    std::map<KeyFrame*, SE3, ById> before;
     for (KeyFrame* n : rigid) {
       if (n->bad) continue;
       before[n] = n->T_cam_world;
@@ -176,7 +176,7 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
         if (mp && !mp->bad && seen.insert(mp.get()).second) loop_points.push_back(mp);
     for (KeyFrame* n : neighbourhood)
       if (!n->bad) fuse(*map_, n, loop_points, 4.0);
-    std::set<KeyFrame*> before_links(neighbourhood.begin(), neighbourhood.end());
+    std::set<KeyFrame*, ById> before_links(neighbourhood.begin(), neighbourhood.end());
     for (KeyFrame* n : neighbourhood) {
       if (n->bad) continue;
       map_->update_connections(n);
@@ -196,7 +196,7 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
     pgc.max_iterations = config_.pose_graph_iterations;
     const PoseGraphResult r = optimize_pose_graph(graph.nodes, graph.edges, pgc);
     pg_ms = pg.ms();
-    std::map<KeyFrame*, SE3> pre_opt;
+    std::map<KeyFrame*, SE3, ById> pre_opt;
     for (size_t i = 0; i < graph.keyframes.size(); ++i) {
       KeyFrame* k = graph.keyframes[i];
       pre_opt[k] = k->T_cam_world;

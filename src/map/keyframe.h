@@ -26,7 +26,7 @@ class MapPoint {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   Descriptor descriptor{};
   double min_distance = 0, max_distance = 0;
-  std::map<KeyFrame*, int> observations;  // keyframe -> keypoint index
+  std::map<KeyFrame*, int, ById> observations;  // keyframe -> keypoint index
   int num_obs = 0;                         // stereo/RGB-D observations count twice (ORB-SLAM2)
   KeyFrame* reference = nullptr;
   int visible = 1, found = 1;
@@ -58,12 +58,12 @@ class KeyFrame {
   std::vector<MapPointPtr> map_points;  // per keypoint, null if none
 
   // Covisibility: weight = number of shared map points.
-  std::map<KeyFrame*, int> connections;
+  std::map<KeyFrame*, int, ById> connections;
   std::vector<std::pair<int, KeyFrame*>> ordered_connections;  // weight descending
   // Spanning tree and loop edges.
   std::shared_ptr<KeyFrame> parent;
-  std::set<KeyFrame*> children;
-  std::set<KeyFrame*> loop_edges;
+  std::set<KeyFrame*, ById> children;
+  std::set<KeyFrame*, ById> loop_edges;
   bool first_connection = true;
   // The keyframe tracking created this one against, and the pose relative to it; kept until local
   // mapping connects it (parent set), so corrections made meanwhile can carry it along.

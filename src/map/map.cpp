@@ -86,7 +86,7 @@ void Map::replace_map_point(const MapPointPtr& from, const MapPointPtr& into) {
 }
 
 void Map::update_connections(KeyFrame* kf) {
-  std::map<KeyFrame*, int> counter;
+  std::map<KeyFrame*, int, ById> counter;
   for (const auto& mp : kf->map_points) {
     if (!mp || mp->bad) continue;
     for (const auto& [other, idx] : mp->observations)
@@ -143,7 +143,7 @@ void Map::set_keyframe_bad(KeyFrame* kf) {
 
   // Reattach children: greedily pick, among children, the link of highest covisibility weight to
   // a keyframe already in the tree (starting with this keyframe's parent).
-  std::set<KeyFrame*> candidates;
+  std::set<KeyFrame*, ById> candidates;
   if (kf->parent) candidates.insert(kf->parent.get());
   while (!kf->children.empty()) {
     int best_w = -1;

@@ -154,7 +154,7 @@ void LocalMapper::cull_map_points(KeyFrame* kf) {
 }
 
 void LocalMapper::fuse_with_neighbours(KeyFrame* kf) {
-  std::set<KeyFrame*> targets;
+  std::set<KeyFrame*, ById> targets;
   for (KeyFrame* n : kf->best_covisibles(config_.fuse_neighbours)) {
     if (n->bad || n == kf) continue;
     targets.insert(n);
