@@ -28,7 +28,7 @@ void transform_map(Map& map, const SE3& T_new_old) {
 
 FusionManager::FusionManager(FusionConfig config, std::shared_ptr<const Vocabulary> vocabulary)
     : config_(std::move(config)), vocabulary_(std::move(vocabulary)) {
-  thread_ = std::thread([this] { run(); });
+  if (config_.threaded) thread_ = std::thread([this] { run(); });
 }
 
 FusionManager::~FusionManager() { finish(); }
@@ -42,6 +42,10 @@ void FusionManager::notify(ClientId client, const std::shared_ptr<Map>& map, con
     }
   }
   if (!config_.enabled) return;
+  if (!config_.threaded) {
+    process({client, map, kf});
+    return;
+  }
   std::lock_guard<std::mutex> lock(queue_mutex_);
   if (stop_) return;
   if (queue_.size() >= config_.queue_capacity) {
@@ -244,6 +248,10 @@ void FusionManager::stop_group_ba() {
 void FusionManager::start_group_ba(int group) {
   stop_group_ba();
   if (!config_.group_ba) return;
+  if (!config_.threaded) {
+    run_group_ba_of(group);
+    return;
+  }
   group_ba_thread_ = std::thread([this, group] {
     lower_current_thread_priority();
     run_group_ba_of(group);

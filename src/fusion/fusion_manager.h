@@ -27,6 +27,9 @@ namespace cslam {
 
 struct FusionConfig {
   bool enabled = true;
+  // false: no thread; every keyframe is checked inside notify() and the group BA runs there too,
+  // so a run stepped frame by frame is deterministic.
+  bool threaded = true;
   double rate_hz = 4.0;              // check rate of the fusion thread
   int consistency = 3;               // consecutive consistent detections needed
   std::size_t max_candidates = 3;    // verified per detection

@@ -31,6 +31,10 @@ struct RgbdParams {
   double bf = 40.0;        // fx * virtual baseline (ORB-SLAM2 uses 40 for TUM)
   double th_depth = 40.0;  // close/far split in baselines: close if depth < th_depth * bf / fx
   double min_depth = 0.1, max_depth = 8.0;  // depth outside is treated as missing
+  // Depth at a keypoint is used only if every pixel within this radius has depth and they span
+  // at most depth_edge_ratio of it (occlusion boundaries, colour/depth misregistration); 0: off.
+  int depth_edge_radius = 4;
+  double depth_edge_ratio = 0.1;
   double close_depth(double fx) const { return th_depth * bf / fx; }
 };
 

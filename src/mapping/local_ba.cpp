@@ -67,7 +67,7 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
     }
   }
   if (prob.observations.empty()) return;
-  const BaResult res = bundle_adjust(prob, config_.ba, &abort_ba_);
+  const BaResult res = bundle_adjust(prob, config_.ba);
   {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
     // The map was moved meanwhile (fusion, loop correction): the solution is in the old frame.

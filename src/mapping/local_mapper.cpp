@@ -17,11 +17,13 @@ LocalMapper::~LocalMapper() { finish(); }
 
 void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
   {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
+    std::unique_lock<std::mutex> lock(queue_mutex_);
+    // Backpressure: tracking waits while local mapping is a full queue behind, so that every
+    // keyframe tracking decides on is processed completely (no skipped fusion or BA).
+    if (threaded_) space_cv_.wait(lock, [&] { return stop_requested_ || queue_.size() + (idle_ ? 0 : 1) < config_.max_pending_keyframes; });
     queue_.push_back(kf);
     idle_ = false;
   }
-  abort_ba_ = true;
   queue_cv_.notify_one();
 }
 
@@ -57,8 +59,11 @@ void LocalMapper::run() {
       idle_ = false;
     }
     process(kf);
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    if (queue_.empty()) idle_ = true;
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      if (queue_.empty()) idle_ = true;
+    }
+    space_cv_.notify_all();
   }
 }
 
@@ -70,6 +75,7 @@ void LocalMapper::finish() {
       stop_requested_ = true;
     }
     queue_cv_.notify_all();
+    space_cv_.notify_all();
     if (thread_.joinable()) thread_.join();
   } else {
     while (step()) {
@@ -84,18 +90,16 @@ LocalMapperStats LocalMapper::stats() const {
 
 void LocalMapper::process(const KeyFramePtr& kf) {
   Stopwatch sw;
-  abort_ba_ = false;
   {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
     insert_into_map(kf.get());
     cull_map_points(kf.get());
   }
-  const bool more_waiting = queued() > 0;
-  if (!more_waiting) {
+  {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
     fuse_with_neighbours(kf.get());
   }
-  if (queued() == 0 && config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
+  if (config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
   {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
     if (!kf->bad) cull_keyframes(kf.get());

@@ -24,7 +24,8 @@ struct LocalMapperConfig {
   bool local_ba = true;
   int local_ba_max_keyframes = 20;   // free keyframes: the new one and its strongest covisible neighbours
   BaConfig ba;
-  std::size_t queue_capacity = 8;
+  // Keyframes waiting or in work before tracking waits to insert another (threaded mode).
+  std::size_t max_pending_keyframes = 2;
 };
 
 struct LocalMapperStats {
@@ -44,10 +45,10 @@ class LocalMapper : public KeyFrameSink {
 
   // KeyFrameSink
   void insert_keyframe(const KeyFramePtr& kf) override;
-  bool idle() const override { return idle_.load(); }
-  std::size_t queued() const override;
   bool accepts_keyframes() const override { return !stopping_.load(); }
-  void interrupt_ba() override { abort_ba_.store(true); }
+
+  bool idle() const { return idle_.load(); }
+  std::size_t queued() const;
 
   // Processes one queued keyframe (non-threaded mode). Returns false if none was queued.
   bool step();
@@ -69,9 +70,9 @@ class LocalMapper : public KeyFrameSink {
   std::shared_ptr<Map> map_;
   const bool threaded_;
   mutable std::mutex queue_mutex_;
-  std::condition_variable queue_cv_;
+  std::condition_variable queue_cv_, space_cv_;
   std::deque<KeyFramePtr> queue_;
-  std::atomic<bool> idle_{true}, stopping_{false}, abort_ba_{false};
+  std::atomic<bool> idle_{true}, stopping_{false};
   bool stop_requested_ = false;
   std::list<MapPointPtr> recent_points_;
   KeyFrameProcessedCallback on_processed_;

@@ -12,7 +12,8 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = info_.id;
-  thread_ = std::thread([this] { run(); });
+  // Stepped SLAM (config.slam.threaded off): frames are processed inside submit(), in order.
+  if (config_.slam.threaded) thread_ = std::thread([this] { run(); });
 }
 
 ClientPipeline::~ClientPipeline() { finish(); }
@@ -21,6 +22,11 @@ bool ClientPipeline::submit(RgbdFrame frame) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counters_.frames_submitted;
+  }
+  if (!config_.slam.threaded) {
+    if (queue_.closed()) return false;
+    consume(frame);
+    return true;
   }
   return queue_.push(std::move(frame));
 }
@@ -33,24 +39,26 @@ void ClientPipeline::finish() {
 
 void ClientPipeline::run() {
   lower_current_thread_priority();
-  while (auto frame = queue_.pop()) {
-    if (slam_) {
-      const ProcessResult r = slam_->process(*frame);
-      if (r.outcome == FrameOutcome::kRejected)
-        logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame->seq, r.reject_reason);
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++counters_.frames_processed;
-      if (r.outcome == FrameOutcome::kRejected) ++counters_.frames_rejected;
-      counters_.last_timestamp = frame->timestamp;
-    } else {
-      std::lock_guard<std::mutex> lock(mutex_);
-      counted_trajectory_.push_back({frame->timestamp, SE3()});
-      ++counters_.frames_processed;
-      counters_.tracking = TrackingState::kTracking;
-      counters_.last_timestamp = frame->timestamp;
-    }
-    if (config_.on_frame_done) config_.on_frame_done(frame->client, frame->seq);
+  while (auto frame = queue_.pop()) consume(*frame);
+}
+
+void ClientPipeline::consume(const RgbdFrame& frame) {
+  if (slam_) {
+    const ProcessResult r = slam_->process(frame);
+    if (r.outcome == FrameOutcome::kRejected)
+      logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counters_.frames_processed;
+    if (r.outcome == FrameOutcome::kRejected) ++counters_.frames_rejected;
+    counters_.last_timestamp = frame.timestamp;
+  } else {
+    std::lock_guard<std::mutex> lock(mutex_);
+    counted_trajectory_.push_back({frame.timestamp, SE3()});
+    ++counters_.frames_processed;
+    counters_.tracking = TrackingState::kTracking;
+    counters_.last_timestamp = frame.timestamp;
   }
+  if (config_.on_frame_done) config_.on_frame_done(frame.client, frame.seq);
 }
 
 ClientSnapshot ClientPipeline::snapshot() const {

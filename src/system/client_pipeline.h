@@ -17,7 +17,8 @@ class ClientPipeline {
                  KeyFrameListener listener);
   ~ClientPipeline();
 
-  // Blocks while the queue is full. False once finishing.
+  // Blocks while the queue is full. False once finishing. With stepped SLAM (SlamConfig::threaded
+  // off) the frame is processed before it returns.
   bool submit(RgbdFrame frame);
   // Drains the queue, stops the worker and the SLAM threads. Idempotent.
   void finish();
@@ -31,6 +32,7 @@ class ClientPipeline {
 
  private:
   void run();
+  void consume(const RgbdFrame& frame);  // one frame into SLAM (or the counters), then on_frame_done
 
   const ClientInfo info_;
   const SystemConfig& config_;

@@ -227,13 +227,13 @@ bool Tracker::track_reference_keyframe(Frame& frame) {
 
 void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
                                KeyFramePtr& reference) const {
-  std::unordered_map<KeyFrame*, int> counter;
+  std::map<KeyFrame*, int, ById> counter;
   for (size_t i = 0; i < frame.map_points.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || mp->bad || frame.outlier[i]) continue;
     for (const auto& [kf, idx] : mp->observations) ++counter[kf];
   }
-  std::set<KeyFrame*> chosen;
+  std::set<KeyFrame*, ById> chosen;
   int best = 0;
   KeyFrame* best_kf = nullptr;
   for (const auto& [kf, n] : counter) {
@@ -301,7 +301,6 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
     std::shared_lock<std::shared_mutex> lock(map_->mutex);
     if (reference_kf_) ref_matches = reference_kf_->tracked_map_points(nkfs <= 2 ? 2 : config_.ref_min_observations);
   }
-  const bool idle = sink_->idle();
   const FrameData& f = *frame.data;
   int tracked_close = 0, untracked_close = 0;
   for (size_t i = 0; i < f.size(); ++i) {
@@ -312,17 +311,11 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
   const bool need_close = tracked_close < config_.close_tracked_threshold && untracked_close > config_.close_untracked_threshold;
   const double ratio = nkfs < 2 ? 0.4 : config_.ref_ratio;
   const bool c1a = frames_since_keyframe_ >= std::uint32_t(config_.max_frames_between_keyframes);
-  const bool c1b = frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes) && idle;
+  const bool c1b = frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes);
   const bool c1c = last_inliers_ < ref_matches * 0.25 || need_close;
   const bool c2 = (last_inliers_ < ref_matches * ratio || need_close) && last_inliers_ > 15;
-  if (std::getenv("CSLAM_TRACE_KF"))
-    std::fprintf(stderr, "kfdecide inl %d ref %d (ref kf %u, nkfs %zu) close %d/%d idle %d c1 %d%d%d c2 %d\n", last_inliers_,
-                 ref_matches, reference_kf_ ? reference_kf_->id.seq : 0u, nkfs, tracked_close, untracked_close, int(idle),
-                 int(c1a), int(c1b), int(c1c), int(c2));
-  if (!((c1a || c1b || c1c) && c2)) return false;
-  if (idle) return true;
-  sink_->interrupt_ba();
-  return sink_->queued() < 3;
+  const bool due = config_.keyframe_every_frames > 0 && frames_since_keyframe_ >= std::uint32_t(config_.keyframe_every_frames);
+  return (due && last_inliers_ > 15) || ((c1a || c1b || c1c) && c2);
 }
 
 KeyFramePtr Tracker::create_keyframe(Frame& frame) {

@@ -22,10 +22,17 @@ struct TrackerConfig {
   int min_local_map_inliers = 30;      // local-map tracking success
   int min_local_map_inliers_after_reloc = 50;
   int max_local_keyframes = 80;
-  int max_frames_between_keyframes = 30;  // ~1 s at 30 Hz
+  // Keyframe rule: the tracked points fall below ref_ratio of the reference keyframe's points seen
+  // by two keyframes, or too few close points are tracked, once min_frames_between_keyframes
+  // frames have passed; and at least every keyframe_every_frames frames while tracking is healthy,
+  // so that loop closing and map fusion see consecutive keyframes of every place (their 3-keyframe
+  // consistency check needs them). It depends on tracking alone, never on whether local mapping
+  // happens to be busy, so threaded and stepped (--sync) runs decide alike.
+  int max_frames_between_keyframes = 30;  // ~1 s at 30 Hz; also the relocalisation grace period
   int min_frames_between_keyframes = 0;
+  int keyframe_every_frames = 10;         // ~1/3 s at 30 Hz; 0: off
   double ref_ratio = 0.75;
-  int ref_min_observations = 2;        // reference-keyframe points counted by the keyframe rule (RGB-D obs count 2)
+  int ref_min_observations = 3;        // reference-keyframe points counted by the keyframe rule: seen by two keyframes (an RGB-D observation counts 2)
   int close_tracked_threshold = 100, close_untracked_threshold = 70;  // RGB-D "need close points" rule
   int min_new_close_points = 100;      // new map points per keyframe: all close ones and at least this many
   int reloc_min_bow_matches = 15;
@@ -36,11 +43,9 @@ struct TrackerConfig {
 class KeyFrameSink {
  public:
   virtual ~KeyFrameSink() = default;
+  // May wait while the sink is behind (backpressure); never called with the map lock held.
   virtual void insert_keyframe(const KeyFramePtr& kf) = 0;
-  virtual bool idle() const = 0;
-  virtual std::size_t queued() const = 0;
   virtual bool accepts_keyframes() const = 0;
-  virtual void interrupt_ba() = 0;
 };
 
 struct TrackResult {

@@ -53,9 +53,10 @@ TEST_F(SlamIntegration, SingleClientTracksEveryFrameWithinBound) {
   EXPECT_LT(ate_rmse(scene("robot_1/groundtruth.txt") + " " + tmp("traj.txt")), 0.015);
 }
 
+// Stepped (--sync): deterministic, so the accuracy bound is checked on the one possible outcome.
 TEST_F(SlamIntegration, OfflineTwoClientsFuseIntoOneFrame) {
   const auto r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
-                                               tmp("multi") + " --log-level warn");
+                                               tmp("multi") + " --sync --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   const auto stats = nlohmann::json::parse(std::ifstream(tmp("multi/stats.json")));
   ASSERT_EQ(stats["clients"].size(), 2u);
@@ -67,6 +68,47 @@ TEST_F(SlamIntegration, OfflineTwoClientsFuseIntoOneFrame) {
                                 scene("robot_2/groundtruth.txt") + " " + tmp("multi/client_2.txt"));
   EXPECT_LT(joint, 0.02);
   EXPECT_TRUE(std::ifstream(tmp("multi/fused_" + std::to_string(stats["clients"][0]["group"].get<int>()) + ".txt")).good());
+}
+
+// The threaded system (worker, local-mapping, loop and fusion threads) fuses the same robots; its
+// accuracy is checked by the stepped run above and measured by scripts/bench-accuracy.sh.
+TEST_F(SlamIntegration, ThreadedTwoClientsFuse) {
+  const auto r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
+                                               tmp("threaded") + " --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto stats = nlohmann::json::parse(std::ifstream(tmp("threaded/stats.json")));
+  ASSERT_EQ(stats["clients"].size(), 2u);
+  EXPECT_EQ(stats["clients"][0]["group"], stats["clients"][1]["group"]) << stats.dump(2);
+  EXPECT_EQ(stats["clients"][0]["trajectory_poses"].get<int>(), 60);
+  EXPECT_EQ(stats["clients"][1]["trajectory_poses"].get<int>(), 60);
+}
+
+static std::string file_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// --sync is the threaded system's policy stepped on one thread: the same input gives the same
+// bytes, for one client and for two clients with map fusion.
+TEST_F(SlamIntegration, SyncRunsAreIdentical) {
+  for (const char* run : {"a", "b"}) {
+    const std::string single = tmp(std::string("single_") + run + ".txt");
+    auto r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + single + " --sync --quiet --log-level warn");
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
+                                      tmp(std::string("pair_") + run) + " --sync --log-level warn");
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  const std::string a = file_text(tmp("single_a.txt"));
+  EXPECT_GT(a.size(), 1000u);
+  EXPECT_EQ(a, file_text(tmp("single_b.txt")));
+  for (const char* f : {"client_1.txt", "client_2.txt"}) {
+    const std::string pa = file_text(tmp("pair_a/") + f);
+    EXPECT_GT(pa.size(), 1000u) << f;
+    EXPECT_EQ(pa, file_text(tmp("pair_b/") + f)) << f;
+  }
 }
 
 TEST_F(SlamIntegration, OfflineTwoClientsWithoutFusionStayApart) {

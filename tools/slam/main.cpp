@@ -48,7 +48,7 @@ int run(int argc, char** argv) {
       .option("keyframes", "keyframe trajectory output (TUM format)", "")
       .option("stats", "timing statistics output (JSON)", "")
       .option("client", "client id", "1")
-      .flag("sync", "run local mapping inline (deterministic, slower)")
+      .flag("sync", "step every stage on one thread (local mapping, loop closing, fusion): the same input gives the same output")
       .flag("no-local-ba", "disable local bundle adjustment (ablation)")
       .flag("no-fusion", "multi-client mode: disable map fusion (ablation)")
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")

@@ -70,7 +70,12 @@ int run_multi_client(const CliArgs& args) {
 
   SystemConfig config;
   config.vocabulary_path = args.get("vocab");
-  config.slam.threaded = true;
+  // --sync: one thread steps every client frame by frame (round robin, as robots streaming at
+  // once) with local mapping, loop closing and fusion run inline: the same input gives the same
+  // output. Otherwise each client has its worker threads and fusion its own thread.
+  const bool stepped = args.flag_set("sync");
+  config.slam.threaded = !stepped;
+  config.fusion.threaded = !stepped;
   config.slam.mapper.local_ba = !args.flag_set("no-local-ba");
   config.slam.loop.enabled = !args.flag_set("no-loop");
   config.fusion.enabled = !args.flag_set("no-fusion");
@@ -78,28 +83,40 @@ int run_multi_client(const CliArgs& args) {
   CollaborativeSystem system(config);
   for (const auto& j : jobs) system.add_client(j.info);
 
-  // One feeder thread per client, as K robots streaming at once.
+  // Submits frame i of a client; false once the system stops taking frames.
+  auto feed = [&system](const ClientJob& j, std::size_t i) {
+    const RgbdPair& p = j.pairs[i];
+    RgbdFrame f;
+    f.client = j.info.id;
+    f.seq = std::uint64_t(i);
+    f.timestamp = p.rgb_time;
+    try {
+      const RgbdImages im = load_rgbd(p);
+      f.bgr = im.bgr;
+      f.depth = im.depth;
+      return system.submit(std::move(f));
+    } catch (const InputError& e) {
+      logger("slam")->error("client {}: {}", j.info.id, e.what());
+      return true;
+    }
+  };
   Stopwatch wall;
-  std::vector<std::thread> feeders;
-  for (const auto& j : jobs)
-    feeders.emplace_back([&system, &j] {
-      std::uint64_t seq = 0;
-      for (const auto& p : j.pairs) {
-        RgbdFrame f;
-        f.client = j.info.id;
-        f.seq = seq++;
-        f.timestamp = p.rgb_time;
-        try {
-          const RgbdImages im = load_rgbd(p);
-          f.bgr = im.bgr;
-          f.depth = im.depth;
-          if (!system.submit(std::move(f))) break;
-        } catch (const std::exception& e) {
-          logger("slam")->error("client {}: {}", j.info.id, e.what());
-        }
-      }
-    });
-  for (auto& t : feeders) t.join();
+  if (stepped) {
+    std::size_t longest = 0;
+    for (const auto& j : jobs) longest = std::max(longest, j.pairs.size());
+    for (std::size_t i = 0; i < longest; ++i)
+      for (const auto& j : jobs)
+        if (i < j.pairs.size()) feed(j, i);
+  } else {
+    // One feeder thread per client, as K robots streaming at once.
+    std::vector<std::thread> feeders;
+    for (const auto& j : jobs)
+      feeders.emplace_back([&feed, &j] {
+        for (std::size_t i = 0; i < j.pairs.size(); ++i)
+          if (!feed(j, i)) break;
+      });
+    for (auto& t : feeders) t.join();
+  }
   system.finish();
   const double slam_time = wall.ms() / 1000.0;
 
