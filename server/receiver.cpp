@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <ctime>
 
 #include "core/log.h"
 
@@ -24,6 +25,14 @@ std::string error_reason(wire::ErrorCode code) {
   if (name.rfind("ERROR_", 0) == 0) name = name.substr(6);
   for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
   return name.empty() ? "unknown" : name;
+}
+
+// CPU time of the calling thread (ms): a stall's own work, apart from time the thread waited for
+// a core on a loaded machine.
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
 }
 
 // The CURVE key (Z85) the ZAP handler gave this connection as its User-Id; empty without CURVE.
@@ -103,6 +112,7 @@ bool Receiver::run() {
       continue;  // a signal: its handler has written to the stop pipe, seen on the next poll
     }
     const Stopwatch busy;
+    const double busy_cpu0 = thread_cpu_ms();
     if (items[3].revents & ZMQ_POLLIN) {
       log()->info("stop requested");
       break;
@@ -117,7 +127,7 @@ bool Receiver::run() {
     if (std::chrono::duration<double>(Clock::now() - last_log_).count() >= config_.log_interval_s) log_progress();
     if (std::chrono::duration<double>(Clock::now() - last_publish_).count() >= config_.publish_interval_s)
       publish_status();
-    stats_.note_loop(busy.ms());
+    stats_.note_loop(busy.ms(), thread_cpu_ms() - busy_cpu0);
     if (config_.exit_when_done && sessions_.all_finished(config_.expected_clients)) {
       log()->info("all {} client(s) finished", sessions_.size());
       all_done = true;
@@ -137,6 +147,7 @@ void Receiver::receive_pending() {
     zmq::message_t identity;
     if (!router_.recv(identity, zmq::recv_flags::dontwait)) return;
     const Stopwatch timer;
+    const double cpu0 = thread_cpu_ms();
     std::string routing_id(static_cast<const char*>(identity.data()), identity.size());
     std::vector<zmq::message_t> parts;
     while (true) {
@@ -146,18 +157,19 @@ void Receiver::receive_pending() {
       if (!router_.recv(parts.back(), zmq::recv_flags::none)) break;
     }
     Session* session = sessions_.by_routing_id(routing_id);
+    const char* kind = "malformed";
     if (parts.size() != 1) {
       drop(session, routing_id, "malformed", "message with " + std::to_string(parts.size()) + " parts");
       reply_error(routing_id, session ? session->info.id : 0, 0, wire::ERROR_MALFORMED,
                   "expected exactly one message part", 0);
     } else {
-      handle_message(routing_id, config_.curve ? user_id_of(parts[0]) : std::string(), parts[0]);
+      kind = handle_message(routing_id, config_.curve ? user_id_of(parts[0]) : std::string(), parts[0]);
     }
-    stats_.note_message(timer.ms());
+    stats_.note_message(kind, timer.ms(), thread_cpu_ms() - cpu0);
   }
 }
 
-void Receiver::handle_message(const std::string& routing_id, const std::string& key, zmq::message_t& body) {
+const char* Receiver::handle_message(const std::string& routing_id, const std::string& key, zmq::message_t& body) {
   Session* session = sessions_.by_routing_id(routing_id);
   stats_.add_bytes(body.size());
   if (session) {
@@ -170,7 +182,7 @@ void Receiver::handle_message(const std::string& routing_id, const std::string& 
   } catch (const wire::WireError& e) {
     drop(session, routing_id, "malformed", e.what());
     reply_error(routing_id, session ? session->info.id : 0, 0, e.code(), e.what(), 0);
-    return;
+    return "malformed";
   }
   switch (message.body_case()) {
     case wire::ClientMessage::kHello: on_hello(routing_id, key, message.hello()); break;
@@ -184,6 +196,7 @@ void Receiver::handle_message(const std::string& routing_id, const std::string& 
     case wire::ClientMessage::kHeartbeat: on_heartbeat(routing_id, message.heartbeat()); break;
     default: break;
   }
+  return wire::body_name(message);
 }
 
 void Receiver::on_hello(const std::string& routing_id, const std::string& key, const wire::Hello& hello) {

@@ -88,7 +88,8 @@ class Receiver {
 
  private:
   void receive_pending();
-  void handle_message(const std::string& routing_id, const std::string& key, zmq::message_t& body);
+  // Returns the kind of message handled ("hello", "frame", ..., "malformed") for the stall stats.
+  const char* handle_message(const std::string& routing_id, const std::string& key, zmq::message_t& body);
   void on_hello(const std::string& routing_id, const std::string& key, const wire::Hello& hello);
   void on_frame(const std::string& routing_id, std::unique_ptr<wire::RgbdFrame> frame, std::size_t bytes);
   void on_goodbye(const std::string& routing_id, const wire::Goodbye& goodbye);

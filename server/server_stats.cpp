@@ -16,13 +16,19 @@ std::uint64_t ClientNetStats::dropped_total() const {
   return n;
 }
 
-void ServerStats::note_loop(double ms) {
+void ServerStats::note_loop(double ms, double cpu_ms) {
   loop_max_ms_ = std::max(loop_max_ms_, ms);
+  loop_max_cpu_ms_ = std::max(loop_max_cpu_ms_, cpu_ms);
   loops_over_20ms_ += ms > 20.0;
 }
 
-void ServerStats::note_message(double ms) {
+void ServerStats::note_message(const char* kind, double ms, double cpu_ms) {
   ++messages_;
+  double& by_kind = message_max_ms_by_kind_[kind];
+  by_kind = std::max(by_kind, ms);
+  double& cpu_by_kind = message_max_cpu_ms_by_kind_[kind];
+  cpu_by_kind = std::max(cpu_by_kind, cpu_ms);
+  message_max_cpu_ms_ = std::max(message_max_cpu_ms_, cpu_ms);
   message_max_ms_ = std::max(message_max_ms_, ms);
   messages_over_20ms_ += ms > 20.0;
 }
@@ -48,7 +54,10 @@ http::NetStatus ServerStats::net_status(const SessionTable& sessions) const {
               {"messages_over_20ms", messages_over_20ms_}};
   s.unattributed = unattributed_;
   s.transport = transport_;
-  s.gauges = {{"receive_loop_max_ms", loop_max_ms_}, {"message_max_ms", message_max_ms_}, {"decode_max_ms", decode_max_ms_}};
+  s.gauges = {{"receive_loop_max_ms", loop_max_ms_},         {"message_max_ms", message_max_ms_},
+              {"receive_loop_max_cpu_ms", loop_max_cpu_ms_}, {"message_max_cpu_ms", message_max_cpu_ms_},
+              {"decode_max_ms", decode_max_ms_}};
+  for (const auto& [kind, ms] : message_max_ms_by_kind_) s.gauges[std::string(kind) + "_message_max_ms"] = ms;
   for (const auto& [id, session] : sessions.sessions()) {
     http::NetClientStatus c;
     c.id = id;
@@ -121,6 +130,10 @@ std::string ServerStats::to_json(const SystemSnapshot& snapshot, double wall_s) 
   j["receive_loops_over_20ms"] = loops_over_20ms_;
   j["message_max_ms"] = message_max_ms_;
   j["messages_over_20ms"] = messages_over_20ms_;
+  j["message_max_ms_by_kind"] = message_max_ms_by_kind_;
+  j["receive_loop_max_cpu_ms"] = loop_max_cpu_ms_;
+  j["message_max_cpu_ms"] = message_max_cpu_ms_;
+  j["message_max_cpu_ms_by_kind"] = message_max_cpu_ms_by_kind_;
   j["decode_max_ms"] = decode_max_ms_;
   std::vector<double> all_ms;
   j["clients"] = nlohmann::json::array();

@@ -50,9 +50,9 @@ std::pair<Session*, bool> SessionTable::open(const ClientInfo& info, const std::
     s.info = info;
   } else {
     by_routing_.erase(s.routing_id);
-    if (s.restored) {
-      resumed = true;
+    if (s.restored) {  // its first connection in this server's life
       s.restored = false;
+      s.connections = 1;
     } else {
       ++s.connections;
     }
