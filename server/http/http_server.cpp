@@ -69,6 +69,7 @@ bool HttpServer::start() {
     guard_.reset();
     return false;
   }
+  cache_.set_guard_stats(&guard_->stats());
   cache_.start();
   guard_->start();
   if (!config_.port_file.empty()) {

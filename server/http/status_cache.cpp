@@ -1,5 +1,7 @@
 #include "server/http/status_cache.h"
 
+#include "server/http/http_guard.h"
+
 #include <sstream>
 
 namespace cslam::http {
@@ -149,6 +151,23 @@ std::string network_metrics_text(const NetStatus& n) {
   return o.str();
 }
 
+std::string guard_metrics_text(const GuardStats& g) {
+  std::ostringstream o;
+  o << "# HELP cslam_http_connections_accepted_total Connections accepted by the HTTP guard.\n"
+       "# TYPE cslam_http_connections_accepted_total counter\n"
+    << "cslam_http_connections_accepted_total " << g.accepted << "\n"
+    << "# HELP cslam_http_requests_total Complete requests handed to the workers.\n"
+       "# TYPE cslam_http_requests_total counter\n"
+    << "cslam_http_requests_total " << g.requests << "\n"
+    << "# HELP cslam_http_refused_total Requests or connections refused by the HTTP guard, by reason.\n"
+       "# TYPE cslam_http_refused_total counter\n";
+  const std::pair<const char*, std::uint64_t> reasons[] = {
+      {"timed_out", g.timed_out},   {"header_too_large", g.header_too_large}, {"body_too_large", g.body_too_large},
+      {"bad_request", g.bad_request}, {"overloaded", g.overloaded},       {"connections", g.connections_refused}};
+  for (const auto& [reason, n] : reasons) o << "cslam_http_refused_total{reason=\"" << reason << "\"} " << n << "\n";
+  return o.str();
+}
+
 StatusCache::StatusCache(const CollaborativeSystem& system, CacheConfig config)
     : system_(system), config_(std::move(config)), state_(std::make_shared<CachedState>()) {}
 
@@ -242,6 +261,7 @@ void StatusCache::refresh() {
   next->events_body = nlohmann::json{{"events", std::move(events)}}.dump();
   next->metrics = metrics_text(snap, fps_of, fusions);
   if (net) next->metrics += network_metrics_text(*net);
+  if (guard_) next->metrics += guard_metrics_text(*guard_);
 
   const auto previous = get();
   if (now - last_points_t_ >= config_.points_refresh_s) {

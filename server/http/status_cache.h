@@ -20,6 +20,8 @@
 
 namespace cslam::http {
 
+struct GuardStats;  // server/http/http_guard.h
+
 struct CacheConfig {
   double refresh_hz = 5.0;           // status, events, metrics, trajectories
   double points_refresh_s = 1.0;     // map points (the heaviest query) at most this often
@@ -53,6 +55,8 @@ std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, doubl
 // The network counters: JSON for /api/status "network", Prometheus text (cslam_net_*) for /metrics.
 nlohmann::json network_json(const NetStatus& n);
 std::string network_metrics_text(const NetStatus& n);
+// The HTTP guard's counters (cslam_http_*) for /metrics.
+std::string guard_metrics_text(const GuardStats& g);
 
 class StatusCache {
  public:
@@ -63,6 +67,8 @@ class StatusCache {
 
   // Live network counters to merge into status and metrics (set before start(); may be null).
   void set_network(const NetStatusBoard* board) { network_ = board; }
+  // The HTTP guard's counters (refusals by reason) for /metrics (set before start(); may be null).
+  void set_guard_stats(const GuardStats* stats) { guard_ = stats; }
   void start();        // starts the refresh thread (refresh() once first)
   void stop();         // idempotent
   void refresh();      // one refresh step (also usable without the thread, in tests)
@@ -74,6 +80,7 @@ class StatusCache {
   const CollaborativeSystem& system_;
   const CacheConfig config_;
   const NetStatusBoard* network_ = nullptr;
+  const GuardStats* guard_ = nullptr;
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   mutable std::mutex mutex_;  // guards state_ (pointer swap only) and stop_
   std::condition_variable wake_;

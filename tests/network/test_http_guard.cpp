@@ -10,6 +10,7 @@
 
 #include <chrono>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -204,6 +205,17 @@ TEST_F(HttpGuardTest, ChunkedBodyPastTheLimitIsRefused) {
   send_all(fd3, "POST /api/reconstruction HTTP/1.1\r\nHost: x\r\nContent-Length: 10000000\r\n\r\n");
   EXPECT_NE(read_until_close(fd3, 10).find("413"), std::string::npos);
   ::close(fd3);
+  // The refusals are counted in /metrics.
+  httplib::Client client("127.0.0.1", server->port());
+  std::string metrics;
+  for (int i = 0; i < 100; ++i) {
+    const auto r = client.Get("/metrics");
+    ASSERT_TRUE(r);
+    metrics = r->body;
+    if (metrics.find("cslam_http_refused_total{reason=\"body_too_large\"} 2") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_NE(metrics.find("cslam_http_refused_total{reason=\"body_too_large\"} 2"), std::string::npos) << metrics;
 }
 
 TEST_F(HttpGuardTest, KeepAliveIsLimitedInRequestsAndIdleTime) {
