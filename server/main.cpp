@@ -82,6 +82,8 @@ int run(int argc, char** argv) {
   if (cli.get_int("max-clients") < 1 || cli.get_int("decode-threads") < 1 || rc.max_pixels < 1 || rc.session_ttl_s < 0)
     throw cslam::ConfigError("cslam-server: --max-clients, --decode-threads and --max-pixels must be positive, "
                              "--session-ttl not negative");
+  if (rc.expected_clients > rc.max_clients)
+    throw cslam::ConfigError("cslam-server: --clients is larger than --max-clients");
   const std::string curve_secret = cli.get("curve-secret"), allowed = cli.get("clients-allowed");
   if (curve_secret.empty() != allowed.empty())
     throw cslam::ConfigError("cslam-server: --curve-secret and --clients-allowed go together");

@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cstring>
 #include <ctime>
+#include <fstream>
 
 #include "core/log.h"
 
@@ -33,6 +34,15 @@ double thread_cpu_ms() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
+}
+
+// Threads of this process (/proc/self/status), for the live thread count.
+std::uint64_t process_threads() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("Threads:", 0) == 0) return std::stoull(line.substr(8));
+  return 0;
 }
 
 // The CURVE key (Z85) the ZAP handler gave this connection as its User-Id; empty without CURVE.
@@ -448,6 +458,7 @@ void Receiver::publish_status() {
   if (!board_) return;
   auto status = std::make_shared<http::NetStatus>(stats_.net_status(sessions_));
   status->totals["sessions_reclaiming"] = reclaiming_.size();
+  status->totals["process_threads"] = process_threads();
   status->totals["decode_queue"] = pool_.queued();
   if (zap_) {
     status->totals["auth_accepted"] = zap_->accepted();

@@ -115,7 +115,10 @@ std::string network_metrics_text(const NetStatus& n) {
   auto head = [&o](const std::string& name, const char* type, const std::string& help) {
     o << "# HELP " << name << " " << help << "\n# TYPE " << name << " " << type << "\n";
   };
-  auto gauge_total = [](const std::string& k) { return k == "sessions" || k == "max_clients" || k == "sessions_reclaiming" || k == "decode_queue"; };
+  auto gauge_total = [](const std::string& k) {
+    return k == "sessions" || k == "max_clients" || k == "sessions_reclaiming" || k == "decode_queue" ||
+           k == "process_threads";
+  };
   for (const auto& [k, v] : n.totals) {
     const std::string name = gauge_total(k) ? "cslam_net_" + k : "cslam_net_" + k + "_total";
     head(name, gauge_total(k) ? "gauge" : "counter", "Network: " + k + " (network_stats.json).");
