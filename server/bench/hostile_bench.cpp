@@ -3,8 +3,8 @@
 //   1. starts cslam-server (--no-slam unless --slam; HTTP on a free port);
 //   2. a good client streams --frames 640x480 frames (JPEG + zstd) at full speed, while (with
 //      --hostile) a hostile peer sends PNG bombs, hijack hellos, seq 2^64-1 frames, huge-camera
-//      hellos, random bytes and 1000 hellos with new ids, and 50 HTTP slowloris connections are
-//      open; /api/status is probed meanwhile;
+//      hellos, random bytes and 1000 hellos with new ids, 50 HTTP slowloris connections are
+//      open, and header floods and 1 MB chunked POSTs repeat; /api/status is probed meanwhile;
 //   3. stops the server with SIGTERM and reads network_stats.json.
 // Prints one JSON line: receive-loop and per-message stall maxima, peak RSS (VmHWM), threads after
 // the 1000 hellos, /api/status latency percentiles, the good client's frames acknowledged.
@@ -185,6 +185,32 @@ void hostile(const std::string& endpoint, std::atomic<bool>& stop, long* threads
   }
 }
 
+// HTTP abuse beside the slowloris connections: a header flood (20 000 x 1 kB header lines until the
+// server refuses) and a 1 MB chunked POST, repeated until `stop`.
+void http_abuse(int port, std::atomic<bool>& stop) {
+  const std::string header = "X-Flood: " + std::string(1000, 'a') + "\r\n";
+  const std::string chunk = "4000\r\n" + std::string(0x4000, 'z') + "\r\n";
+  while (!stop) {
+    int fd = connect_http(port);
+    if (fd >= 0) {
+      std::string req = "GET /api/status HTTP/1.1\r\nHost: x\r\n";
+      (void)::send(fd, req.data(), req.size(), MSG_NOSIGNAL);
+      for (int i = 0; i < 20000 && ::send(fd, header.data(), header.size(), MSG_NOSIGNAL) > 0; ++i) {
+      }
+      ::close(fd);
+    }
+    fd = connect_http(port);
+    if (fd >= 0) {
+      const std::string post = "POST /api/reconstruction HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n";
+      (void)::send(fd, post.data(), post.size(), MSG_NOSIGNAL);
+      for (int i = 0; i < 64 && ::send(fd, chunk.data(), chunk.size(), MSG_NOSIGNAL) > 0; ++i) {
+      }
+      ::close(fd);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+}
+
 int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-bench-hostile", "Hardening figures of cslam-server under a hostile peer (docs/security.md).");
   cli.option("bin", "folder of cslam-server", "build/bin")
@@ -228,7 +254,7 @@ int run(int argc, char** argv) {
 
   std::atomic<bool> stop{false};
   long threads_after_hellos = -1;
-  std::thread hostile_thread;
+  std::thread hostile_thread, http_abuse_thread;
   std::vector<int> slow;
   if (hostile_on) {
     for (int i = 0; i < cli.get_int("slowloris"); ++i) {
@@ -237,6 +263,7 @@ int run(int argc, char** argv) {
       if (fd >= 0 && ::send(fd, partial.data(), partial.size(), MSG_NOSIGNAL) > 0) slow.push_back(fd);
     }
     hostile_thread = std::thread([&] { hostile(endpoint, stop, &threads_after_hellos, pid); });
+    http_abuse_thread = std::thread([&] { http_abuse(http_port, stop); });
   }
   // /api/status probes while everything runs.
   std::vector<double> status_ms;
@@ -270,6 +297,7 @@ int run(int argc, char** argv) {
   prober.join();
   stop = true;
   if (hostile_thread.joinable()) hostile_thread.join();
+  if (http_abuse_thread.joinable()) http_abuse_thread.join();
   const long peak_rss_kb = status_number(pid, "VmHWM");
   const long threads_end = status_number(pid, "Threads");
   for (int fd : slow) ::close(fd);
