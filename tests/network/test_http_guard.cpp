@@ -229,7 +229,9 @@ TEST_F(HttpGuardTest, KeepAliveIsLimitedInRequestsAndIdleTime) {
     ASSERT_TRUE(send_all(fd, "GET /api/status HTTP/1.1\r\nHost: x\r\n\r\n"));
     const std::string r = read_response(fd, 10);
     EXPECT_NE(r.find("200 OK"), std::string::npos) << r.substr(0, 200);
-    if (i == 2) EXPECT_NE(r.find("Connection: close"), std::string::npos);
+    if (i == 2) {
+      EXPECT_NE(r.find("Connection: close"), std::string::npos);
+    }
   }
   bool closed = false;
   read_until_close(fd, 10, &closed);
