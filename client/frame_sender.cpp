@@ -23,6 +23,11 @@ void FrameSender::open_socket() {
   socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
   socket_->set(zmq::sockopt::linger, 2000);  // let a goodbye leave before close
   socket_->set(zmq::sockopt::sndtimeo, int(config_.reply_timeout_s * 1000));
+  if (!config_.server_public_key.empty()) {
+    socket_->set(zmq::sockopt::curve_serverkey, config_.server_public_key);
+    socket_->set(zmq::sockopt::curve_publickey, config_.public_key);
+    socket_->set(zmq::sockopt::curve_secretkey, config_.secret_key);
+  }
   socket_->connect(config_.server);
 }
 
@@ -39,6 +44,11 @@ void FrameSender::connect() {
       throw ConnectionError("client " + std::to_string(config_.info.id) + ": no welcome from " + config_.server +
                             " within " + std::to_string(config_.reply_timeout_s) + " s");
     handle_reply(left);
+    if (hello_busy_ && !welcomed_) {  // our previous connection has not timed out yet: ask again shortly
+      hello_busy_ = false;
+      handle_reply(std::min(left, std::chrono::milliseconds(500)));
+      send_message(hello);
+    }
   }
 }
 
@@ -172,9 +182,12 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       ++stats_.errors[code];
       credits_ += e.credits();
       if (e.seq() != 0 && in_flight_ > 0) --in_flight_;
+      if (e.seq() != 0) ++stats_.frames_refused;
       log()->warn("client {}: server error {} for seq {}: {}", config_.info.id, code, e.seq(), e.message());
+      if (e.code() == wire::ERROR_SESSION_BUSY && !welcomed_) hello_busy_ = true;
       if (e.code() == wire::ERROR_BAD_VERSION || e.code() == wire::ERROR_BAD_HELLO ||
-          e.code() == wire::ERROR_SHUTTING_DOWN)
+          e.code() == wire::ERROR_SHUTTING_DOWN || e.code() == wire::ERROR_TOO_MANY_CLIENTS ||
+          (e.code() == wire::ERROR_NOT_AUTHORIZED && e.seq() == 0))
         throw ConnectionError("client " + std::to_string(config_.info.id) + ": server refused: " + e.message());
       if (e.code() == wire::ERROR_NOT_REGISTERED && welcomed_) reconnect();
       break;

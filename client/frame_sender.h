@@ -28,11 +28,15 @@ struct SenderConfig {
   double reply_timeout_s = 10.0;       // no reply for this long while waiting -> reconnect
   double heartbeat_interval_s = 1.0;   // heartbeats while waiting for credits
   int max_reconnects = 3;              // consecutive failed attempts before giving up
+  // CURVE (docs/security.md): the server's public key and this robot's key pair, Z85. Empty
+  // server_public_key: plain TCP (only against a loopback server or one run with --insecure-bind).
+  std::string server_public_key, public_key, secret_key;
 };
 
 struct SenderStats {
   std::uint64_t frames_sent = 0, bytes_sent = 0, acks = 0, heartbeats = 0, reconnects = 0;
   std::map<std::string, std::uint64_t> errors;  // server error code name -> count
+  std::uint64_t frames_refused = 0;  // errors about a sent frame (seq != 0): frames not delivered
 };
 
 // The server refused us or stopped answering.
@@ -86,6 +90,7 @@ class FrameSender {
   std::uint32_t credits_ = 0, in_flight_ = 0, window_ = 0;
   std::uint64_t seq_ = 0;
   bool welcomed_ = false;
+  bool hello_busy_ = false;  // the server asked to retry the hello (its old connection is still live)
   Clock::time_point last_reply_, last_heartbeat_;
   SenderStats stats_;
 };

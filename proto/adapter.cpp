@@ -77,7 +77,7 @@ Hello to_hello(const ClientInfo& info) {
   return h;
 }
 
-ClientInfo from_hello(const Hello& hello, const std::string& source) {
+ClientInfo from_hello(const Hello& hello, const std::string& source, std::uint64_t max_pixels) {
   if (hello.version() != kProtocolVersion)
     throw WireError(ERROR_BAD_VERSION, source,
                     "protocol version " + std::to_string(hello.version()) + ", server speaks " +
@@ -90,6 +90,10 @@ ClientInfo from_hello(const Hello& hello, const std::string& source) {
   if (c.width() == 0 || c.height() == 0 || c.width() > std::uint32_t(kMaxImageSide) ||
       c.height() > std::uint32_t(kMaxImageSide))
     throw WireError(ERROR_BAD_HELLO, source, "camera size out of range");
+  if (std::uint64_t(c.width()) * c.height() > max_pixels)
+    throw WireError(ERROR_BAD_HELLO, source,
+                    "camera " + std::to_string(c.width()) + "x" + std::to_string(c.height()) + " has more than " +
+                        std::to_string(max_pixels) + " pixels (server --max-pixels)");
   ClientInfo info;
   info.id = ClientId(hello.client_id());
   info.name = hello.name();
@@ -130,6 +134,21 @@ void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, R
   d->set_height(std::uint32_t(frame.depth.rows));
   d->set_encoding(to_wire(options.depth));
   d->set_data(depth.data(), depth.size());
+}
+
+void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source) {
+  RgbCodec rgb_codec;
+  DepthCodec depth_codec;
+  if (!frame.has_rgb() || !frame.has_depth()) throw WireError(ERROR_MALFORMED, source, "frame without rgb or depth image");
+  if (!rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec))
+    throw WireError(ERROR_UNKNOWN_ENCODING, source,
+                    "unknown RGB encoding " + std::to_string(int(frame.rgb().encoding())));
+  if (!depth_codec_from_wire(frame.depth().encoding(), &depth_codec))
+    throw WireError(ERROR_UNKNOWN_ENCODING, source,
+                    "unknown depth encoding " + std::to_string(int(frame.depth().encoding())));
+  check_size(frame.rgb(), camera, "RGB", source);
+  check_size(frame.depth(), camera, "depth", source);
+  if (!std::isfinite(frame.timestamp())) throw WireError(ERROR_MALFORMED, source, "non-finite timestamp");
 }
 
 cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source) {

@@ -26,14 +26,25 @@ class WireError : public InputError {
 Encoding to_wire(RgbCodec codec);
 Encoding to_wire(DepthCodec codec);
 
-// Hello <-> ClientInfo. from_hello throws WireError (ERROR_BAD_VERSION / ERROR_BAD_HELLO).
+// Largest camera (width x height) a hello may announce unless the server says otherwise
+// (cslam-server --max-pixels): bounds the memory one frame can decode to.
+constexpr std::uint64_t kDefaultMaxPixels = 1920ull * 1080ull;
+
+// Hello <-> ClientInfo. from_hello throws WireError (ERROR_BAD_VERSION / ERROR_BAD_HELLO, also
+// for a camera of more than max_pixels pixels).
 Hello to_hello(const ClientInfo& info);
-ClientInfo from_hello(const Hello& hello, const std::string& source);
+ClientInfo from_hello(const Hello& hello, const std::string& source, std::uint64_t max_pixels = kDefaultMaxPixels);
 
 // Encodes a frame's images with the given codecs into `out` (reused to avoid reallocations).
 void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, RgbdFrame* out);
 
-// Checks encodings and sizes against the client's camera, then decodes both images.
+// The cheap checks of from_wire_frame (both images present, known encodings, sizes equal to the
+// camera, finite timestamp), without decoding. Throws WireError like from_wire_frame.
+void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source);
+
+// Checks encodings and sizes against the client's camera, then decodes both images. Decoders
+// are bounded: each produces exactly width x height pixels or fails (a compressed stream that
+// wants more output is corrupt), so work and memory per frame are bounded by the camera size.
 // Throws WireError: ERROR_UNKNOWN_ENCODING, ERROR_SIZE_MISMATCH or ERROR_CORRUPT_IMAGE.
 cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source);
 

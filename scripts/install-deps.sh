@@ -7,7 +7,7 @@ PKGS=(
   build-essential cmake pkg-config git ca-certificates
   libopencv-dev libeigen3-dev libceres-dev libpcl-dev
   libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler
-  libcpp-httplib-dev libgtest-dev libspdlog-dev nlohmann-json3-dev libzstd-dev
+  libcpp-httplib-dev libgtest-dev libspdlog-dev nlohmann-json3-dev libzstd-dev zlib1g-dev
   nodejs chromium curl
 )
 # nodejs: the web viewer's npm packages (scripts/install-web.sh); chromium: its browser test.

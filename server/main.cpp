@@ -10,6 +10,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "server/auth/curve_keys.h"
 #include "server/http/http_server.h"
 #include "server/receiver.h"
 #include "system/collaborative_system.h"
@@ -34,7 +35,8 @@ void install_signal_handlers(cslam::server::WakePipe* pipe) {
 
 int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-server", "Receives RGB-D frames from cslam clients over ZeroMQ and runs collaborative SLAM.");
-  cli.option("bind", "ZeroMQ endpoint to bind (tcp://127.0.0.1:* picks a free port)", "tcp://*:5555")
+  cli.option("bind", "ZeroMQ endpoint to bind (tcp://127.0.0.1:* picks a free port; beyond loopback needs "
+                     "--curve-secret or --insecure-bind)", "tcp://127.0.0.1:5555")
       .option("clients", "number of clients to wait for before --exit-when-done can end the run", "1")
       .flag("exit-when-done", "exit once --clients clients said goodbye and no other client is still active")
       .option("out-dir", "folder for client_K.txt trajectories, stats.json and network_stats.json", "cslam-out")
@@ -45,7 +47,14 @@ int run(int argc, char** argv) {
       .option("heartbeat-timeout", "seconds of silence before a client is marked disconnected", "5")
       .option("log-interval", "seconds between progress lines", "5")
       .option("endpoint-file", "write the bound endpoint to this file once listening", "")
-      .option("log-level", "trace, debug, info, warn, error, off", "info");
+      .option("log-level", "trace, debug, info, warn, error, off", "info")
+      .option("curve-secret", "server CURVE key file (cslam-keygen): encrypt and authenticate every robot", "")
+      .option("clients-allowed", "folder of robots' CURVE public keys (*.pub, optionally bound to client ids)", "")
+      .flag("insecure-bind", "allow a non-loopback --bind without CURVE keys (anyone reaching the port can send)")
+      .option("max-clients", "sessions at a time (any state); more hellos are refused", "64")
+      .option("max-pixels", "largest camera (width*height) a hello may announce", "2073600")
+      .option("session-ttl", "seconds after which a disconnected or finished session is reclaimed (0: never)", "300")
+      .option("decode-threads", "threads decoding frames for all clients", "2");
   cslam::http::declare_options(cli);
   if (!cli.parse(argc, argv)) return 0;
   cslam::set_log_level(cli.get("log-level"));
@@ -65,6 +74,28 @@ int run(int argc, char** argv) {
   if (rc.heartbeat_timeout_s <= 0 || rc.log_interval_s <= 0)
     throw cslam::ConfigError("cslam-server: --heartbeat-timeout and --log-interval must be positive");
   const std::string out_dir = cli.get("out-dir");
+  rc.max_clients = std::size_t(cli.get_int("max-clients"));
+  rc.max_pixels = std::uint64_t(std::stoll(cli.get("max-pixels")));
+  rc.session_ttl_s = cli.get_double("session-ttl");
+  rc.decode_threads = std::size_t(cli.get_int("decode-threads"));
+  rc.reclaim_dir = out_dir + "/reclaimed";
+  if (cli.get_int("max-clients") < 1 || cli.get_int("decode-threads") < 1 || rc.max_pixels < 1 || rc.session_ttl_s < 0)
+    throw cslam::ConfigError("cslam-server: --max-clients, --decode-threads and --max-pixels must be positive, "
+                             "--session-ttl not negative");
+  if (rc.expected_clients > rc.max_clients)
+    throw cslam::ConfigError("cslam-server: --clients is larger than --max-clients");
+  const std::string curve_secret = cli.get("curve-secret"), allowed = cli.get("clients-allowed");
+  if (curve_secret.empty() != allowed.empty())
+    throw cslam::ConfigError("cslam-server: --curve-secret and --clients-allowed go together");
+  if (!curve_secret.empty()) {
+    cslam::server::CurveConfig curve;
+    curve.server = cslam::auth::read_secret_file(curve_secret);
+    curve.clients = std::make_shared<const cslam::auth::KeyRegistry>(cslam::auth::read_allowed_dir(allowed));
+    rc.curve = std::move(curve);
+  } else if (!cslam::server::loopback_endpoint(rc.bind) && !cli.flag_set("insecure-bind")) {
+    throw cslam::ConfigError("cslam-server: --bind " + rc.bind + " reaches beyond this machine without keys: give "
+                             "--curve-secret and --clients-allowed (see docs/security.md), or --insecure-bind");
+  }
 
   // Declaration order is destruction order in reverse: the system (and its workers) stops before
   // the done channel they report to, the sockets close before their context.
@@ -77,7 +108,10 @@ int run(int argc, char** argv) {
   cslam::CollaborativeSystem system(sc);
   zmq::context_t context(1);
   cslam::server::Receiver receiver(context, rc, system, done, stop);
+  cslam::http::NetStatusBoard net_status;
+  receiver.set_status_board(&net_status);
   cslam::http::HttpServer http(system, cslam::http::config_from(cli));  // reads snapshots only
+  http.set_network_status(&net_status);
   http.start();
   install_signal_handlers(&stop);
   if (cli.has("endpoint-file")) {

@@ -1,10 +1,12 @@
 #include "server/server_stats.h"
 
+#include <algorithm>
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
 
 #include "eval/stats.h"
+#include "server/session_table.h"
 
 namespace cslam::server {
 
@@ -12,6 +14,63 @@ std::uint64_t ClientNetStats::dropped_total() const {
   std::uint64_t n = 0;
   for (const auto& [reason, count] : dropped) n += count;
   return n;
+}
+
+void ServerStats::note_loop(double ms, double cpu_ms) {
+  loop_max_ms_ = std::max(loop_max_ms_, ms);
+  loop_max_cpu_ms_ = std::max(loop_max_cpu_ms_, cpu_ms);
+  loops_over_20ms_ += ms > 20.0;
+}
+
+void ServerStats::note_message(const char* kind, double ms, double cpu_ms) {
+  ++messages_;
+  double& by_kind = message_max_ms_by_kind_[kind];
+  by_kind = std::max(by_kind, ms);
+  double& cpu_by_kind = message_max_cpu_ms_by_kind_[kind];
+  cpu_by_kind = std::max(cpu_by_kind, cpu_ms);
+  message_max_cpu_ms_ = std::max(message_max_cpu_ms_, cpu_ms);
+  message_max_ms_ = std::max(message_max_ms_, ms);
+  messages_over_20ms_ += ms > 20.0;
+}
+
+void ServerStats::note_decode(double ms) { decode_max_ms_ = std::max(decode_max_ms_, ms); }
+
+namespace {
+
+std::map<std::string, std::uint64_t> client_counters(const ClientNetStats& net) {
+  return {{"frames_accepted", net.frames_accepted}, {"bytes_received", net.bytes_received},
+          {"messages", net.messages},               {"heartbeats", net.heartbeats},
+          {"reconnects", net.reconnects},           {"timeouts", net.timeouts},
+          {"goodbyes", net.goodbyes},               {"dropped", net.dropped_total()}};
+}
+
+}  // namespace
+
+http::NetStatus ServerStats::net_status(const SessionTable& sessions) const {
+  http::NetStatus s;
+  s.totals = {{"bytes_received", total_bytes_}, {"frames_accepted", frames_total_}, {"messages", messages_},
+              {"sessions", sessions.size()},    {"max_clients", sessions.max_clients()},
+              {"sessions_reclaimed", reclaimed_}, {"receive_loops_over_20ms", loops_over_20ms_},
+              {"messages_over_20ms", messages_over_20ms_}};
+  s.unattributed = unattributed_;
+  s.transport = transport_;
+  s.gauges = {{"receive_loop_max_ms", loop_max_ms_},         {"message_max_ms", message_max_ms_},
+              {"receive_loop_max_cpu_ms", loop_max_cpu_ms_}, {"message_max_cpu_ms", message_max_cpu_ms_},
+              {"decode_max_ms", decode_max_ms_}};
+  for (const auto& [kind, ms] : message_max_ms_by_kind_) s.gauges[std::string(kind) + "_message_max_ms"] = ms;
+  for (const auto& [id, session] : sessions.sessions()) {
+    http::NetClientStatus c;
+    c.id = id;
+    c.connection = to_string(session.state);
+    if (auto it = clients_.find(id); it != clients_.end()) {
+      c.counters = client_counters(it->second);
+      c.dropped = it->second.dropped;
+    } else {
+      c.counters = client_counters(ClientNetStats());
+    }
+    s.clients[id] = std::move(c);
+  }
+  return s;
 }
 
 std::vector<std::string> ServerStats::progress_lines(const SystemSnapshot& snapshot, double elapsed_s) {
@@ -65,6 +124,17 @@ std::string ServerStats::to_json(const SystemSnapshot& snapshot, double wall_s) 
   j["throughput_mb_s"] = span_s > 0 ? double(total_bytes_) / span_s / 1e6 : 0.0;
   j["unattributed"] = unattributed_;
   j["transport_events"] = transport_;
+  j["messages"] = messages_;
+  j["sessions_reclaimed"] = reclaimed_;
+  j["receive_loop_max_ms"] = loop_max_ms_;
+  j["receive_loops_over_20ms"] = loops_over_20ms_;
+  j["message_max_ms"] = message_max_ms_;
+  j["messages_over_20ms"] = messages_over_20ms_;
+  j["message_max_ms_by_kind"] = message_max_ms_by_kind_;
+  j["receive_loop_max_cpu_ms"] = loop_max_cpu_ms_;
+  j["message_max_cpu_ms"] = message_max_cpu_ms_;
+  j["message_max_cpu_ms_by_kind"] = message_max_cpu_ms_by_kind_;
+  j["decode_max_ms"] = decode_max_ms_;
   std::vector<double> all_ms;
   j["clients"] = nlohmann::json::array();
   for (const auto& [id, net] : clients_) {

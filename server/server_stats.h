@@ -9,9 +9,12 @@
 #include <vector>
 
 #include "core/ids.h"
+#include "server/http/net_status.h"
 #include "system/collaborative_system.h"
 
 namespace cslam::server {
+
+class SessionTable;
 
 // Timing samples kept per client (about 8 MB; 9 hours at 30 Hz), later frames are not timed.
 constexpr std::size_t kMaxTimingSamples = 1000000;
@@ -38,6 +41,19 @@ class ServerStats {
     last_frame_ = now;
   }
 
+  // Receiving-thread timings: one loop iteration's work after poll, one message's handling
+  // (parse + checks + hand-off), and a decode on a pool thread (decode + submit).
+  // Wall-clock ms (what other clients wait) and the thread's CPU ms (the work itself; the rest
+  // is time the thread waited for a core on a loaded machine).
+  void note_loop(double ms, double cpu_ms);
+  void note_message(const char* kind, double ms, double cpu_ms);
+  void note_decode(double ms);
+  void count_reclaimed() { ++reclaimed_; }
+
+  // The live counters for HTTP: totals, unattributed, transport events, and per client only the
+  // sessions in the table (so labels stay bounded by --max-clients).
+  http::NetStatus net_status(const SessionTable& sessions) const;
+
   // One log line per client since the previous call: frames received/processed/dropped, fps, MB/s.
   std::vector<std::string> progress_lines(const SystemSnapshot& snapshot, double elapsed_s);
 
@@ -54,7 +70,11 @@ class ServerStats {
  private:
   std::map<ClientId, ClientNetStats> clients_;
   std::map<std::string, std::uint64_t> unattributed_, transport_;
-  std::uint64_t total_bytes_ = 0, frames_total_ = 0;
+  std::uint64_t total_bytes_ = 0, frames_total_ = 0, reclaimed_ = 0;
+  // Receive-loop stall bookkeeping (ms): maximum and counts above the 20 ms target.
+  double loop_max_ms_ = 0, message_max_ms_ = 0, decode_max_ms_ = 0, loop_max_cpu_ms_ = 0, message_max_cpu_ms_ = 0;
+  std::uint64_t loops_over_20ms_ = 0, messages_over_20ms_ = 0, messages_ = 0;
+  std::map<std::string, double> message_max_ms_by_kind_, message_max_cpu_ms_by_kind_;
   std::chrono::steady_clock::time_point first_frame_, last_frame_;
   // Counters at the previous progress line, for rates.
   std::map<ClientId, std::pair<std::uint64_t, std::uint64_t>> last_processed_bytes_;

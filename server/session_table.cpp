@@ -1,6 +1,7 @@
 #include "server/session_table.h"
 
 #include <cstdio>
+#include <stdexcept>
 
 namespace cslam::server {
 
@@ -13,23 +14,72 @@ const char* to_string(SessionState state) {
   return "unknown";
 }
 
+const char* to_string(Admission admission) {
+  switch (admission) {
+    case Admission::kNew: return "new";
+    case Admission::kResume: return "resume";
+    case Admission::kBusy: return "busy";
+    case Admission::kWrongKey: return "wrong_key";
+    case Admission::kFull: return "full";
+  }
+  return "unknown";
+}
+
+Admission SessionTable::admit(ClientId id, const std::string& routing_id, const std::string& key) const {
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) return sessions_.size() >= max_clients_ ? Admission::kFull : Admission::kNew;
+  const Session& s = it->second;
+  if (!s.key.empty() || !key.empty()) {
+    // CURVE: the key that owns the session may always take it over (its old connection is dead
+    // or superseded); a restored session without a recorded key goes to any key bound to the id.
+    if (s.key.empty() && s.restored) return Admission::kResume;
+    return s.key == key ? Admission::kResume : Admission::kWrongKey;
+  }
+  if (s.routing_id == routing_id) return Admission::kResume;
+  return s.state == SessionState::kActive ? Admission::kBusy : Admission::kResume;
+}
+
 std::pair<Session*, bool> SessionTable::open(const ClientInfo& info, const std::string& routing_id,
-                                             Clock::time_point now) {
+                                             Clock::time_point now, const std::string& key) {
   // A routing id speaks for one client at a time.
   if (auto it = by_routing_.find(routing_id); it != by_routing_.end() && it->second != info.id) by_routing_.erase(it);
   auto [it, inserted] = sessions_.try_emplace(info.id);
   Session& s = it->second;
+  bool resumed = !inserted;
   if (inserted) {
     s.info = info;
   } else {
     by_routing_.erase(s.routing_id);
-    ++s.connections;
+    if (s.restored) {  // its first connection in this server's life
+      s.restored = false;
+      s.connections = 1;
+    } else {
+      ++s.connections;
+    }
   }
   s.routing_id = routing_id;
+  s.key = key;
   s.state = SessionState::kActive;
   s.last_seen = now;
   by_routing_[routing_id] = info.id;
-  return {&s, !inserted};
+  return {&s, resumed};
+}
+
+Session& SessionTable::restore(const RestoredSession& restored, Clock::time_point now) {
+  if (sessions_.count(restored.info.id))
+    throw std::invalid_argument("session " + std::to_string(restored.info.id) + " restored twice");
+  if (sessions_.size() >= max_clients_)
+    throw std::invalid_argument("restoring session " + std::to_string(restored.info.id) + ": more than " +
+                                std::to_string(max_clients_) + " sessions (raise --max-clients)");
+  Session& s = sessions_[restored.info.id];
+  s.info = restored.info;
+  s.last_seq = restored.last_seq;
+  s.key = restored.key;
+  s.state = SessionState::kDisconnected;
+  s.last_seen = now;
+  s.connections = 0;
+  s.restored = true;
+  return s;
 }
 
 Session* SessionTable::by_routing_id(const std::string& routing_id) {
@@ -53,8 +103,23 @@ std::vector<ClientId> SessionTable::expire(Clock::time_point now, std::chrono::d
   return expired;
 }
 
+std::vector<ClientId> SessionTable::reclaimable(Clock::time_point now, std::chrono::duration<double> ttl) const {
+  std::vector<ClientId> out;
+  for (const auto& [id, s] : sessions_)
+    if (s.state != SessionState::kActive && s.idle() && now - s.last_seen > ttl) out.push_back(id);
+  return out;
+}
+
+void SessionTable::erase(ClientId id) {
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) return;
+  if (it->second.state == SessionState::kDone) ++erased_done_;
+  if (auto r = by_routing_.find(it->second.routing_id); r != by_routing_.end() && r->second == id) by_routing_.erase(r);
+  sessions_.erase(it);
+}
+
 bool SessionTable::all_finished(std::size_t expected) const {
-  std::size_t done = 0;
+  std::size_t done = erased_done_;
   for (const auto& [id, s] : sessions_) {
     if (s.state == SessionState::kActive) return false;
     done += s.state == SessionState::kDone;

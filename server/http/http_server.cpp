@@ -62,19 +62,16 @@ bool HttpServer::start() {
   if (!std::filesystem::exists(std::filesystem::path(config_.web_root) / "node_modules/three/build/three.module.js"))
     log->warn("three.js not found under {}/node_modules (run scripts/install-web.sh): the viewer shows the client "
               "table only", config_.web_root);
-  port_ = config_.port == 0 ? server_->bind_to_any_port(config_.bind) : (server_->bind_to_port(config_.bind, config_.port) ? config_.port : -1);
+  guard_ = std::make_unique<HttpGuard>(*server_, config_.guard);
+  port_ = guard_->bind(config_.bind, config_.port);
   if (port_ < 0) {
     log->error("HTTP: cannot bind {}:{} (in use?); continuing without the HTTP API", config_.bind, config_.port);
+    guard_.reset();
     return false;
   }
+  cache_.set_guard_stats(&guard_->stats());
   cache_.start();
-  listener_ = std::thread([this] {
-    server_->listen_after_bind();
-    listener_done_ = true;
-  });
-  // httplib's stop() is a no-op before the accept loop runs: wait (microseconds) until it does,
-  // so that a stop() right after start() cannot leave the listener blocked.
-  while (!server_->is_running() && !listener_done_) std::this_thread::yield();
+  guard_->start();
   if (!config_.port_file.empty()) {
     const std::string tmp = config_.port_file + ".tmp";
     std::ofstream(tmp) << port_ << "\n";
@@ -85,22 +82,21 @@ bool HttpServer::start() {
 }
 
 void HttpServer::stop() {
-  if (listener_.joinable()) {
-    server_->stop();
-    listener_.join();
-  }
+  if (guard_) guard_->stop();  // joins the event loop and the workers
   cache_.stop();
 }
 
 void HttpServer::routes() {
   httplib::Server& s = *server_;
+  // Limits are enforced by HttpGuard before a request reaches httplib (see http_guard.h).
   s.set_read_timeout(5, 0);
   s.set_write_timeout(5, 0);
   s.set_keep_alive_timeout(2);
+  s.set_keep_alive_max_count(config_.guard.keep_alive_max_requests);
   // Headers and body go out in separate writes: without TCP_NODELAY, Nagle + delayed ACK add
   // ~40 ms to every keep-alive response.
   s.set_tcp_nodelay(true);
-  s.set_payload_max_length(64 * 1024);
+  s.set_payload_max_length(config_.guard.max_body_bytes);
   s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     const bool api = req.path.rfind("/api/", 0) == 0 || req.path == "/metrics";
     if (!api || config_.token.empty()) return httplib::Server::HandlerResponse::Unhandled;

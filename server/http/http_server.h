@@ -1,5 +1,6 @@
 #pragma once
-// The embedded HTTP server of cslam-server (cpp-httplib): JSON status API, Prometheus metrics,
+// The embedded HTTP server of cslam-server (cpp-httplib behind HttpGuard, which owns the socket
+// and enforces the request limits): JSON status API, Prometheus metrics,
 // asynchronous dense reconstruction jobs and the web viewer's static files (web/). Handlers only
 // read the StatusCache snapshot; they never call into the SLAM system themselves.
 #include <atomic>
@@ -8,6 +9,7 @@
 #include <thread>
 
 #include "core/cli.h"
+#include "server/http/http_guard.h"
 #include "server/http/recon_jobs.h"
 #include "server/http/status_cache.h"
 
@@ -27,6 +29,7 @@ struct HttpConfig {
   std::string datasets_dir;       // reconstruction: DIR/<name>, DIR/robot_K or DIR/client_K per client
   std::string recon_camera = "tum1";  // camera preset or file for datasets without camera.yaml
   CacheConfig cache;
+  GuardConfig guard;              // request deadline, header/body caps, keep-alive, worker pool
   bool loopback() const;
 };
 
@@ -45,8 +48,11 @@ class HttpServer {
   // Binds and starts the listener and the cache threads. Returns false (and logs why) if the
   // port cannot be bound: SLAM keeps running without HTTP.
   bool start();
+  // Live network counters for /api/status and /metrics (set before start()).
+  void set_network_status(const NetStatusBoard* board) { cache_.set_network(board); }
   void stop();  // idempotent; joins every thread (reconstruction jobs are cancelled)
   int port() const { return port_; }
+  const GuardStats* guard_stats() const { return guard_ ? &guard_->stats() : nullptr; }
 
  private:
   void routes();
@@ -57,9 +63,8 @@ class HttpServer {
   const CollaborativeSystem& system_;
   StatusCache cache_;
   ReconJobs jobs_;
-  std::unique_ptr<httplib::Server> server_;
-  std::thread listener_;
-  std::atomic<bool> listener_done_{false};
+  std::unique_ptr<httplib::Server> server_;  // routes only: never listens itself
+  std::unique_ptr<HttpGuard> guard_;         // owns the socket, hands complete requests to httplib
   int port_ = -1;
 };
 

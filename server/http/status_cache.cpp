@@ -1,5 +1,7 @@
 #include "server/http/status_cache.h"
 
+#include "server/http/http_guard.h"
+
 #include <sstream>
 
 namespace cslam::http {
@@ -96,6 +98,79 @@ std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, doubl
   return o.str();
 }
 
+nlohmann::json network_json(const NetStatus& n) {
+  nlohmann::json j = {{"totals", n.totals}, {"unattributed", n.unattributed}, {"transport_events", n.transport},
+                      {"timings_ms", n.gauges}};
+  j["clients"] = nlohmann::json::array();
+  for (const auto& [id, c] : n.clients) {
+    nlohmann::json cj = {{"id", id}, {"connection", c.connection}, {"dropped", c.dropped}};
+    for (const auto& [k, v] : c.counters) cj[k] = v;
+    j["clients"].push_back(std::move(cj));
+  }
+  return j;
+}
+
+std::string network_metrics_text(const NetStatus& n) {
+  std::ostringstream o;
+  auto head = [&o](const std::string& name, const char* type, const std::string& help) {
+    o << "# HELP " << name << " " << help << "\n# TYPE " << name << " " << type << "\n";
+  };
+  auto gauge_total = [](const std::string& k) {
+    return k == "sessions" || k == "max_clients" || k == "sessions_reclaiming" || k == "decode_queue" ||
+           k == "process_threads";
+  };
+  for (const auto& [k, v] : n.totals) {
+    const std::string name = gauge_total(k) ? "cslam_net_" + k : "cslam_net_" + k + "_total";
+    head(name, gauge_total(k) ? "gauge" : "counter", "Network: " + k + " (network_stats.json).");
+    o << name << " " << v << "\n";
+  }
+  for (const auto& [k, v] : n.gauges) {
+    head("cslam_net_" + k, "gauge", "Network: " + k + " since start.");
+    o << "cslam_net_" << k << " " << v << "\n";
+  }
+  head("cslam_net_unattributed_dropped_total", "counter", "Messages dropped from peers without a session, by reason.");
+  for (const auto& [reason, v] : n.unattributed)
+    o << "cslam_net_unattributed_dropped_total{reason=\"" << label(reason) << "\"} " << v << "\n";
+  head("cslam_net_transport_events_total", "counter", "Connection events (accepted, disconnected, auth_failed, ...).");
+  for (const auto& [event, v] : n.transport)
+    o << "cslam_net_transport_events_total{event=\"" << label(event) << "\"} " << v << "\n";
+  // Per client: at most --max-clients sessions, so the label set is bounded.
+  std::map<std::string, std::vector<std::pair<ClientId, std::uint64_t>>> per_counter;
+  for (const auto& [id, c] : n.clients)
+    for (const auto& [k, v] : c.counters) per_counter[k].emplace_back(id, v);
+  for (const auto& [k, values] : per_counter) {
+    const std::string name = "cslam_net_client_" + k + "_total";
+    head(name, "counter", "Network, per client: " + k + ".");
+    for (const auto& [id, v] : values) o << name << "{client=\"" << id << "\"} " << v << "\n";
+  }
+  head("cslam_net_client_dropped_by_reason_total", "counter", "Frames/messages of a client dropped, by reason.");
+  for (const auto& [id, c] : n.clients)
+    for (const auto& [reason, v] : c.dropped)
+      o << "cslam_net_client_dropped_by_reason_total{client=\"" << id << "\",reason=\"" << label(reason) << "\"} " << v << "\n";
+  head("cslam_net_client_connection", "gauge", "1 for the client's connection state.");
+  for (const auto& [id, c] : n.clients)
+    for (const char* st : {"active", "disconnected", "done"})
+      o << "cslam_net_client_connection{client=\"" << id << "\",state=\"" << st << "\"} " << (c.connection == st ? 1 : 0) << "\n";
+  return o.str();
+}
+
+std::string guard_metrics_text(const GuardStats& g) {
+  std::ostringstream o;
+  o << "# HELP cslam_http_connections_accepted_total Connections accepted by the HTTP guard.\n"
+       "# TYPE cslam_http_connections_accepted_total counter\n"
+    << "cslam_http_connections_accepted_total " << g.accepted << "\n"
+    << "# HELP cslam_http_requests_total Complete requests handed to the workers.\n"
+       "# TYPE cslam_http_requests_total counter\n"
+    << "cslam_http_requests_total " << g.requests << "\n"
+    << "# HELP cslam_http_refused_total Requests or connections refused by the HTTP guard, by reason.\n"
+       "# TYPE cslam_http_refused_total counter\n";
+  const std::pair<const char*, std::uint64_t> reasons[] = {
+      {"timed_out", g.timed_out},   {"header_too_large", g.header_too_large}, {"body_too_large", g.body_too_large},
+      {"bad_request", g.bad_request}, {"overloaded", g.overloaded},       {"connections", g.connections_refused}};
+  for (const auto& [reason, n] : reasons) o << "cslam_http_refused_total{reason=\"" << reason << "\"} " << n << "\n";
+  return o.str();
+}
+
 StatusCache::StatusCache(const CollaborativeSystem& system, CacheConfig config)
     : system_(system), config_(std::move(config)), state_(std::make_shared<CachedState>()) {}
 
@@ -139,6 +214,7 @@ void StatusCache::refresh() {
   next->uptime_s = snap.uptime_s;
   next->generation = ++generation_;
 
+  const std::shared_ptr<const NetStatus> net = network_ ? network_->get() : nullptr;
   std::map<ClientId, double> fps_of;
   nlohmann::json clients = nlohmann::json::array();
   for (const ClientSnapshot& c : snap.clients) {
@@ -154,7 +230,15 @@ void StatusCache::refresh() {
     if (samples.size() < 2 || samples[samples.size() - 2].submitted != c.frames_submitted || !last_input_change_.count(c.id))
       last_input_change_[c.id] = now;
     const bool busy = c.queue_depth > 0 || now - last_input_change_[c.id] < config_.idle_after_s;
-    const std::string connection = c.frames_submitted == 0 ? "connected" : busy ? "streaming" : "idle";
+    std::string connection = c.frames_submitted == 0 ? "connected" : busy ? "streaming" : "idle";
+    if (net) {  // the network layer knows better: a vanished peer is "disconnected", not "idle"
+      const auto it = net->clients.find(c.id);
+      if (it == net->clients.end()) {
+        connection = "reclaimed";
+      } else if (it->second.connection != "active") {
+        connection = it->second.connection;
+      }
+    }
     fps_of[c.id] = fps;
     nlohmann::json j = client_json(c, fps, input_fps, connection);
     clients.push_back(j);
@@ -175,9 +259,12 @@ void StatusCache::refresh() {
                   {"clients", std::move(clients)},
                   {"groups", next->groups},
                   {"fusion_events", fusions}};
+  if (net) next->status["network"] = network_json(*net);
   next->status_body = next->status.dump();
   next->events_body = nlohmann::json{{"events", std::move(events)}}.dump();
   next->metrics = metrics_text(snap, fps_of, fusions);
+  if (net) next->metrics += network_metrics_text(*net);
+  if (guard_) next->metrics += guard_metrics_text(*guard_);
 
   const auto previous = get();
   if (now - last_points_t_ >= config_.points_refresh_s) {

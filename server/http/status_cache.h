@@ -15,9 +15,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include "server/http/net_status.h"
 #include "system/collaborative_system.h"
 
 namespace cslam::http {
+
+struct GuardStats;  // server/http/http_guard.h
 
 struct CacheConfig {
   double refresh_hz = 5.0;           // status, events, metrics, trajectories
@@ -49,6 +52,11 @@ struct RateSample {
 nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps, const std::string& connection);
 nlohmann::json event_json(const FusionEvent& e);
 std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, double>& fps, std::size_t fusion_count);
+// The network counters: JSON for /api/status "network", Prometheus text (cslam_net_*) for /metrics.
+nlohmann::json network_json(const NetStatus& n);
+std::string network_metrics_text(const NetStatus& n);
+// The HTTP guard's counters (cslam_http_*) for /metrics.
+std::string guard_metrics_text(const GuardStats& g);
 
 class StatusCache {
  public:
@@ -57,6 +65,10 @@ class StatusCache {
   StatusCache(const StatusCache&) = delete;
   StatusCache& operator=(const StatusCache&) = delete;
 
+  // Live network counters to merge into status and metrics (set before start(); may be null).
+  void set_network(const NetStatusBoard* board) { network_ = board; }
+  // The HTTP guard's counters (refusals by reason) for /metrics (set before start(); may be null).
+  void set_guard_stats(const GuardStats* stats) { guard_ = stats; }
   void start();        // starts the refresh thread (refresh() once first)
   void stop();         // idempotent
   void refresh();      // one refresh step (also usable without the thread, in tests)
@@ -67,6 +79,8 @@ class StatusCache {
 
   const CollaborativeSystem& system_;
   const CacheConfig config_;
+  const NetStatusBoard* network_ = nullptr;
+  const GuardStats* guard_ = nullptr;
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   mutable std::mutex mutex_;  // guards state_ (pointer swap only) and stop_
   std::condition_variable wake_;

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "codec/depth_codecs.h"
+#include "codec/png_guard.h"
 #include "core/error.h"
 
 namespace cslam {
@@ -37,6 +38,31 @@ void check_png_header(const std::uint8_t* d, std::size_t size, int width, int he
   if (depth16 && (bit_depth != 16 || color_type != 0)) throw InputError(source, "depth PNG must be 16-bit grey");
 }
 
+// Bounded work per JPEG: a progressive JPEG may hold thousands of tiny scans, each a pass over
+// the whole image. Counts the scans (SOS markers) after the frame header; more than kMaxJpegScans
+// is refused. Scan data is skipped byte-wise (0xFF00 stuffing and restart markers stay inside).
+constexpr int kMaxJpegScans = 64;
+void check_jpeg_scans(const std::uint8_t* d, std::size_t size, std::size_t pos, const std::string& source) {
+  int scans = 0;
+  while (pos + 1 < size) {
+    if (d[pos] != 0xff) {
+      ++pos;
+      continue;
+    }
+    const std::uint8_t marker = d[pos + 1];
+    if (marker == 0x00 || marker == 0xff || (marker >= 0xd0 && marker <= 0xd7)) {
+      ++pos;
+      continue;
+    }
+    if (marker == 0xd9) return;  // end of image
+    if (pos + 4 > size) return;
+    const std::size_t length = (std::size_t(d[pos + 2]) << 8) | d[pos + 3];
+    if (marker == 0xda && ++scans > kMaxJpegScans)
+      throw InputError(source, "JPEG has more than " + std::to_string(kMaxJpegScans) + " scans");
+    pos += 2 + length;
+  }
+}
+
 // Finds the JPEG frame header (SOFn) and checks its size before decoding.
 void check_jpeg_header(const std::uint8_t* d, std::size_t size, int width, int height, const std::string& source) {
   if (size < 4 || d[0] != 0xff || d[1] != 0xd8) throw InputError(source, "not a JPEG image");
@@ -60,6 +86,7 @@ void check_jpeg_header(const std::uint8_t* d, std::size_t size, int width, int h
       const int h = (d[pos + 5] << 8) | d[pos + 6], w = (d[pos + 7] << 8) | d[pos + 8];
       if (w != width || h != height)
         throw InputError(source, "JPEG is " + size_text(w, h) + ", expected " + size_text(width, height));
+      check_jpeg_scans(d, size, pos + 2 + length, source);
       return;
     }
     if (marker == 0xda || marker == 0xd9) break;  // scan or end before a frame header
@@ -173,6 +200,7 @@ cv::Mat decode_rgb(RgbCodec codec, const std::uint8_t* data, std::size_t size, i
                               source);
     case RgbCodec::kPng:
       check_png_header(data, size, width, height, false, source);
+      check_png_stream(data, size, PngLimits{width, height, false}, source);
       return imdecode_checked(data, size, cv::IMREAD_COLOR, CV_8UC3, width, height, source);
   }
   throw InputError(source, "unknown RGB encoding");
@@ -191,6 +219,7 @@ cv::Mat decode_depth(DepthCodec codec, const std::uint8_t* data, std::size_t siz
     }
     case DepthCodec::kPng:
       check_png_header(data, size, width, height, true, source);
+      check_png_stream(data, size, PngLimits{width, height, true}, source);
       return imdecode_checked(data, size, cv::IMREAD_ANYDEPTH, CV_16UC1, width, height, source);
     case DepthCodec::kRvl: {
       cv::Mat out(height, width, CV_16UC1);

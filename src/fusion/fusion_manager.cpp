@@ -67,6 +67,32 @@ void FusionManager::finish() {
   if (group_ba_thread_.joinable()) group_ba_thread_.join();
 }
 
+void FusionManager::forget(const std::vector<const Map*>& maps) {
+  auto listed = [&maps](const Map* m) { return std::find(maps.begin(), maps.end(), m) != maps.end(); };
+  {
+    std::unique_lock<std::mutex> lock(queue_mutex_);
+    queue_.erase(std::remove_if(queue_.begin(), queue_.end(), [&](const Pending& p) { return listed(p.map.get()); }),
+                 queue_.end());
+    idle_cv_.wait(lock, [this] { return !processing_; });
+  }
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  registry_.erase(std::remove_if(registry_.begin(), registry_.end(),
+                                 [&](const Registered& r) {
+                                   const auto m = r.map.lock();
+                                   return m && listed(m.get());
+                                 }),
+                  registry_.end());
+  for (const Map* m : maps) group_.erase(m);
+  for (auto it = consistency_.begin(); it != consistency_.end();)
+    it = listed(it->first.first) || listed(it->first.second) ? consistency_.erase(it) : std::next(it);
+  seams_.erase(std::remove_if(seams_.begin(), seams_.end(),
+                              [&](const StoredSeam& s) {
+                                const auto a = s.kept_map.lock(), b = s.moved_map.lock();
+                                return (a && listed(a.get())) || (b && listed(b.get()));
+                              }),
+               seams_.end());
+}
+
 int FusionManager::group_of(const Map* map) const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   auto it = group_.find(map);
@@ -98,9 +124,13 @@ void FusionManager::run() {
     std::deque<Pending> batch;
     batch.swap(queue_);
     const bool stopping = stop_;
+    processing_ = true;
     lock.unlock();
     for (const auto& p : batch) process(p);
+    batch.clear();
     lock.lock();
+    processing_ = false;
+    idle_cv_.notify_all();
     if (stopping && queue_.empty()) return;
   }
 }

@@ -55,6 +55,11 @@ class FusionManager {
   // Processes what is queued, lets a running group BA complete, then stops the threads. Idempotent.
   void finish();
 
+  // Forgets maps whose client was retired (its mapping threads joined, so no more notify() for
+  // them): drops their queued keyframes, waits for a batch being processed, then removes them
+  // from the registry, groups, consistency state and seams. Call only for maps of an unfused client.
+  void forget(const std::vector<const Map*>& maps);
+
   int group_of(const Map* map) const;  // -1 if unknown
   std::vector<FusionEvent> events() const;
   GroupBaStats group_ba_stats() const;
@@ -92,6 +97,8 @@ class FusionManager {
   std::condition_variable queue_cv_;
   std::deque<Pending> queue_;
   bool stop_ = false;
+  bool processing_ = false;  // a batch is being processed (forget() waits for it)
+  std::condition_variable idle_cv_;
   std::size_t dropped_ = 0;
 
   mutable std::mutex state_mutex_;  // groups, registry, events

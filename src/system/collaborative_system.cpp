@@ -104,6 +104,39 @@ bool CollaborativeSystem::submit(RgbdFrame frame) {
   return pipeline->submit(std::move(frame));
 }
 
+bool CollaborativeSystem::retire_client(ClientId id, const std::string& dir) {
+  std::unique_ptr<ClientPipeline> pipeline;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    auto it = impl_->clients.find(id);
+    if (it == impl_->clients.end() || impl_->finished) return it == impl_->clients.end();
+    const int group = impl_->group_of(*it->second);
+    for (const auto& [other, p] : impl_->clients)
+      if (other != id && impl_->group_of(*p) == group) return false;  // fused: the map stays with its group
+    pipeline = std::move(it->second);
+    impl_->clients.erase(it);
+  }
+  pipeline->finish();  // no more frames can reach it: joins its worker and SLAM threads
+  if (impl_->fusion && pipeline->slam()) {
+    std::vector<const Map*> maps;
+    for (const auto& m : pipeline->slam()->maps()) maps.push_back(m.get());
+    impl_->fusion->forget(maps);
+  }
+  std::filesystem::create_directories(dir);
+  const std::string name = std::to_string(id);
+  write_tum_trajectory(dir + "/client_" + name + ".txt", pipeline->trajectory(), "client " + name + " (reclaimed)");
+  if (pipeline->slam())
+    write_tum_trajectory(dir + "/keyframes_" + name + ".txt", pipeline->keyframe_trajectory(), "client " + name + " keyframes");
+  const ClientSnapshot c = pipeline->snapshot();
+  nlohmann::json j = {{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
+                      {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
+                      {"frames_lost", c.frames_lost}, {"keyframes", c.keyframes}, {"map_points", c.map_points},
+                      {"maps", c.maps}, {"reclaimed", true}};
+  std::ofstream(dir + "/stats.json") << j.dump(2) << "\n";
+  logger("system")->info("client {} retired: outputs in {}", id, dir);
+  return true;
+}
+
 SystemSnapshot CollaborativeSystem::snapshot() const {
   SystemSnapshot s;
   std::lock_guard<std::mutex> lock(impl_->mutex);

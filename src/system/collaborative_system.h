@@ -64,6 +64,13 @@ class CollaborativeSystem {
   // contradict the client's camera are rejected (counted) here.
   bool submit(RgbdFrame frame);
 
+  // Releases an idle client: processes its queued frames, joins its threads, writes its outputs
+  // (client_K.txt, keyframes_K.txt and stats.json for that client alone) into dir, and removes
+  // it, so that a later add_client() with its id starts a new map. A client whose map is fused
+  // with another client's stays (its map is part of the group): returns false and only joins
+  // nothing. Returns true if the client was removed (also if it was unknown).
+  bool retire_client(ClientId id, const std::string& dir);
+
   // One consistent view of every client (one call, one lock).
   SystemSnapshot snapshot() const;
 

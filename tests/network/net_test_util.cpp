@@ -110,7 +110,7 @@ wire::ClientMessage make_frame(ClientId id, std::uint64_t seq, double timestamp,
 }
 
 InProcessServer::InProcessServer(server::ReceiverConfig config, SystemConfig system_config) {
-  config.bind = "tcp://127.0.0.1:*";
+  if (config.bind == server::ReceiverConfig().bind) config.bind = "tcp://127.0.0.1:*";  // a free port
   auto user_callback = system_config.on_frame_done;
   system_config.on_frame_done = [this, user_callback](ClientId c, std::uint64_t s) {
     if (user_callback) user_callback(c, s);
@@ -118,6 +118,7 @@ InProcessServer::InProcessServer(server::ReceiverConfig config, SystemConfig sys
   };
   system_ = std::make_unique<CollaborativeSystem>(system_config);
   receiver_ = std::make_unique<server::Receiver>(context_, config, *system_, done_, stop_pipe_);
+  receiver_->set_status_board(&board_);
   thread_ = std::thread([this] {
     receiver_->run();
     finished_ = true;

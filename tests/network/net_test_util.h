@@ -60,8 +60,11 @@ class InProcessServer {
   CollaborativeSystem& system() { return *system_; }
   const server::ServerStats& stats() const { return receiver_->stats(); }
   const server::SessionTable& sessions() const { return receiver_->sessions(); }
+  // Live counters published by the receiving thread (safe to read while it runs).
+  std::shared_ptr<const http::NetStatus> net_status() const { return board_.get(); }
 
  private:
+  http::NetStatusBoard board_;
   server::WakePipe stop_pipe_;
   server::DoneChannel done_;
   std::unique_ptr<CollaborativeSystem> system_;

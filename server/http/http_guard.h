@@ -1,0 +1,89 @@
+#pragma once
+// A guard in front of cpp-httplib (0.11 on Debian 12 has no header-count limit, no limit on a
+// chunked body and holds one worker thread per open connection, so 12 slow connections took the
+// whole API offline). The guard owns the listening socket:
+//  - one event-loop thread reads every connection without blocking (poll) and enforces a
+//    per-request deadline (request line, headers and body complete within request_deadline_s),
+//    a cap on header count and header bytes, a body limit for Content-Length and chunked bodies,
+//    a connection cap and keep-alive limits (requests per connection, idle time);
+//  - only a complete, normalised request (chunked body decoded, Content-Length set) goes to a
+//    fixed pool of worker threads, which let httplib route it and write the response.
+// A slow or hostile client therefore costs a few kilobytes in the event loop, never a worker.
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace httplib {
+class Server;
+}
+
+namespace cslam::http {
+
+struct GuardConfig {
+  double request_deadline_s = 5.0;        // whole request (headers + body) from its first byte
+  std::size_t max_header_count = 100;
+  std::size_t max_header_bytes = 32 * 1024;  // request line + headers
+  std::size_t max_body_bytes = 64 * 1024;    // Content-Length or decoded chunked body
+  std::size_t max_connections = 512;         // open connections; more are answered 503 and closed
+  std::size_t keep_alive_max_requests = 100;  // then "Connection: close"
+  double keep_alive_idle_s = 5.0;            // an idle keep-alive connection is closed after this
+  std::size_t workers = 4;                   // threads running handlers (see docs/http.md)
+  std::size_t queue_capacity = 64;           // complete requests waiting for a worker; more: 503
+  double write_timeout_s = 5.0;              // a response that cannot be written in this time is dropped
+};
+
+struct GuardStats {
+  std::atomic<std::uint64_t> accepted{0}, requests{0}, timed_out{0}, header_too_large{0}, body_too_large{0},
+      bad_request{0}, overloaded{0}, connections_refused{0};
+};
+
+class HttpGuard {
+ public:
+  HttpGuard(httplib::Server& server, GuardConfig config);
+  ~HttpGuard();  // stop()
+  HttpGuard(const HttpGuard&) = delete;
+  HttpGuard& operator=(const HttpGuard&) = delete;
+
+  // Binds host:port (port 0: any free port). Returns the bound port, or -1 (errno kept).
+  int bind(const std::string& host, int port);
+  void start();  // event loop + workers
+  void stop();   // idempotent; closes every connection and joins every thread
+  const GuardStats& stats() const { return stats_; }
+
+ private:
+  struct Connection;
+  struct Job;
+  void loop();
+  void worker();
+  void accept_all();
+  // Reads what is available; returns false if the connection should be closed now.
+  bool on_readable(Connection& c);
+  // Looks for a complete request in c's buffer; answers errors itself. Returns false to close.
+  bool try_dispatch(Connection& c);
+  void reply_and_close(Connection& c, int status, const char* text);
+  void close_connection(int fd);
+
+  httplib::Server& server_;
+  const GuardConfig config_;
+  GuardStats stats_;
+  int listen_fd_ = -1;
+  int wake_[2] = {-1, -1};
+  std::map<int, std::unique_ptr<Connection>> connections_;  // event-loop thread only
+  std::thread loop_thread_;
+  std::vector<std::thread> workers_;
+
+  std::mutex mutex_;  // jobs_, returned_, stop_
+  std::condition_variable jobs_cv_;
+  std::deque<std::unique_ptr<Job>> jobs_;
+  std::vector<std::unique_ptr<Connection>> returned_;  // keep-alive connections back from workers
+  bool stop_ = false;
+};
+
+}  // namespace cslam::http
