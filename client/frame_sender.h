@@ -28,6 +28,7 @@ struct SenderConfig {
   double reply_timeout_s = 10.0;       // no reply for this long while waiting -> reconnect
   double heartbeat_interval_s = 1.0;   // heartbeats while waiting for credits
   int max_reconnects = 3;              // consecutive failed attempts before giving up
+  bool new_session = false;            // first hello asks for a new recording session (new map)
 };
 
 struct SenderStats {
@@ -85,6 +86,7 @@ class FrameSender {
   std::unique_ptr<zmq::socket_t> socket_;
   std::uint32_t credits_ = 0, in_flight_ = 0, window_ = 0;
   std::uint64_t seq_ = 0;
+  bool session_started_ = false;  // a welcome was received (reconnects resume, never restart)
   bool welcomed_ = false;
   Clock::time_point last_reply_, last_heartbeat_;
   SenderStats stats_;

@@ -35,6 +35,7 @@ int run(int argc, char** argv) {
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")
+      .flag("new-session", "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload", "load and encode every frame before sending (measures the network path only)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")
       .option("progress-interval", "seconds between progress lines", "2")
@@ -64,6 +65,7 @@ int run(int argc, char** argv) {
   config.codecs.jpeg_quality = cli.get_int("jpeg-quality");
   config.codecs.depth = cslam::parse_depth_codec(cli.get("depth-codec"));
   config.reply_timeout_s = cli.get_double("reply-timeout");
+  config.new_session = cli.flag_set("new-session");
   const double progress_interval = cli.get_double("progress-interval");
 
   cslam::client::FrameSender sender(config);

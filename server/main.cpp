@@ -12,6 +12,8 @@
 #include "core/log.h"
 #include "server/http/http_server.h"
 #include "server/receiver.h"
+#include "server/state_store.h"
+#include "server/http/map_routes.h"
 #include "system/collaborative_system.h"
 
 namespace {
@@ -45,7 +47,10 @@ int run(int argc, char** argv) {
       .option("heartbeat-timeout", "seconds of silence before a client is marked disconnected", "5")
       .option("log-interval", "seconds between progress lines", "5")
       .option("endpoint-file", "write the bound endpoint to this file once listening", "")
-      .option("log-level", "trace, debug, info, warn, error, off", "info");
+      .option("log-level", "trace, debug, info, warn, error, off", "info")
+      .option("state-dir", "folder of map snapshots: loaded at start, written periodically and at exit (empty: off)", "")
+      .option("snapshot-interval", "seconds between background map snapshots (0: only on demand and at exit)", "10")
+      .flag("state-reset", "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)");
   cslam::http::declare_options(cli);
   if (!cli.parse(argc, argv)) return 0;
   cslam::set_log_level(cli.get("log-level"));
@@ -65,6 +70,11 @@ int run(int argc, char** argv) {
   if (rc.heartbeat_timeout_s <= 0 || rc.log_interval_s <= 0)
     throw cslam::ConfigError("cslam-server: --heartbeat-timeout and --log-interval must be positive");
   const std::string out_dir = cli.get("out-dir");
+  cslam::server::StateStoreConfig state_config;
+  state_config.dir = cli.get("state-dir");
+  state_config.interval_s = cli.get_double("snapshot-interval");
+  state_config.reset = cli.flag_set("state-reset");
+  if (state_config.interval_s < 0) throw cslam::ConfigError("cslam-server: --snapshot-interval must be >= 0");
 
   // Declaration order is destruction order in reverse: the system (and its workers) stops before
   // the done channel they report to, the sockets close before their context.
@@ -75,10 +85,16 @@ int run(int argc, char** argv) {
   sc.run_slam = !cli.flag_set("no-slam");
   sc.on_frame_done = [&done](cslam::ClientId client, std::uint64_t seq) { done.push(client, seq); };
   cslam::CollaborativeSystem system(sc);
+  // Loads the newest snapshot (refuses to start on a bad one unless --state-reset).
+  cslam::server::StateStore state(state_config, system);
+  for (const auto& r : state.load()) rc.restored_sessions.emplace_back(r.info, r.last_seq);
   zmq::context_t context(1);
   cslam::server::Receiver receiver(context, rc, system, done, stop);
-  cslam::http::HttpServer http(system, cslam::http::config_from(cli));  // reads snapshots only
+  const cslam::http::HttpConfig http_config = cslam::http::config_from(cli);
+  cslam::http::HttpServer http(system, http_config);  // reads snapshots only
+  cslam::http::add_map_routes(http.routes_server(), state, http_config.token);
   http.start();
+  state.start();
   install_signal_handlers(&stop);
   if (cli.has("endpoint-file")) {
     const std::string path = cli.get("endpoint-file"), tmp = path + ".tmp";
@@ -90,7 +106,9 @@ int run(int argc, char** argv) {
   receiver.run();
   auto log = cslam::logger("server");
   log->info("finishing queued frames");
+  state.stop();
   system.finish();
+  if (!state_config.dir.empty() && state.write()) log->info("final map snapshot written to {}", state_config.dir);
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system.write_outputs(out_dir);
   const cslam::server::ServerStats& stats = receiver.stats();

@@ -42,6 +42,7 @@ Receiver::Receiver(zmq::context_t& context, const ReceiverConfig& config, Collab
   router_.bind(config_.bind);
   endpoint_ = router_.get(zmq::sockopt::last_endpoint);
   start_ = last_log_ = Clock::now();
+  for (const auto& [info, last_seq] : config_.restored_sessions) sessions_.restore(info, last_seq, start_);
   log()->info("listening on {} (window {} frames, max message {} bytes, heartbeat timeout {} s)", endpoint_,
               config_.window, config_.max_message_bytes, config_.heartbeat_timeout_s);
 }
@@ -136,7 +137,14 @@ void Receiver::on_hello(const std::string& routing_id, const wire::Hello& hello)
     reply_error(routing_id, info.id, 0, wire::ERROR_BAD_HELLO, e.what(), 0);
     return;
   }
+  // A known client starting a new recording session (client --new-session): a new map, seqs from 1.
+  const bool new_session = hello.new_session() && sessions_.by_client(info.id) != nullptr;
   auto [session, resumed] = sessions_.open(info, routing_id, Clock::now());
+  if (new_session) {
+    system_.start_new_session(info.id);
+    session->last_seq = 0;
+    resumed = false;
+  }
   if (resumed) ++stats_.client(info.id).reconnects;
   ++stats_.client(info.id).messages;
   const std::uint32_t credits = session->in_flight >= config_.window ? 0 : config_.window - session->in_flight;

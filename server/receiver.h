@@ -6,6 +6,8 @@
 // error; nothing a peer sends can stop the loop.
 #include <cstdint>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <zmq.hpp>
 
@@ -28,6 +30,8 @@ struct ReceiverConfig {
   double log_interval_s = 5.0;
   std::size_t expected_clients = 1;  // with exit_when_done: clients to wait for
   bool exit_when_done = false;
+  // Sessions restored from a snapshot (client, camera, last processed seq): resumed at their hello.
+  std::vector<std::pair<ClientInfo, std::uint64_t>> restored_sessions;
 };
 
 class Receiver {

@@ -32,6 +32,17 @@ std::pair<Session*, bool> SessionTable::open(const ClientInfo& info, const std::
   return {&s, !inserted};
 }
 
+void SessionTable::restore(const ClientInfo& info, std::uint64_t last_seq, Clock::time_point now) {
+  Session& s = sessions_[info.id];
+  s.info = info;
+  s.routing_id.clear();
+  s.state = SessionState::kDisconnected;
+  s.last_seq = last_seq;
+  s.in_flight = 0;
+  s.last_seen = now;
+  s.connections = 0;
+}
+
 Session* SessionTable::by_routing_id(const std::string& routing_id) {
   auto it = by_routing_.find(routing_id);
   return it == by_routing_.end() ? nullptr : by_client(it->second);

@@ -32,6 +32,9 @@ class SessionTable {
   // are kept) and binds it to the new routing id. Returns the session and whether it was resumed.
   std::pair<Session*, bool> open(const ClientInfo& info, const std::string& routing_id, Clock::time_point now);
 
+  // A session restored from a snapshot: known, disconnected, resuming after last_seq at its hello.
+  void restore(const ClientInfo& info, std::uint64_t last_seq, Clock::time_point now);
+
   Session* by_routing_id(const std::string& routing_id);
   Session* by_client(ClientId id);
 

@@ -47,6 +47,8 @@ class HttpServer {
   bool start();
   void stop();  // idempotent; joins every thread (reconstruction jobs are cancelled)
   int port() const { return port_; }
+  // Registers more routes (e.g. add_map_routes) before start().
+  httplib::Server& routes_server() { return *server_; }
 
  private:
   void routes();

@@ -35,6 +35,7 @@ void ClientPipeline::run() {
   lower_current_thread_priority();
   while (auto frame = queue_.pop()) {
     if (slam_) {
+      if (new_session_.exchange(false)) slam_->start_new_session();
       const ProcessResult r = slam_->process(*frame);
       if (r.outcome == FrameOutcome::kRejected)
         logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame->seq, r.reject_reason);
