@@ -91,7 +91,7 @@ int cmd_info(int argc, char** argv) {
 int cmd_export_ply(int argc, char** argv) {
   CliArgs args("cslam-map export-ply", "Writes the sparse map points of a snapshot as a coloured PLY.");
   args.positional("FILE", "snapshot file")
-      .option("o", "output PLY file")
+      .option("out", "output PLY file (-o)")
       .option("group", "only this group's maps (default: every map)", "");
   if (!args.parse(argc, argv, 2)) return 0;
   const SystemState s = snapshot::read_file(args.positionals()[0]);
@@ -106,17 +106,17 @@ int cmd_export_ply(int argc, char** argv) {
       }
     }
   if (cloud.empty()) throw InputError(args.positionals()[0], "no map points to export");
-  write_ply(args.get("o"), cloud);
-  std::printf("%zu points written to %s\n", cloud.size(), args.get("o").c_str());
+  write_ply(args.get("out"), cloud);
+  std::printf("%zu points written to %s\n", cloud.size(), args.get("out").c_str());
   return 0;
 }
 
 int cmd_export_tum(int argc, char** argv) {
   CliArgs args("cslam-map export-tum", "Writes the trajectories of a snapshot in the TUM format.");
-  args.positional("FILE", "snapshot file").option("o", "output folder");
+  args.positional("FILE", "snapshot file").option("out", "output folder (-o)");
   if (!args.parse(argc, argv, 2)) return 0;
   const SystemState s = snapshot::read_file(args.positionals()[0]);
-  const std::string dir = args.get("o");
+  const std::string dir = args.get("out");
   std::filesystem::create_directories(dir);
   std::map<int, Trajectory> fused;
   std::map<int, int> members;
@@ -147,11 +147,11 @@ int cmd_merge(int argc, char** argv) {
                "keyframe, and writes the result as one snapshot.");
   args.positional("A", "first snapshot")
       .positional("B", "second snapshot")
-      .option("o", "output snapshot file")
+      .option("out", "output snapshot file (-o)")
       .option("vocab", "vocabulary file (default: the project's)", "")
       .flag("no-group-ba", "skip the global BA over a newly fused group");
   if (!args.parse(argc, argv, 2)) return 0;
-  const std::string a = args.positionals()[0], b = args.positionals()[1], out = args.get("o");
+  const std::string a = args.positionals()[0], b = args.positionals()[1], out = args.get("out");
   const SystemState sa = snapshot::read_file(a), sb = snapshot::read_file(b);
   for (const auto& ca : sa.clients)
     for (const auto& cb : sb.clients)
@@ -186,6 +186,13 @@ int run(int argc, char** argv) {
   const std::string usage =
       "usage: cslam-map info FILE [--json] | export-ply FILE -o OUT.ply | export-tum FILE -o DIR | merge A B -o C";
   if (argc < 2) throw ConfigError(usage);
+  // "-o FILE" is the short form of "--out FILE" (the shared parser knows long options only).
+  std::vector<std::string> storage(argv, argv + argc);
+  for (auto& a : storage)
+    if (a == "-o") a = "--out";
+  std::vector<char*> args;
+  for (auto& a : storage) args.push_back(a.data());
+  argv = args.data();
   const std::string cmd = argv[1];
   if (cmd == "info") return cmd_info(argc, argv);
   if (cmd == "export-ply") return cmd_export_ply(argc, argv);
