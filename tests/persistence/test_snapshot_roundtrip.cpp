@@ -4,6 +4,7 @@
 
 #include "eval/trajectory_eval.h"
 #include "proto/snapshot_adapter.h"
+#include "proto/snapshot_file.h"
 #include "snapshot_fixture.h"
 
 namespace cslam {
@@ -123,6 +124,46 @@ TEST(SnapshotRoundTrip, InconsistentContentIsAnInputErrorNamingTheSource) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("bad-content.snapshot"), std::string::npos) << e.what();
   }
+}
+
+}  // namespace
+}  // namespace cslam
+
+namespace cslam {
+namespace {
+
+// Two single-session snapshots of overlapping places (robots 1 and 2 of the synthetic scene,
+// each mapped alone) merge into one fused group.
+TEST(SnapshotMerge, TwoOverlappingSessionsBecomeOneGroup) {
+  auto& s = scene();
+  test::TempDir dir("cslam_snapshot_merge");
+  for (int k = 1; k <= 2; ++k) {
+    const TumDataset ds = open_tum_dataset(s.dir / ("scene/robot_" + std::to_string(k)));
+    ClientInfo info = s.info;
+    info.id = ClientId(k);
+    ClientSlam slam(info, s.config, s.vocabulary);
+    test::feed_with_seq(slam, info.id, ds.pairs, 1);
+    SystemState state;
+    state.clients.push_back(slam.export_state());
+    snapshot::write_file_atomic(dir / ("robot" + std::to_string(k) + ".snapshot"), snapshot::encode(state));
+  }
+  const auto r = test::run_program("cslam-map", "merge " + (dir / "robot1.snapshot") + " " + (dir / "robot2.snapshot") +
+                                                    " -o " + (dir / "merged.snapshot") + " --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const SystemState merged = snapshot::read_file(dir / "merged.snapshot");
+  ASSERT_EQ(merged.clients.size(), 2u);
+  auto main_group = [](const ClientSlamState& c) {
+    int m = -1;
+    state_trajectory(c, &m);
+    return c.maps.at(std::size_t(m)).group;
+  };
+  EXPECT_EQ(main_group(merged.clients[0]), main_group(merged.clients[1])) << r.output;
+  EXPECT_GE(main_group(merged.clients[0]), 0);
+  // Merging a file with itself is refused (same client ids) with a clear error.
+  const auto same = test::run_program("cslam-map", "merge " + (dir / "robot1.snapshot") + " " + (dir / "robot1.snapshot") +
+                                                       " -o " + (dir / "x.snapshot"));
+  EXPECT_NE(same.status, 0);
+  EXPECT_NE(same.output.find("ids must differ"), std::string::npos) << same.output;
 }
 
 }  // namespace

@@ -149,8 +149,10 @@ int cmd_merge(int argc, char** argv) {
       .positional("B", "second snapshot")
       .option("out", "output snapshot file (-o)")
       .option("vocab", "vocabulary file (default: the project's)", "")
-      .flag("no-group-ba", "skip the global BA over a newly fused group");
+      .flag("no-group-ba", "skip the global BA over a newly fused group")
+      .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv, 2)) return 0;
+  set_log_level(args.get("log-level"));
   const std::string a = args.positionals()[0], b = args.positionals()[1], out = args.get("out");
   const SystemState sa = snapshot::read_file(a), sb = snapshot::read_file(b);
   for (const auto& ca : sa.clients)
