@@ -153,6 +153,7 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
 struct Session {
   int id;
   std::string dataset, range, camera;
+  std::vector<std::string> extra = {};  // more client options
 };
 
 std::string run_two_sessions(const std::string& name, const Session& s1, const Session& s2) {
@@ -169,6 +170,7 @@ std::string run_two_sessions(const std::string& name, const Session& s1, const S
     if (!endpoint) return run + "/out2";
     std::vector<std::string> args = client_args(*endpoint, s.id, s.dataset, "max");
     args.insert(args.end(), {"--range", s.range, "--camera", s.camera});
+    args.insert(args.end(), s.extra.begin(), s.extra.end());
     test::ChildProcess client(args, run + "/client" + n + ".log");
     EXPECT_EQ(client.wait(600), 0) << "see " << run << "/client" << n << ".log";
     EXPECT_EQ(server.wait(300), 0) << "see " << run << "/server" << n << ".log";
@@ -239,6 +241,17 @@ TEST_F(Persistence, TwoDaysSecondRobotStartsAwayAndMeetsTheLoadedMapLater) {
   // Live two-robot runs of this scene measured 0.041-0.046 m (the kill test's reference run);
   // two days must be as good, with margin for a loaded machine.
   EXPECT_LE(ate, 0.06);
+}
+
+TEST_F(Persistence, SameIdWithNewSessionStartsAMapThatFusionJoinsToTheLoadedOne) {
+  const std::string out = run_two_sessions("multisession_sameid", {1, scene_ + "/robot_2", "1:", ""},
+                                           {1, scene_ + "/robot_1", "1:", "", {"--new-session"}});
+  const auto stats = read_json(out + "/stats.json");
+  ASSERT_EQ(stats["clients"].size(), 1u) << stats.dump();
+  EXPECT_EQ(stats["clients"][0]["maps"], 2) << "the new session should have started its own map";
+  ASSERT_EQ(stats["fusion_events"].size(), 1u) << "the two maps of client 1 were not fused";
+  EXPECT_EQ(stats["fusion_events"][0]["client_a"], 1);
+  EXPECT_EQ(stats["fusion_events"][0]["client_b"], 1);
 }
 
 TEST_F(Persistence, DamagedStateFolderRefusesToStartUnlessReset) {
