@@ -125,12 +125,6 @@ struct Encoder {
       octaves[i] = char(std::uint8_t(k.octave));
     }
     out->set_octaves(std::move(octaves));
-    auto* und = out->mutable_undistorted();
-    und->Resize(int(n * 2), 0.f);
-    for (std::size_t i = 0; i < n; ++i) {
-      und->mutable_data()[2 * i] = float(d.features.undistorted[i].x());
-      und->mutable_data()[2 * i + 1] = float(d.features.undistorted[i].y());
-    }
     std::string desc(n * kDescriptorBytes, '\0');
     if (n) std::memcpy(desc.data(), d.features.descriptors.data(), n * kDescriptorBytes);
     out->set_descriptors(std::move(desc));
@@ -223,7 +217,7 @@ struct Decoder {
                                                 const std::string& what) const {
     const std::size_t n = p.num_keypoints();
     if (n > 100000) fail(what + ": keypoint count out of range");
-    if (std::size_t(p.keypoints_size()) != 5 * n || p.octaves().size() != n || std::size_t(p.undistorted_size()) != 2 * n ||
+    if (std::size_t(p.keypoints_size()) != 5 * n || p.octaves().size() != n ||
         p.descriptors().size() != n * kDescriptorBytes || std::size_t(p.depth_size()) != n ||
         std::size_t(p.u_right_size()) != n || p.colors().size() != 3 * n || p.bounds_size() != 4)
       fail(what + ": per-keypoint arrays do not match the keypoint count");
@@ -246,10 +240,10 @@ struct Decoder {
       const int octave = std::uint8_t(p.octaves()[i]);
       if (octave >= d->pyramid->num_levels) fail(what + ": keypoint level out of range");
       d->features.keypoints[i] = cv::KeyPoint(f[0], f[1], f[2], f[3], f[4], octave);
-      const float u = p.undistorted(int(2 * i)), v = p.undistorted(int(2 * i + 1));
-      if (!std::isfinite(u) || !std::isfinite(v)) fail(what + ": keypoint is not finite");
-      d->features.undistorted[i] = Eigen::Vector2d(u, v);
+      // As OrbExtractor::extract computes them.
+      d->features.undistorted[i] = Eigen::Vector2d(f[0], f[1]);
     }
+    if (d->camera.has_distortion()) d->camera.undistort_pixels(d->features.undistorted);
     if (n) std::memcpy(d->features.descriptors.data(), p.descriptors().data(), n * kDescriptorBytes);
     d->depth.assign(p.depth().begin(), p.depth().end());
     d->u_right.assign(p.u_right().begin(), p.u_right().end());

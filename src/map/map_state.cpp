@@ -4,6 +4,7 @@
 #include <shared_mutex>
 #include <sstream>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "bow/vocabulary.h"
 #include "core/error.h"
@@ -11,6 +12,8 @@
 namespace cslam {
 
 MapState export_map_state(const Map& map) {
+  // Runs under the map's shared lock: plain copies only (ids instead of pointers, no lookups,
+  // no sorting); tidy_map_state does the rest without the lock.
   MapState s;
   s.client = map.client();
   s.index = map.index();
@@ -23,15 +26,12 @@ MapState export_map_state(const Map& map) {
     k.id = kf->id;
     k.data = kf->data;
     k.T_cam_world = kf->T_cam_world;
-    if (kf->parent && !kf->parent->bad && map.keyframe(kf->parent->id) == kf->parent) k.parent = kf->parent->id;
+    if (kf->parent && !kf->parent->bad) k.parent = kf->parent->id;
     k.connections.reserve(kf->ordered_connections.size());
-    // Links inside this map only (cross-map seams belong to map fusion).
-    auto in_map = [&](KeyFrame* other) { return !other->bad && map.keyframe(other->id).get() == other; };
     for (const auto& [w, other] : kf->ordered_connections)
-      if (in_map(other)) k.connections.emplace_back(other->id, w);
+      if (!other->bad) k.connections.emplace_back(other->id, w);
     for (KeyFrame* l : kf->loop_edges)
-      if (in_map(l)) k.loop_edges.push_back(l->id);
-    std::sort(k.loop_edges.begin(), k.loop_edges.end());
+      if (!l->bad) k.loop_edges.push_back(l->id);
     k.first_connection = kf->first_connection;
     if (kf->awaiting_connection() && !kf->creation_reference->bad) {
       k.creation_reference = kf->creation_reference->id;
@@ -39,33 +39,71 @@ MapState export_map_state(const Map& map) {
     }
     s.keyframes.push_back(std::move(k));
   }
-  auto points = map.map_points();
-  std::sort(points.begin(), points.end(), [](const MapPointPtr& a, const MapPointPtr& b) { return a->id < b->id; });
-  s.points.reserve(points.size());
+  // Points: one flat array of observations for all of them (no allocation per point under the
+  // lock); split into per-point vectors in tidy_map_state.
+  const auto points = map.map_points();
+  s.points.resize(points.size());
+  s.flat_observations.clear();
+  s.flat_observations.reserve(points.size() * 8);
+  std::size_t n = 0;
   for (const auto& mp : points) {
     if (mp->bad) continue;
-    MapPointState p;
+    MapPointState& p = s.points[n++];
     p.id = mp->id;
     p.position = mp->position;
     p.normal = mp->normal;
     p.descriptor = mp->descriptor;
     p.min_distance = mp->min_distance;
     p.max_distance = mp->max_distance;
-    p.observations.reserve(mp->observations.size());
+    p.flat_begin = s.flat_observations.size();
     for (const auto& [kf, idx] : mp->observations)
-      if (!kf->bad && map.keyframe(kf->id).get() == kf) p.observations.emplace_back(kf->id, idx);
-    if (p.observations.empty()) continue;
-    std::sort(p.observations.begin(), p.observations.end());
-    if (mp->reference)
-      for (const auto& [id, idx] : p.observations)
-        if (id == mp->reference->id) p.reference = id;
+      if (!kf->bad) s.flat_observations.emplace_back(kf->id, idx);
+    p.flat_end = s.flat_observations.size();
+    if (mp->reference && !mp->reference->bad) p.reference = mp->reference->id;
     p.visible = mp->visible;
     p.found = mp->found;
     p.color = mp->color;
     p.first_keyframe_seq = mp->first_keyframe_seq;
-    s.points.push_back(std::move(p));
   }
+  s.points.resize(n);
   return s;
+}
+
+void tidy_map_state(MapState& s) {
+  // Links inside this map only (cross-map seams belong to map fusion; a keyframe culled meanwhile
+  // is not among the exported ones).
+  std::unordered_set<KeyFrameId> ids;
+  for (const auto& k : s.keyframes) ids.insert(k.id);
+  auto known = [&](KeyFrameId id) { return ids.count(id) > 0; };
+  if (s.origin && !known(*s.origin)) s.origin.reset();
+  for (auto& k : s.keyframes) {
+    if (k.parent && !known(*k.parent)) k.parent.reset();
+    k.connections.erase(std::remove_if(k.connections.begin(), k.connections.end(),
+                                       [&](const auto& c) { return !known(c.first); }),
+                        k.connections.end());
+    k.loop_edges.erase(std::remove_if(k.loop_edges.begin(), k.loop_edges.end(), [&](KeyFrameId l) { return !known(l); }),
+                       k.loop_edges.end());
+    std::sort(k.loop_edges.begin(), k.loop_edges.end());
+    if (k.creation_reference && !known(*k.creation_reference)) k.creation_reference.reset();
+  }
+  for (auto& p : s.points) {
+    if (p.flat_end > p.flat_begin)
+      p.observations.assign(s.flat_observations.begin() + long(p.flat_begin), s.flat_observations.begin() + long(p.flat_end));
+    p.flat_begin = p.flat_end = 0;
+    p.observations.erase(std::remove_if(p.observations.begin(), p.observations.end(),
+                                        [&](const auto& o) { return !known(o.first); }),
+                         p.observations.end());
+    std::sort(p.observations.begin(), p.observations.end());
+    bool ref_observed = false;
+    if (p.reference)
+      for (const auto& [id, idx] : p.observations) ref_observed |= id == *p.reference;
+    if (!ref_observed) p.reference.reset();
+  }
+  s.points.erase(std::remove_if(s.points.begin(), s.points.end(), [](const MapPointState& p) { return p.observations.empty(); }),
+                 s.points.end());
+  std::sort(s.points.begin(), s.points.end(), [](const MapPointState& a, const MapPointState& b) { return a.id < b.id; });
+  s.flat_observations.clear();
+  s.flat_observations.shrink_to_fit();
 }
 
 void derive_frame_data(FrameData& f, const Vocabulary* vocabulary, int bow_levels_up) {

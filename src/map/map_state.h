@@ -35,6 +35,7 @@ struct MapPointState {
   int visible = 1, found = 1;
   cv::Vec3b color{0, 0, 0};
   std::uint32_t first_keyframe_seq = 0;
+  std::size_t flat_begin = 0, flat_end = 0;  // export only: range in MapState::flat_observations
 };
 
 struct MapState {
@@ -44,10 +45,16 @@ struct MapState {
   std::optional<KeyFrameId> origin;
   std::vector<KeyFrameState> keyframes;  // sorted by id
   std::vector<MapPointState> points;     // good points only
+  // export only (empty after tidy_map_state): every point's observations, back to back.
+  std::vector<std::pair<KeyFrameId, int>> flat_observations;
 };
 
-// [shared] The caller holds map.mutex (shared). Culled keyframes and bad points are left out.
+// [shared] The caller holds map.mutex (shared): plain copies only, to keep the hold short.
+// Culled keyframes and bad points are left out. Then, without the lock, tidy_map_state keeps
+// links inside this map only, drops points left without observations and sorts by id (a
+// deterministic file).
 MapState export_map_state(const Map& map);
+void tidy_map_state(MapState& state);
 
 // Rebuilds a Map from its state. Throws InputError(source, ...) when the state is inconsistent
 // (unknown keyframe ids in links, keypoint indices out of range, duplicate ids). Fills the

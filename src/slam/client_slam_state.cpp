@@ -48,6 +48,7 @@ ClientSlamState ClientSlam::export_state() const {
     }
   }
   s.next_ids = ids_->next();  // read after the maps: above every id they hold
+  for (auto& m : s.maps) tidy_map_state(m);
   s.records.reserve(records.size());
   for (auto& r : resolved)
     if (r) s.records.push_back(*r);

@@ -52,6 +52,8 @@ TEST(SnapshotRoundTrip, StateSurvivesEncodeDecodeRestore) {
     ASSERT_EQ(k1.data->size(), k0.data->size());
     EXPECT_EQ(k1.data->features.descriptors, k0.data->features.descriptors);
     EXPECT_EQ(k1.data->depth, k0.data->depth);
+    EXPECT_EQ(k1.data->u_right, k0.data->u_right);
+    EXPECT_EQ(k1.data->features.undistorted, k0.data->features.undistorted);  // recomputed exactly
     for (std::size_t j = 0; j < k0.data->size(); ++j) {
       EXPECT_EQ(k1.data->features.keypoints[j].pt, k0.data->features.keypoints[j].pt);
       EXPECT_EQ(k1.data->features.keypoints[j].octave, k0.data->features.keypoints[j].octave);
