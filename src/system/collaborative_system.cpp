@@ -268,7 +268,7 @@ SystemState CollaborativeSystem::export_state() const {
 }
 
 void CollaborativeSystem::restore_state(const SystemState& state, const std::string& source) {
-  if (!impl_->config.run_slam) throw std::logic_error("restore_state needs run_slam");
+  if (!impl_->config.run_slam) throw ConfigError(source + ": loading a snapshot needs SLAM (not --no-slam; --state-reset starts empty)");
   auto check_new = [&](ClientId id) {  // under impl_->mutex
     if (impl_->finished) throw std::logic_error("restore_state after finish()");
     if (impl_->clients.count(id)) throw InputError(source, "client " + std::to_string(id) + " is already registered");
