@@ -36,6 +36,7 @@ void FrameSender::connect() {
   welcomed_ = false;
   wire::ClientMessage hello;
   *hello.mutable_hello() = wire::to_hello(config_.info);
+  hello.mutable_hello()->set_new_session(config_.new_session && !session_started_);
   send_message(hello);
   const auto deadline = Clock::now() + to_ms(config_.reply_timeout_s);
   while (!welcomed_) {
@@ -167,6 +168,7 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       in_flight_ = w.window() >= w.credits() ? w.window() - w.credits() : 0;
       seq_ = std::max(seq_, w.last_seq());
       welcomed_ = true;
+      session_started_ = true;
       log()->info("client {}: {} session at {}, window {}, {} credits, last seq {}", config_.info.id,
                   w.resumed() ? "resumed" : "new", config_.server, w.window(), w.credits(), w.last_seq());
       break;

@@ -31,6 +31,7 @@ struct SenderConfig {
   // CURVE (docs/security.md): the server's public key and this robot's key pair, Z85. Empty
   // server_public_key: plain TCP (only against a loopback server or one run with --insecure-bind).
   std::string server_public_key, public_key, secret_key;
+  bool new_session = false;            // first hello asks for a new recording session (new map)
 };
 
 struct SenderStats {
@@ -89,6 +90,7 @@ class FrameSender {
   std::unique_ptr<zmq::socket_t> socket_;
   std::uint32_t credits_ = 0, in_flight_ = 0, window_ = 0;
   std::uint64_t seq_ = 0;
+  bool session_started_ = false;  // a welcome was received (reconnects resume, never restart)
   bool welcomed_ = false;
   bool hello_busy_ = false;  // the server asked to retry the hello (its old connection is still live)
   Clock::time_point last_reply_, last_heartbeat_;

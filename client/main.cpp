@@ -36,6 +36,7 @@ int run(int argc, char** argv) {
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")
+      .flag("new-session", "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload", "load and encode every frame before sending (measures the network path only)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")
       .option("progress-interval", "seconds between progress lines", "2")
@@ -75,6 +76,7 @@ int run(int argc, char** argv) {
     config.public_key = own.public_key;
     config.secret_key = own.secret_key;
   }
+  config.new_session = cli.flag_set("new-session");
   const double progress_interval = cli.get_double("progress-interval");
 
   cslam::client::FrameSender sender(config);

@@ -13,6 +13,8 @@
 #include "server/auth/curve_keys.h"
 #include "server/http/http_server.h"
 #include "server/receiver.h"
+#include "server/state_store.h"
+#include "server/http/map_routes.h"
 #include "system/collaborative_system.h"
 
 namespace {
@@ -54,7 +56,10 @@ int run(int argc, char** argv) {
       .option("max-clients", "sessions at a time (any state); more hellos are refused", "64")
       .option("max-pixels", "largest camera (width*height) a hello may announce", "2073600")
       .option("session-ttl", "seconds after which a disconnected or finished session is reclaimed (0: never)", "300")
-      .option("decode-threads", "threads decoding frames for all clients", "2");
+      .option("decode-threads", "threads decoding frames for all clients", "2")
+      .option("state-dir", "folder of map snapshots: loaded at start, written periodically and at exit (empty: off)", "")
+      .option("snapshot-interval", "seconds between background map snapshots (0: only on demand and at exit)", "10")
+      .flag("state-reset", "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)");
   cslam::http::declare_options(cli);
   if (!cli.parse(argc, argv)) return 0;
   cslam::set_log_level(cli.get("log-level"));
@@ -96,6 +101,11 @@ int run(int argc, char** argv) {
     throw cslam::ConfigError("cslam-server: --bind " + rc.bind + " reaches beyond this machine without keys: give "
                              "--curve-secret and --clients-allowed (see docs/security.md), or --insecure-bind");
   }
+  cslam::server::StateStoreConfig state_config;
+  state_config.dir = cli.get("state-dir");
+  state_config.interval_s = cli.get_double("snapshot-interval");
+  state_config.reset = cli.flag_set("state-reset");
+  if (state_config.interval_s < 0) throw cslam::ConfigError("cslam-server: --snapshot-interval must be >= 0");
 
   // Declaration order is destruction order in reverse: the system (and its workers) stops before
   // the done channel they report to, the sockets close before their context.
@@ -106,13 +116,19 @@ int run(int argc, char** argv) {
   sc.run_slam = !cli.flag_set("no-slam");
   sc.on_frame_done = [&done](cslam::ClientId client, std::uint64_t seq) { done.push(client, seq); };
   cslam::CollaborativeSystem system(sc);
+  // Loads the newest snapshot (refuses to start on a bad one unless --state-reset).
+  cslam::server::StateStore state(state_config, system);
+  for (const auto& r : state.load()) rc.restored_sessions.emplace_back(r.info, r.last_seq);
   zmq::context_t context(1);
   cslam::server::Receiver receiver(context, rc, system, done, stop);
   cslam::http::NetStatusBoard net_status;
   receiver.set_status_board(&net_status);
-  cslam::http::HttpServer http(system, cslam::http::config_from(cli));  // reads snapshots only
+  const cslam::http::HttpConfig http_config = cslam::http::config_from(cli);
+  cslam::http::HttpServer http(system, http_config);  // reads snapshots only
   http.set_network_status(&net_status);
+  cslam::http::add_map_routes(http.routes_server(), state, http_config.token);
   http.start();
+  state.start();
   install_signal_handlers(&stop);
   if (cli.has("endpoint-file")) {
     const std::string path = cli.get("endpoint-file"), tmp = path + ".tmp";
@@ -124,7 +140,9 @@ int run(int argc, char** argv) {
   receiver.run();
   auto log = cslam::logger("server");
   log->info("finishing queued frames");
+  state.stop();
   system.finish();
+  if (!state_config.dir.empty() && state.write()) log->info("final map snapshot written to {}", state_config.dir);
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system.write_outputs(out_dir);
   const cslam::server::ServerStats& stats = receiver.stats();

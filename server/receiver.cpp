@@ -89,6 +89,7 @@ Receiver::Receiver(zmq::context_t& context, const ReceiverConfig& config, Collab
     const std::string dir = config_.reclaim_dir + "/client_" + std::to_string(info.id) + "-" + std::to_string(connections);
     system_.retire_client(info.id, dir);
   };
+  for (const auto& [info, last_seq] : config_.restored_sessions) restore_session({info, last_seq, ""});
   log()->info("listening on {} ({}, window {} frames, max message {} bytes, heartbeat timeout {} s, max {} clients, "
               "{} decode threads)",
               endpoint_, config_.curve ? "CURVE, " + std::to_string(config_.curve->clients->size()) + " allowed keys"
@@ -254,7 +255,14 @@ void Receiver::on_hello(const std::string& routing_id, const std::string& key, c
   } catch (const std::exception& e) {  // std::invalid_argument: camera differs from the registered one
     return refuse(wire::ERROR_BAD_HELLO, "bad_hello", e.what());
   }
+  // A known client starting a new recording session (client --new-session): a new map, seqs from 1.
+  const bool new_session = hello.new_session() && admission == Admission::kResume;
   auto [session, resumed] = sessions_.open(info, routing_id, Clock::now(), key);
+  if (new_session) {
+    system_.start_new_session(info.id);
+    session->last_seq = 0;
+    resumed = false;
+  }
   if (resumed) ++stats_.client(info.id).reconnects;
   ++stats_.client(info.id).messages;
   const std::uint32_t credits = session->in_flight >= config_.window ? 0 : config_.window - session->in_flight;

@@ -11,6 +11,8 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <zmq.hpp>
 
@@ -51,6 +53,8 @@ struct ReceiverConfig {
   std::string reclaim_dir = "cslam-out/reclaimed";  // outputs of reclaimed sessions (default hook)
   std::optional<CurveConfig> curve;              // set: CURVE server + ZAP handler
   double publish_interval_s = 0.2;               // live counters for HTTP
+  // Sessions restored from a snapshot (client, camera, last processed seq): resumed at their hello.
+  std::vector<std::pair<ClientInfo, std::uint64_t>> restored_sessions;
 };
 
 // What happens to a reclaimed session's SLAM pipeline. Runs on a background thread, never on the

@@ -82,6 +82,10 @@ Session& SessionTable::restore(const RestoredSession& restored, Clock::time_poin
   return s;
 }
 
+void SessionTable::restore(const ClientInfo& info, std::uint64_t last_seq, Clock::time_point now) {
+  restore(RestoredSession{info, last_seq, ""}, now);
+}
+
 Session* SessionTable::by_routing_id(const std::string& routing_id) {
   auto it = by_routing_.find(routing_id);
   return it == by_routing_.end() ? nullptr : by_client(it->second);

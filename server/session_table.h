@@ -76,6 +76,9 @@ class SessionTable {
   // Throws std::invalid_argument if the id is already in the table or the table is full.
   Session& restore(const RestoredSession& restored, Clock::time_point now);
 
+  // A session restored from a snapshot: known, disconnected, resuming after last_seq at its hello.
+  void restore(const ClientInfo& info, std::uint64_t last_seq, Clock::time_point now);
+
   Session* by_routing_id(const std::string& routing_id);
   Session* by_client(ClientId id);
 

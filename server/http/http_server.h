@@ -53,6 +53,8 @@ class HttpServer {
   void stop();  // idempotent; joins every thread (reconstruction jobs are cancelled)
   int port() const { return port_; }
   const GuardStats* guard_stats() const { return guard_ ? &guard_->stats() : nullptr; }
+  // Registers more routes (e.g. add_map_routes) before start().
+  httplib::Server& routes_server() { return *server_; }
 
  private:
   void routes();

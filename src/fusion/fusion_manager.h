@@ -61,6 +61,9 @@ class FusionManager {
   void forget(const std::vector<const Map*>& maps);
 
   int group_of(const Map* map) const;  // -1 if unknown
+  // Persistence (fusion_manager_state.cpp): registers a restored map in its saved group (its
+  // poses are already in that group's frame); -1: a group of its own.
+  void restore_group(ClientId client, const std::shared_ptr<Map>& map, int group);
   std::vector<FusionEvent> events() const;
   GroupBaStats group_ba_stats() const;
   std::size_t dropped() const;

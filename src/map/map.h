@@ -3,6 +3,8 @@
 // spanning tree and its keyframe database. Not a singleton: each client has its own maps.
 // Locking: `mutex` guards every mutable member of the map, its keyframes and its points.
 // Methods marked [unique] require the caller to hold mutex exclusively, [shared] at least shared.
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <memory>
 #include <shared_mutex>
@@ -22,6 +24,13 @@ class IdAllocator {
   MapPointId next_map_point() { return {client_, next_mp_++}; }
   FrameId next_frame() { return {client_, next_frame_++}; }
   ClientId client() const { return client_; }
+  // Persistence: the next sequence numbers, and moving them forward past restored ids.
+  std::array<std::uint32_t, 3> next() const { return {next_kf_.load(), next_mp_.load(), next_frame_.load()}; }
+  void advance_to(const std::array<std::uint32_t, 3>& next) {
+    next_kf_ = std::max(next_kf_.load(), next[0]);
+    next_mp_ = std::max(next_mp_.load(), next[1]);
+    next_frame_ = std::max(next_frame_.load(), next[2]);
+  }
 
  private:
   ClientId client_;

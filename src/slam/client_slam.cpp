@@ -111,6 +111,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   }
 
   std::lock_guard<std::mutex> lock(mutex_);
+  last_seq_ = frame.seq;
   ++snapshot_.frames_processed;
   extract_ms_.push_back(r.extract_ms);
   track_ms_.push_back(r.track_ms);

@@ -43,6 +43,8 @@ struct ClientSlamTimings {
 // Told about every keyframe local mapping has finished (map fusion, loop detection listen).
 using KeyFrameListener = std::function<void(ClientId, const std::shared_ptr<Map>&, const KeyFramePtr&)>;
 
+struct ClientSlamState;  // slam/client_slam_state.h
+
 class ClientSlam {
  public:
   ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary,
@@ -65,6 +67,15 @@ class ClientSlam {
   // Stops local mapping after processing what is queued. Idempotent.
   void finish();
   const ClientInfo& info() const { return info_; }
+
+  // Persistence (slam/client_slam_state.cpp). export_state: one consistent copy (maps read under
+  // their shared locks, briefly; frame data shared, not copied). restore_state: only before the
+  // first frame; continues in the restored current map (lost until it relocalises there).
+  ClientSlamState export_state() const;
+  void restore_state(const ClientSlamState& state, const std::string& source);
+  // A new recording session of the same client: a new map (fused later by map fusion) and a new
+  // time base; the restored maps are kept.
+  void start_new_session();
 
  private:
   struct FrameRecord {
@@ -95,6 +106,7 @@ class ClientSlam {
   ClientSlamSnapshot snapshot_;
   std::vector<double> extract_ms_, track_ms_;
   bool finished_ = false;
+  std::uint64_t last_seq_ = 0;  // sender's seq of the last frame processed (guarded by mutex_)
 };
 
 }  // namespace cslam

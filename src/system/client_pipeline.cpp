@@ -44,6 +44,7 @@ void ClientPipeline::run() {
 
 void ClientPipeline::consume(const RgbdFrame& frame) {
   if (slam_) {
+    if (new_session_.exchange(false)) slam_->start_new_session();
     const ProcessResult r = slam_->process(frame);
     if (r.outcome == FrameOutcome::kRejected)
       logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);

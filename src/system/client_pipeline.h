@@ -1,6 +1,7 @@
 #pragma once
 // One client inside the collaborative system: a bounded frame queue and the worker thread that
 // drains it into the client's SLAM (or, with run_slam off, only counts frames).
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -29,6 +30,8 @@ class ClientPipeline {
   const ClientInfo& info() const { return info_; }
   ClientSlam* slam() { return slam_.get(); }
   ClientSlamTimings timings() const;
+  // The next frame starts a new session (ClientSlam::start_new_session on the worker thread).
+  void start_new_session() { new_session_ = true; }
 
  private:
   void run();
@@ -41,6 +44,7 @@ class ClientPipeline {
   mutable std::mutex mutex_;
   ClientSnapshot counters_;
   Trajectory counted_trajectory_;  // run_slam off: timestamps with identity poses
+  std::atomic<bool> new_session_{false};
   std::thread thread_;
 };
 

@@ -8,11 +8,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/error.h"
 #include "core/log.h"
 #include "eval/stats.h"
 #include "eval/stats_json.h"
 #include "system/loop_stats_json.h"
 #include "system/client_pipeline.h"
+#include "system/system_state.h"
 
 namespace cslam {
 
@@ -278,6 +280,88 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
                        {"last_points", snap.group_ba.last_points},
                        {"last_linked_points", snap.group_ba.last_linked_points}};
   std::ofstream(dir + "/stats.json") << stats.dump(2) << "\n";
+}
+
+SystemState CollaborativeSystem::export_state() const {
+  std::vector<ClientPipeline*> pipelines;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    for (const auto& [id, p] : impl_->clients)
+      if (p->slam()) pipelines.push_back(p.get());
+  }
+  SystemState state;
+  for (ClientPipeline* p : pipelines) {
+    ClientSlamState cs = p->slam()->export_state();
+    const auto maps = p->slam()->maps();
+    for (auto& ms : cs.maps)
+      if (impl_->fusion && std::size_t(ms.index) < maps.size()) ms.group = impl_->fusion->group_of(maps[ms.index].get());
+    state.clients.push_back(std::move(cs));
+  }
+  return state;
+}
+
+void CollaborativeSystem::restore_state(const SystemState& state, const std::string& source) {
+  if (!impl_->config.run_slam) throw ConfigError(source + ": loading a snapshot needs SLAM (not --no-slam; --state-reset starts empty)");
+  auto check_new = [&](ClientId id) {  // under impl_->mutex
+    if (impl_->finished) throw std::logic_error("restore_state after finish()");
+    if (impl_->clients.count(id)) throw InputError(source, "client " + std::to_string(id) + " is already registered");
+  };
+  for (const ClientSlamState& cs : state.clients) {
+    cs.info.camera.validate();
+    {
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      check_new(cs.info.id);
+    }
+    // Built and restored without the client table's lock (restoring recomputes BoW vectors):
+    // frames of other clients keep flowing meanwhile.
+    KeyFrameListener listener;
+    FusionManager* fusion = impl_->fusion.get();
+    if (fusion)
+      listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion->notify(c, m, kf); };
+    auto pipeline = std::make_unique<ClientPipeline>(cs.info, impl_->config, impl_->vocabulary, std::move(listener));
+    pipeline->slam()->restore_state(cs, source);
+    // Groups first: the maps are registered with fusion before any of their keyframes can be.
+    // (A failed insert below leaves only expired weak entries behind.)
+    const auto maps = pipeline->slam()->maps();
+    if (fusion)
+      for (std::size_t i = 0; i < maps.size() && i < cs.maps.size(); ++i) fusion->restore_group(cs.info.id, maps[i], cs.maps[i].group);
+    {
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      check_new(cs.info.id);
+      impl_->clients.emplace(cs.info.id, std::move(pipeline));
+    }
+    logger("system")->info("client {} ('{}') restored", cs.info.id, cs.info.name);
+  }
+}
+
+void CollaborativeSystem::start_new_session(ClientId id) {
+  ClientPipeline* pipeline = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    auto it = impl_->clients.find(id);
+    if (it == impl_->clients.end() || !it->second->slam()) return;
+    pipeline = it->second.get();
+  }
+  pipeline->start_new_session();
+}
+
+void CollaborativeSystem::offer_keyframes_to_fusion() {
+  if (!impl_->fusion) return;
+  std::vector<std::pair<ClientId, std::shared_ptr<Map>>> maps;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    for (const auto& [id, p] : impl_->clients)
+      if (p->slam())
+        for (const auto& m : p->slam()->maps()) maps.emplace_back(id, m);
+  }
+  for (const auto& [id, m] : maps) {
+    std::vector<KeyFramePtr> kfs;
+    {
+      std::shared_lock<std::shared_mutex> lock(m->mutex);
+      kfs = m->keyframes();
+    }
+    for (const auto& kf : kfs) impl_->fusion->notify(id, m, kf);
+  }
 }
 
 }  // namespace cslam

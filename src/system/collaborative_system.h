@@ -46,6 +46,7 @@ struct SystemSnapshot {
 };
 
 class ClientPipeline;
+struct SystemState;  // system/system_state.h
 
 class CollaborativeSystem {
  public:
@@ -88,6 +89,17 @@ class CollaborativeSystem {
   // Writes client_K.txt (each in its group's frame), fused_G.txt (all frames of a group of two or
   // more clients, time-ordered), keyframes_K.txt and stats.json into dir (created if needed).
   void write_outputs(const std::string& dir) const;
+
+  // Persistence. export_state: every client's maps, groups and trajectory, each map read under
+  // its shared lock for a short copy (serialising happens elsewhere). restore_state: registers
+  // the snapshot's clients with their maps and groups; throws InputError naming `source` if a
+  // client is already registered or the state is inconsistent (nothing is added then for it).
+  SystemState export_state() const;
+  void restore_state(const SystemState& state, const std::string& source);
+  // A known client starts a new recording session: a new map and time base (fused by map fusion).
+  void start_new_session(ClientId id);
+  // Offers every keyframe of every map to map fusion again (merging restored snapshots offline).
+  void offer_keyframes_to_fusion();
 
  private:
   struct Impl;

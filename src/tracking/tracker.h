@@ -69,6 +69,11 @@ class Tracker {
   const std::shared_ptr<Map>& map() const { return map_; }
   // Starts over on a new, empty map (after a long loss); the previous map is kept by the caller.
   void reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink);
+  // Continues in an existing (restored) map: lost, so the next frames relocalise in it.
+  void resume_lost(std::shared_ptr<Map> map, KeyFrameSink* sink) {
+    reset(std::move(map), sink);
+    state_ = TrackState::kLost;
+  }
 
  private:
   bool initialize(Frame& frame);

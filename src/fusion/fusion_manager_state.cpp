@@ -1,0 +1,13 @@
+// FusionManager's persistence hook (declared in fusion/fusion_manager.h).
+#include "fusion/fusion_manager.h"
+
+namespace cslam {
+
+void FusionManager::restore_group(ClientId client, const std::shared_ptr<Map>& map, int group) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  if (group_.count(map.get())) return;
+  registry_.push_back({client, map});
+  group_[map.get()] = group >= 0 ? group : int(client) * 100 + map->index();
+}
+
+}  // namespace cslam

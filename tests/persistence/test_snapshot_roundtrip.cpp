@@ -1,0 +1,172 @@
+// Snapshot round trip: a client's SLAM state -> file bytes -> state -> a new ClientSlam, which
+// holds the same maps and trajectory and continues tracking in the restored map.
+#include <gtest/gtest.h>
+
+#include "eval/trajectory_eval.h"
+#include "proto/snapshot_adapter.h"
+#include "proto/snapshot_file.h"
+#include "snapshot_fixture.h"
+
+namespace cslam {
+namespace {
+
+test::SnapshotScene& scene() {
+  static test::SnapshotScene s;
+  return s;
+}
+
+void expect_same_pose(const SE3& a, const SE3& b) {
+  EXPECT_LT((a.translation() - b.translation()).norm(), 1e-9);
+  EXPECT_LT(a.rotation().angularDistance(b.rotation()), 1e-9);
+}
+
+TEST(SnapshotRoundTrip, StateSurvivesEncodeDecodeRestore) {
+  auto& s = scene();
+  ClientSlam a(s.info, s.config, s.vocabulary);
+  test::feed_with_seq(a, 1, s.pairs(0, 60), 1);
+  SystemState state;
+  state.clients.push_back(a.export_state());
+  const ClientSlamState& before = state.clients[0];
+  ASSERT_GT(before.maps.at(0).keyframes.size(), 3u);
+  ASSERT_GT(before.maps.at(0).points.size(), 100u);
+  EXPECT_EQ(before.last_seq, 60u);
+
+  const std::string bytes = snapshot::encode(state);
+  const SystemState decoded = snapshot::decode(bytes, "roundtrip.snapshot");
+  ASSERT_EQ(decoded.clients.size(), 1u);
+  const ClientSlamState& after = decoded.clients[0];
+  EXPECT_EQ(after.last_seq, before.last_seq);
+  EXPECT_EQ(after.next_ids, before.next_ids);
+  ASSERT_EQ(after.maps.size(), before.maps.size());
+  const MapState &m0 = before.maps[0], &m1 = after.maps[0];
+  ASSERT_EQ(m1.keyframes.size(), m0.keyframes.size());
+  ASSERT_EQ(m1.points.size(), m0.points.size());
+  EXPECT_EQ(m1.origin, m0.origin);
+  for (std::size_t i = 0; i < m0.keyframes.size(); ++i) {
+    const auto &k0 = m0.keyframes[i], &k1 = m1.keyframes[i];
+    EXPECT_EQ(k1.id, k0.id);
+    expect_same_pose(k1.T_cam_world, k0.T_cam_world);
+    EXPECT_EQ(k1.parent, k0.parent);
+    EXPECT_EQ(k1.connections, k0.connections);
+    EXPECT_EQ(k1.loop_edges, k0.loop_edges);
+    ASSERT_EQ(k1.data->size(), k0.data->size());
+    EXPECT_EQ(k1.data->features.descriptors, k0.data->features.descriptors);
+    EXPECT_EQ(k1.data->depth, k0.data->depth);
+    EXPECT_EQ(k1.data->u_right, k0.data->u_right);
+    EXPECT_EQ(k1.data->features.undistorted, k0.data->features.undistorted);  // recomputed exactly
+    for (std::size_t j = 0; j < k0.data->size(); ++j) {
+      EXPECT_EQ(k1.data->features.keypoints[j].pt, k0.data->features.keypoints[j].pt);
+      EXPECT_EQ(k1.data->features.keypoints[j].octave, k0.data->features.keypoints[j].octave);
+    }
+  }
+  for (std::size_t i = 0; i < m0.points.size(); ++i) {
+    EXPECT_EQ(m1.points[i].id, m0.points[i].id);
+    EXPECT_EQ(m1.points[i].position, m0.points[i].position);
+    EXPECT_EQ(m1.points[i].observations, m0.points[i].observations);
+    EXPECT_EQ(m1.points[i].descriptor, m0.points[i].descriptor);
+  }
+
+  ClientSlam b(s.info, s.config, s.vocabulary);
+  b.restore_state(after, "roundtrip.snapshot");
+  const Trajectory ta = a.trajectory(), tb = b.trajectory();
+  ASSERT_EQ(tb.size(), ta.size());
+  for (std::size_t i = 0; i < ta.size(); ++i) {
+    EXPECT_EQ(tb[i].timestamp, ta[i].timestamp);
+    expect_same_pose(tb[i].T_world_cam, ta[i].T_world_cam);
+  }
+  // The restored map is a working map: its database answers, and a second export matches the first.
+  {
+    auto map = b.main_map();
+    std::shared_lock<std::shared_mutex> lock(map->mutex);
+    EXPECT_EQ(map->database.size(), map->num_keyframes());
+  }
+  const ClientSlamState again = b.export_state();
+  EXPECT_EQ(again.maps[0].keyframes.size(), m0.keyframes.size());
+  EXPECT_EQ(again.maps[0].points.size(), m0.points.size());
+  EXPECT_EQ(again.records.size(), before.records.size());
+}
+
+TEST(SnapshotRoundTrip, RestoredClientRelocalisesAndContinues) {
+  auto& s = scene();
+  ClientSlam a(s.info, s.config, s.vocabulary);
+  test::feed_with_seq(a, 1, s.pairs(0, 60), 1);
+  SystemState state;
+  state.clients.push_back(a.export_state());
+  const SystemState decoded = snapshot::decode(snapshot::encode(state), "resume.snapshot");
+
+  ClientSlam b(s.info, s.config, s.vocabulary);
+  b.restore_state(decoded.clients[0], "resume.snapshot");
+  const std::size_t restored = b.trajectory().size();
+  // A few frames are lost with the server; the robot goes on from frame 66.
+  test::feed_with_seq(b, 1, s.pairs(65, 120), 66);
+  const ClientSlamSnapshot snap = b.snapshot();
+  EXPECT_EQ(snap.maps, 1) << "the restored client should relocalise in its map, not start a new one";
+  const Trajectory t = b.trajectory();
+  EXPECT_GE(t.size(), restored + 45) << "frames after the restart should be tracked in the restored map";
+  // Accurate in the restored map's frame: ATE against ground truth (SE3 alignment).
+  Trajectory gt = *s.robot1.groundtruth;
+  sort_by_time(gt);
+  const auto ate = compute_ate(gt, t, Alignment::kSE3, 0.02);
+  EXPECT_LT(ate.stats.rmse, 0.03) << "ATE of the resumed trajectory";
+}
+
+TEST(SnapshotRoundTrip, InconsistentContentIsAnInputErrorNamingTheSource) {
+  auto& s = scene();
+  ClientSlam a(s.info, s.config, s.vocabulary);
+  test::feed_with_seq(a, 1, s.pairs(0, 30), 1);
+  SystemState state;
+  state.clients.push_back(a.export_state());
+  ASSERT_FALSE(state.clients[0].maps[0].points.empty());
+  state.clients[0].maps[0].points[0].observations[0].second = 99999;  // keypoint index beyond the keyframe's keypoints
+  const SystemState decoded = snapshot::decode(snapshot::encode(state), "bad-content.snapshot");
+  ClientSlam b(s.info, s.config, s.vocabulary);
+  try {
+    b.restore_state(decoded.clients[0], "bad-content.snapshot");
+    FAIL() << "restore accepted an observation index out of range";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad-content.snapshot"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace cslam
+
+namespace cslam {
+namespace {
+
+// Two single-session snapshots of overlapping places (robots 1 and 2 of the synthetic scene,
+// each mapped alone) merge into one fused group.
+TEST(SnapshotMerge, TwoOverlappingSessionsBecomeOneGroup) {
+  auto& s = scene();
+  test::TempDir dir("cslam_snapshot_merge");
+  for (int k = 1; k <= 2; ++k) {
+    const TumDataset ds = open_tum_dataset(s.dir / ("scene/robot_" + std::to_string(k)));
+    ClientInfo info = s.info;
+    info.id = ClientId(k);
+    ClientSlam slam(info, s.config, s.vocabulary);
+    test::feed_with_seq(slam, info.id, ds.pairs, 1);
+    SystemState state;
+    state.clients.push_back(slam.export_state());
+    snapshot::write_file_atomic(dir / ("robot" + std::to_string(k) + ".snapshot"), snapshot::encode(state));
+  }
+  const auto r = test::run_program("cslam-map", "merge " + (dir / "robot1.snapshot") + " " + (dir / "robot2.snapshot") +
+                                                    " -o " + (dir / "merged.snapshot") + " --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const SystemState merged = snapshot::read_file(dir / "merged.snapshot");
+  ASSERT_EQ(merged.clients.size(), 2u);
+  auto main_group = [](const ClientSlamState& c) {
+    int m = -1;
+    state_trajectory(c, &m);
+    return c.maps.at(std::size_t(m)).group;
+  };
+  EXPECT_EQ(main_group(merged.clients[0]), main_group(merged.clients[1])) << r.output;
+  EXPECT_GE(main_group(merged.clients[0]), 0);
+  // Merging a file with itself is refused (same client ids) with a clear error.
+  const auto same = test::run_program("cslam-map", "merge " + (dir / "robot1.snapshot") + " " + (dir / "robot1.snapshot") +
+                                                       " -o " + (dir / "x.snapshot"));
+  EXPECT_NE(same.status, 0);
+  EXPECT_NE(same.output.find("ids must differ"), std::string::npos) << same.output;
+}
+
+}  // namespace
+}  // namespace cslam
