@@ -15,9 +15,9 @@ PKGS=(
 )
 # nodejs: the web viewer's npm packages (scripts/install-web.sh); chromium: its browser test.
 TEST_PKGS=(
-  python3-zmq python3-protobuf python3-opencv python3-zstandard python3-numpy python3-rosbag
+  python3-zmq python3-protobuf python3-opencv python3-zstandard python3-numpy python3-rosbag python3-sensor-msgs
 )
-# python3-*: the Python client (client/python) and tools/cslam-bag-replay with their tests.
+# python3-*: the Python client (client/python), tools/cslam-bag-replay and their tests (sensor-msgs: test bags).
 if [ "$BUILD_ONLY" = 1 ]; then
   PKGS=("${PKGS[@]/chromium}")
 else
