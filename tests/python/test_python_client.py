@@ -80,11 +80,11 @@ class PythonClientEndToEnd(unittest.TestCase):
             gt = os.path.join(self.robot, "groundtruth.txt")
             ate_cpp = harness.ate_rmse(gt, os.path.join(cpp.out, "client_1.txt"))
             ate_py = harness.ate_rmse(gt, os.path.join(py.out, "client_1.txt"))
-            # Both track (the scene's ATE is a few mm); the tolerance covers thread scheduling in
-            # the SLAM worker (repeated C++ runs differ by up to ~1 mm here).
-            self.assertLess(ate_cpp, 0.03)
-            self.assertLess(ate_py, 0.03)
-            self.assertLess(abs(ate_py - ate_cpp), 0.005, f"ATE C++ {ate_cpp:.4f} m, Python {ate_py:.4f} m")
+            # Both track; the tolerance covers thread scheduling in the SLAM worker (harness.py).
+            self.assertLess(ate_cpp, harness.ATE_MAX)
+            self.assertLess(ate_py, harness.ATE_MAX)
+            self.assertLess(abs(ate_py - ate_cpp), harness.ATE_TOLERANCE,
+                            f"ATE C++ {ate_cpp:.4f} m, Python {ate_py:.4f} m")
         except Exception:
             type(self).ok = False
             raise
