@@ -1,11 +1,62 @@
-# cslam server image: Debian 12, the same install script as a bare machine.
-FROM debian:bookworm
+# cslam server image, two stages (see docs/deployment.md):
+#   build   - Debian 12 with the compilers; builds the programs and installs the viewer's pinned
+#             three.js (scripts/install-web.sh, npm ci from web/package-lock.json);
+#   runtime - Debian 12 with only the shared libraries the programs load (their ldd closure,
+#             copied from the build stage), the stripped programs, the vocabulary and the viewer.
+# The paths under /opt/cslam are the same in both stages, so the programs find the vocabulary
+# (data/vocabulary) and the viewer (web/) at their compiled-in defaults.
+ARG BASE=debian:bookworm
+
+FROM ${BASE} AS build
 ENV DEBIAN_FRONTEND=noninteractive
 WORKDIR /opt/cslam
-COPY scripts/install-deps.sh scripts/install-deps.sh
-RUN bash scripts/install-deps.sh && rm -rf /var/lib/apt/lists/*
+COPY scripts/install-deps.sh scripts/install-web.sh scripts/
+# A compiler cache bound at /ccache (podman build -v DIR:/ccache, see scripts/container-smoke.sh)
+# is used when present; the image does not depend on it.
+# (man1 exists for openjdk's postinst, which libpcl-dev pulls in, on bases trimmed like -slim.)
+# npm: for scripts/install-web.sh (npm ci of the viewer's pinned three.js).
+RUN mkdir -p /usr/share/man/man1 && bash scripts/install-deps.sh --build-only \
+    && apt-get install -y -qq --no-install-recommends npm \
+    && if [ -d /ccache ]; then apt-get install -y -qq --no-install-recommends ccache; fi \
+    && rm -rf /var/lib/apt/lists/*
+COPY web/package.json web/package-lock.json web/
+RUN bash scripts/install-web.sh
 COPY . .
-RUN bash scripts/build.sh -DCSLAM_BUILD_TESTS=OFF
+RUN if [ -d /ccache ] && command -v ccache > /dev/null; then \
+      export CCACHE_DIR=/ccache CCACHE_BASEDIR=/opt/cslam CCACHE_COMPILERCHECK=content CMAKE_CXX_COMPILER_LAUNCHER=ccache; \
+    fi; \
+    bash scripts/build.sh -DCSLAM_BUILD_TESTS=OFF
+# The programs a deployment runs (benchmarks stay out), stripped, with curl for the healthcheck;
+# then every shared library they load that the bare base image lacks, at its real path.
+ARG PROGRAMS="cslam-server cslam-client cslam-synth cslam-slam cslam-eval cslam-recon cslam-experiment cslam-vocab"
+RUN set -eu; mkdir -p /stage/opt/cslam/bin /stage/usr/local/bin; \
+    for p in $PROGRAMS; do install -s -m 0755 build/bin/$p /stage/opt/cslam/bin/$p; done; \
+    install -m 0755 /usr/bin/curl /stage/usr/local/bin/curl; \
+    ldd /stage/opt/cslam/bin/* /stage/usr/local/bin/curl | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u \
+      > /tmp/libs.txt; \
+    while read -r lib; do \
+      real=$(readlink -f "$lib"); pkg=$(dpkg -S "$real" 2>/dev/null | head -1 | cut -d: -f1 || true); \
+      if [ -n "$pkg" ] && [ "$(dpkg-query -W -f='${Priority}' "$pkg")" = required ]; then continue; fi; \
+      dir=$(readlink -f "$(dirname "$lib")"); mkdir -p "/stage$dir"; cp -L "$lib" "/stage$dir/$(basename "$lib")"; \
+    done < /tmp/libs.txt; \
+    mkdir -p /stage/opt/cslam/data/vocabulary /stage/opt/cslam/web/node_modules/three/build; \
+    cp data/vocabulary/cslam_orb.voc data/vocabulary/README.md /stage/opt/cslam/data/vocabulary/; \
+    cp web/index.html web/viewer.js /stage/opt/cslam/web/; \
+    cp web/node_modules/three/build/three.module.js /stage/opt/cslam/web/node_modules/three/build/; \
+    cp web/node_modules/three/LICENSE web/node_modules/three/package.json /stage/opt/cslam/web/node_modules/three/; \
+    echo "[image] $(ls /stage/opt/cslam/bin | wc -l) programs, $(find /stage/usr -name '*.so*' | wc -l) libraries"
+
+FROM ${BASE} AS runtime
+COPY --from=build /stage/ /
+RUN ldconfig && useradd --system --uid 10001 --home-dir /data --no-create-home cslam \
+    && mkdir -p /data && chown cslam:cslam /data \
+    && /opt/cslam/bin/cslam-server --help > /dev/null
+ENV PATH=/opt/cslam/bin:$PATH
+WORKDIR /data
+VOLUME /data
+USER cslam
 EXPOSE 5555 8080
-# Starts the collaborative SLAM server (ZeroMQ on 5555, HTTP on 8080).
-CMD ["build/bin/cslam-server", "--bind", "tcp://*:5555", "--http", "8080", "--http-bind", "0.0.0.0", "--out-dir", "/data/out"]
+HEALTHCHECK --interval=15s --timeout=5s --start-period=10s --retries=3 \
+  CMD curl -sf -o /dev/null http://127.0.0.1:8080/api/status || exit 1
+# ZeroMQ on 5555, HTTP API and viewer on 8080, results in /data/out.
+CMD ["cslam-server", "--bind", "tcp://*:5555", "--http", "8080", "--http-bind", "0.0.0.0", "--out-dir", "/data/out"]
