@@ -260,15 +260,26 @@ class PythonClientProtocol(unittest.TestCase):
         server.close()
 
     def test_curve_keys_load_from_files(self):
+        """cslam-keygen's files (NAME.key: public-key + secret-key lines, NAME.pub) and bare keys."""
+        server_public, server_secret = zmq.curve_keypair()
         public, secret = zmq.curve_keypair()
         d = harness.scratch("pykeys")
-        with open(os.path.join(d, "server.key"), "w") as f:
-            f.write(f"# server public key\npublic-key = {public.decode()}\n")
-        with open(os.path.join(d, "client.key_secret"), "w") as f:
+        path = lambda name: os.path.join(d, name)  # noqa: E731
+        with open(path("server.pub"), "w") as f:
+            f.write(f"# cslam CURVE public key\npublic-key = {server_public.decode()}\n")
+        with open(path("robot1.key"), "w") as f:
+            f.write(f"# cslam CURVE secret key: keep private (mode 0600)\npublic-key = {public.decode()}\n"
+                    f"secret-key = {secret.decode()}\n")
+        with open(path("bare_server"), "w") as f:
+            f.write(server_public.decode() + "\n")
+        with open(path("bare_secret"), "w") as f:
             f.write(secret.decode() + "\n")
-        keys = CurveKeys.load(os.path.join(d, "server.key"), os.path.join(d, "client.key_secret"))
-        self.assertEqual(keys.server_public, public.decode())
-        self.assertEqual(keys.client_public, zmq.curve_public(secret).decode())
+        for server_file, own_file in (("server.pub", "robot1.key"), ("bare_server", "bare_secret")):
+            keys = CurveKeys.load(path(server_file), path(own_file))
+            self.assertEqual((keys.server_public, keys.client_public, keys.client_secret),
+                             (server_public.decode(), public.decode(), secret.decode()))
+        with self.assertRaises(ValueError):  # a .pub where the secret key belongs
+            CurveKeys.load(path("server.pub"), path("server.pub"))
         harness.cleanup(d, True)
 
 

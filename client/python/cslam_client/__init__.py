@@ -7,11 +7,11 @@ See README.md ("Python client") for an example robot loop.
 from . import camera, dataset
 from .camera import Camera
 from .codecs import Codecs
-from .errors import (ConnectionFailed, CslamError, FrameRejected, HelloRejected, ProtocolVersionError, ServerError,
-                     ServerShuttingDown)
+from .errors import (ConnectionFailed, CslamError, FrameRejected, HelloRejected, NotAuthorized, ProtocolVersionError,
+                     ServerError, ServerShuttingDown, SessionBusy, TooManyClients)
 from .progress import Progress
 from .sender import AckInfo, CurveKeys, FrameSender, SenderStats
 
 __all__ = ["AckInfo", "Camera", "Codecs", "ConnectionFailed", "CslamError", "CurveKeys", "FrameRejected", "FrameSender",
-           "HelloRejected", "Progress", "ProtocolVersionError", "SenderStats", "ServerError", "ServerShuttingDown",
-           "camera", "dataset"]
+           "HelloRejected", "NotAuthorized", "Progress", "ProtocolVersionError", "SenderStats", "ServerError",
+           "ServerShuttingDown", "SessionBusy", "TooManyClients", "camera", "dataset"]

@@ -38,19 +38,36 @@ class ServerShuttingDown(ServerError):
     """The server is shutting down (ERROR_SHUTTING_DOWN)."""
 
 
-class FrameRejected(ServerError):
-    """The server dropped one frame (corrupt image, size mismatch, duplicate seq, no credit...).
+class TooManyClients(ServerError):
+    """The server has --max-clients sessions open (ERROR_TOO_MANY_CLIENTS)."""
 
-    Not fatal: the credit comes back with the error. Raised only with ``strict=True``; otherwise
-    counted in ``FrameSender.stats.errors`` like the C++ FrameSender does.
+
+class NotAuthorized(ServerError):
+    """This connection's CURVE key may not speak for the client id (ERROR_NOT_AUTHORIZED)."""
+
+
+class SessionBusy(ServerError):
+    """The session is live on another connection (ERROR_SESSION_BUSY); connect() retries the hello."""
+
+
+class FrameRejected(ServerError):
+    """Any other server error, e.g. one dropped frame (corrupt image, size mismatch, duplicate seq).
+
+    Not fatal: a dropped frame's credit comes back with the error. A frame's error is raised only
+    with ``strict=True``; otherwise counted in ``FrameSender.stats.errors`` (and
+    ``stats.frames_refused``) as the C++ FrameSender does.
     """
 
 
-# Error codes that end the session, as in client/frame_sender.cpp.
+# Error codes with their own class (the rest are FrameRejected), as client/frame_sender.cpp
+# treats them. Looked up by name: codes the wire schema does not have yet are simply absent.
 FATAL = {
     "ERROR_BAD_VERSION": ProtocolVersionError,
     "ERROR_BAD_HELLO": HelloRejected,
     "ERROR_SHUTTING_DOWN": ServerShuttingDown,
+    "ERROR_TOO_MANY_CLIENTS": TooManyClients,
+    "ERROR_NOT_AUTHORIZED": NotAuthorized,  # fatal for a hello; a refused frame is counted
+    "ERROR_SESSION_BUSY": SessionBusy,
 }
 
 

@@ -32,18 +32,26 @@ log = logging.getLogger("cslam_client")
 
 @dataclass
 class CurveKeys:
-    """ZeroMQ CURVE keys (Z85 text, 40 characters, as zmq.curve_keypair() and cslam-keygen make)."""
+    """ZeroMQ CURVE keys, Z85 text (40 characters), as cslam-keygen and zmq.curve_keypair() make."""
     server_public: str
     client_public: str
     client_secret: str
 
     @staticmethod
     def load(server_key_file, client_secret_file):
-        """The server's public key file and this client's secret key file (each: the Z85 key on a
-        line, optionally after 'public-key'/'secret-key' labels; the client's public key is derived)."""
-        server_public = _read_key(server_key_file)
-        client_secret = _read_key(client_secret_file)
-        return CurveKeys(server_public, zmq.curve_public(client_secret.encode()).decode(), client_secret)
+        """cslam-client's --server-key and --curve-secret files: the server's NAME.pub (or .key) and
+        this robot's NAME.key (``public-key = ...`` / ``secret-key = ...`` lines; a file holding
+        just the key works too). The robot's public key is derived if its file lacks it."""
+        server = read_key_file(server_key_file)
+        own = read_key_file(client_secret_file)
+        server_public = server.get("public-key") or server.get("key")
+        secret = own.get("secret-key") or own.get("key")
+        if not server_public:
+            raise ValueError(f"{server_key_file}: no public-key")
+        if not secret:
+            raise ValueError(f"{client_secret_file}: no secret-key (give this robot's .key file, not a .pub)")
+        public = own.get("public-key") if "secret-key" in own else None
+        return CurveKeys(server_public, public or zmq.curve_public(secret.encode()).decode(), secret)
 
     def apply(self, socket):
         socket.curve_serverkey = self.server_public.encode()
@@ -51,18 +59,27 @@ class CurveKeys:
         socket.curve_secretkey = self.client_secret.encode()
 
 
-def _read_key(path):
-    """The first 40-character Z85 key in a key file: a bare key, 'public-key = KEY' lines, or a
-    czmq certificate (quoted values). Lines starting with '#' are comments."""
+def read_key_file(path):
+    """{'public-key': ..., 'secret-key': ..., 'client-ids': ...} from a cslam-keygen key file
+    (``key = value`` lines, '#' comment lines; Z85 may contain '=' and '#', so only the first '='
+    of a known key splits). A file holding one bare 40-character key gives {'key': KEY}."""
+    values = {}
     with open(path) as f:
-        for line in f:
-            if line.lstrip().startswith("#"):
-                continue
-            for word in reversed(line.split()):
-                word = word.strip('"')
-                if len(word) == 40:
-                    return word
-    raise ValueError(f"{path}: no 40-character Z85 key found")
+        lines = [line.strip() for line in f]
+    for line in lines:
+        if not line or line.startswith("#"):
+            continue
+        name, sep, value = line.partition("=")
+        if sep and name.strip() in ("public-key", "secret-key", "client-ids"):
+            values[name.strip()] = value.strip().strip('"')
+        elif len(line) == 40 and not values:
+            values = {"key": line}
+        else:
+            raise ValueError(f"{path}: unexpected line '{line[:20]}...' (expected 'public-key = KEY' lines)")
+    for key in ("public-key", "secret-key", "key"):
+        if key in values and len(values[key]) != 40:
+            raise ValueError(f"{path}: {key} is not a 40-character Z85 key")
+    return values
 
 
 @dataclass
@@ -81,6 +98,7 @@ class SenderStats:
     heartbeats: int = 0
     reconnects: int = 0
     dropped_no_credit: int = 0   # live mode: frames replaced by a newer one before a credit came
+    frames_refused: int = 0      # errors about a sent frame (seq != 0): frames the server did not take
     errors: Dict[str, int] = field(default_factory=dict)  # server error code name -> count
 
 
@@ -117,6 +135,7 @@ class FrameSender:
         self._socket = None
         self._welcomed = False
         self._pending = None          # live mode: the newest frame waiting for a credit
+        self._hello_busy = False      # the server asked to repeat the hello a little later
         self._rejected = []           # strict mode: frame errors to raise at the next call
         now = time.monotonic()
         self._last_reply = now
@@ -165,6 +184,10 @@ class FrameSender:
                 raise errors.ConnectionFailed(
                     f"client {self.client_id}: no welcome from {self.server} within {self.reply_timeout} s")
             self._handle_reply(left)
+            if self._hello_busy and not self._welcomed:
+                self._hello_busy = False
+                self._handle_reply(min(left, 0.5))
+                self._send_message(hello)
 
     def reconnect(self):
         attempt = 0
@@ -334,14 +357,19 @@ class FrameSender:
             err = errors.from_wire(e, pb)
             self.stats.errors[err.code_name] = self.stats.errors.get(err.code_name, 0) + 1
             self.credits += e.credits
-            if e.seq != 0 and self.in_flight > 0:
-                self.in_flight -= 1
+            if e.seq != 0:
+                self.stats.frames_refused += 1
+                if self.in_flight > 0:
+                    self.in_flight -= 1
             log.warning("client %d: server error %s for seq %d: %s", self.client_id, err.code_name, e.seq, e.message)
-            if not isinstance(err, errors.FrameRejected):
-                raise err
-            if err.code_name == "ERROR_NOT_REGISTERED" and self._welcomed:
+            fatal = (errors.ProtocolVersionError, errors.HelloRejected, errors.ServerShuttingDown, errors.TooManyClients)
+            if isinstance(err, fatal) or (isinstance(err, errors.NotAuthorized) and e.seq == 0):
+                raise err  # the session cannot go on (as client/frame_sender.cpp)
+            if isinstance(err, errors.SessionBusy) and not self._welcomed:
+                self._hello_busy = True  # our previous connection has not timed out: connect() asks again
+            elif err.code_name == "ERROR_NOT_REGISTERED" and self._welcomed:
                 self.reconnect()
-            elif self.strict:
+            elif self.strict and e.seq != 0:
                 self._rejected.append(err)
         return True
 
