@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/progress.h"
+#include "core/stopwatch.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 

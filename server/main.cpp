@@ -65,6 +65,7 @@ int run(int argc, char** argv) {
   cslam::http::declare_options(cli);
   if (!cli.parse(argc, argv)) return 0;
   cslam::set_log_level(cli.get("log-level"));
+  require_writable_dir("--out-dir", cli.get("out-dir"));
 
   cslam::server::ReceiverConfig rc;
   rc.bind = cli.get("bind");
@@ -81,7 +82,6 @@ int run(int argc, char** argv) {
   if (rc.heartbeat_timeout_s <= 0 || rc.log_interval_s <= 0)
     throw cslam::ConfigError("cslam-server: --heartbeat-timeout and --log-interval must be positive");
   const std::string out_dir = cli.get("out-dir");
-  require_writable_dir("--out-dir", out_dir);
 
   // Declaration order is destruction order in reverse: the system (and its workers) stops before
   // the done channel they report to, the sockets close before their context.
