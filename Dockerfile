@@ -28,9 +28,12 @@ RUN if [ -d /ccache ] && command -v ccache > /dev/null; then \
     bash scripts/build.sh -DCSLAM_BUILD_TESTS=OFF
 # The programs a deployment runs (benchmarks stay out), stripped, with curl for the healthcheck;
 # then every shared library they load that the bare base image lacks, at its real path.
+# OPTIONAL_PROGRAMS are shipped when the build has them (cslam-keygen comes with CURVE support).
 ARG PROGRAMS="cslam-server cslam-client cslam-synth cslam-slam cslam-eval cslam-recon cslam-experiment cslam-vocab"
+ARG OPTIONAL_PROGRAMS="cslam-keygen cslam-map"
 RUN set -eu; mkdir -p /stage/opt/cslam/bin /stage/usr/local/bin; \
     for p in $PROGRAMS; do install -s -m 0755 build/bin/$p /stage/opt/cslam/bin/$p; done; \
+    for p in $OPTIONAL_PROGRAMS; do if [ -f build/bin/$p ]; then install -s -m 0755 build/bin/$p /stage/opt/cslam/bin/$p; fi; done; \
     install -m 0755 /usr/bin/curl /stage/usr/local/bin/curl; \
     ldd /stage/opt/cslam/bin/* /stage/usr/local/bin/curl | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u \
       > /tmp/libs.txt; \

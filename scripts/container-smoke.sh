@@ -145,12 +145,24 @@ fi
 [ "$(wc -l < "$DIR/ro.log")" -le 2 ] || { cat "$DIR/ro.log" >&2; fail "expected one clear line for an unwritable --out-dir"; }
 say "  -> $(tail -1 "$DIR/ro.log")"
 
+# A server built with CURVE support (cslam-keygen in the image) runs keyed, as a deployment should:
+# keys made by the image's cslam-keygen, each robot's key bound to its id.
+SERVER_KEYS=(); CLIENT_KEYS=()
+if img cslam-server --help 2> /dev/null | grep -q -- --curve-secret; then
+  say "the image's server supports CURVE: keys from its cslam-keygen in /data/keys"
+  img sh -c 'mkdir -p /data/keys/clients && cslam-keygen --out /data/keys/server > /dev/null &&
+             for k in 1 2; do cslam-keygen --out /data/keys/robot$k --client-ids $k > /dev/null &&
+             cp /data/keys/robot$k.pub /data/keys/clients/; done' || fail "cslam-keygen"
+  SERVER_KEYS=(--curve-secret /data/keys/server.key --clients-allowed /data/keys/clients)
+  CLIENT_KEYS=(--server-key /data/keys/server.pub)
+fi
+
 say "synthetic scene (cslam-synth --preset test-small) into /data/scene"
 img cslam-synth --preset test-small --out /data/scene --log-level warn > "$DIR/synth.log" 2>&1 || { cat "$DIR/synth.log"; fail "cslam-synth"; }
 
 say "starting cslam-server"
 SERVER_CMD=(cslam-server --bind "tcp://*:$ZMQ_PORT" --http "$HTTP_PORT" --http-bind 0.0.0.0 --out-dir /data/out
-            --clients 2 --exit-when-done --log-interval 5)
+            --clients 2 --exit-when-done --log-interval 5 "${SERVER_KEYS[@]}")
 if [ "$MODE" = chroot ]; then
   img "${SERVER_CMD[@]}" > "$DIR/server.log" 2>&1 &
   PIDS+=($!)
@@ -175,11 +187,21 @@ else
 fi
 say "healthcheck command passes"
 
+if [ ${#SERVER_KEYS[@]} -gt 0 ]; then
+  if img cslam-client --server "tcp://$SERVER_HOST:$ZMQ_PORT" --id 1 --dataset /data/scene/robot_1 --range 1:2 \
+       --reply-timeout 3 > "$DIR/client_nokey.log" 2>&1; then
+    fail "a client without keys got through"
+  fi
+  say "a client without keys gets nothing"
+fi
+
 say "two replay clients (robot_1, robot_2)"
 CPIDS=()
 for k in 1 2; do
+  KEYS=()
+  [ ${#CLIENT_KEYS[@]} -gt 0 ] && KEYS=("${CLIENT_KEYS[@]}" --curve-secret "/data/keys/robot$k.key")
   img cslam-client --server "tcp://$SERVER_HOST:$ZMQ_PORT" --id "$k" --dataset "/data/scene/robot_$k" --rate max \
-    > "$DIR/client_$k.log" 2>&1 &
+    "${KEYS[@]}" > "$DIR/client_$k.log" 2>&1 &
   CPIDS+=($!)
 done
 PIDS+=("${CPIDS[@]}")
