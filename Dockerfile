@@ -20,7 +20,11 @@ RUN mkdir -p /usr/share/man/man1 && bash scripts/install-deps.sh --build-only \
     && if [ -d /ccache ]; then apt-get install -y -qq --no-install-recommends ccache; fi \
     && rm -rf /var/lib/apt/lists/*
 COPY web/package.json web/package-lock.json web/
-RUN bash scripts/install-web.sh
+# CI=true: fail the build if npm ci fails (the image must serve three.js). Behind a TLS-inspecting
+# proxy, pass its CA: --build-arg CSLAM_NPM_CA=/path with the file bound in (container-smoke.sh
+# does this from NODE_EXTRA_CA_CERTS).
+ARG CSLAM_NPM_CA=
+RUN if [ -n "$CSLAM_NPM_CA" ]; then export NODE_EXTRA_CA_CERTS="$CSLAM_NPM_CA"; fi; CI=true bash scripts/install-web.sh
 COPY . .
 RUN if [ -d /ccache ] && command -v ccache > /dev/null; then \
       export CCACHE_DIR=/ccache CCACHE_BASEDIR=/opt/cslam CCACHE_COMPILERCHECK=content CMAKE_CXX_COMPILER_LAUNCHER=ccache; \

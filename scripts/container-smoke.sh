@@ -16,6 +16,7 @@
 #   CSLAM_IMAGE       image tag (default localhost/cslam:smoke)
 #   CSLAM_ENGINE      docker | podman (default: docker if its engine answers, else podman)
 #   CSLAM_CCACHE_DIR  optional compiler cache folder bound into the build stage at /ccache
+#   NODE_EXTRA_CA_CERTS  if set, bound into the build stage for npm ci (TLS-inspecting proxies)
 #   CSLAM_SKIP_BUILD  1: use the already built image
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -79,6 +80,11 @@ if [ "${CSLAM_SKIP_BUILD:-0}" != 1 ]; then
   if [ "$ENGINE" = podman ]; then
     BUILD_ARGS+=(--isolation=chroot --format docker)  # docker format keeps HEALTHCHECK
     if [ -n "${CSLAM_CCACHE_DIR:-}" ]; then mkdir -p "$CSLAM_CCACHE_DIR"; BUILD_ARGS+=(-v "$CSLAM_CCACHE_DIR:/ccache"); fi
+    # A host that reaches the npm registry through a TLS-inspecting proxy trusts its CA with
+    # NODE_EXTRA_CA_CERTS: the build stage's npm ci gets the same file (nothing of it enters the image).
+    if [ -n "${NODE_EXTRA_CA_CERTS:-}" ] && [ -f "$NODE_EXTRA_CA_CERTS" ]; then
+      BUILD_ARGS+=(-v "$NODE_EXTRA_CA_CERTS:/run/cslam-npm-ca.crt:ro" --build-arg CSLAM_NPM_CA=/run/cslam-npm-ca.crt)
+    fi
   fi
   say "building $IMAGE (log: $DIR/build.log)"
   t0=$(date +%s)
