@@ -182,9 +182,11 @@ for _ in $(seq 1 100); do
 done
 [ -n "$STATUS" ] || { cat "$DIR/server.log" 2> /dev/null; fail "no /api/status answer"; }
 say "/api/status answers: $STATUS"
-in_net curl -sf "$HTTP_URL/" | grep -qi "<html" || fail "the viewer page is not served"
-in_net curl -sf "$HTTP_URL/vendor/three.module.js" | head -c 20000 | grep -q "REVISION" || fail "three.js is not served"
-say "viewer page and /vendor/three.module.js served"
+in_net curl -sf "$HTTP_URL/" > "$DIR/index.html" && grep -qi "<html" "$DIR/index.html" || fail "the viewer page is not served"
+in_net curl -sf "$HTTP_URL/vendor/three.module.js" > "$DIR/three.module.js" || fail "three.js is not served"
+THREE=$(grep -o "REVISION = '[0-9]*'" "$DIR/three.module.js" | head -1)
+[ -n "$THREE" ] || fail "/vendor/three.module.js is not three.js"
+say "viewer page and /vendor/three.module.js served ($(wc -c < "$DIR/three.module.js") bytes, $THREE)"
 if [ "$MODE" = chroot ]; then
   # The image's HEALTHCHECK command, with the port of this run.
   img curl -sf -o /dev/null "http://127.0.0.1:$HTTP_PORT/api/status" || fail "healthcheck command failed"
@@ -211,6 +213,13 @@ for k in 1 2; do
   CPIDS+=($!)
 done
 PIDS+=("${CPIDS[@]}")
+# /api/status while the robots stream (as a service next to them would see it).
+for _ in $(seq 1 150); do
+  LIVE=$(in_net curl -sf "$HTTP_URL/api/status" 2> /dev/null || true)
+  [ "$(echo "$LIVE" | grep -o '"id":[0-9]*' | sort -u | wc -l)" -ge 2 ] && break
+  sleep 0.2
+done
+say "/api/status with the robots connected: $LIVE"
 for p in "${CPIDS[@]}"; do wait "$p" || { cat "$DIR"/client_*.log >&2; fail "a client failed"; }; done
 say "clients done; waiting for the server to write its results"
 if [ "$MODE" = chroot ]; then
@@ -222,7 +231,7 @@ for k in 1 2; do
   f="$DATA/out/client_$k.txt"
   [ -s "$f" ] || fail "no trajectory $f"
   n=$(grep -vc '^#' "$f")
-  ate=$(img cslam-eval ate "/data/scene/robot_$k/groundtruth.txt" "/data/out/client_$k.txt" | tail -1)
-  say "client $k: $n poses; $ate"
+  ate=$(img cslam-eval ate "/data/scene/robot_$k/groundtruth.txt" "/data/out/client_$k.txt" | tail -1 | awk '{print $6}')
+  say "client $k: $n poses, APE RMSE $ate m (the image's cslam-eval against the scene's ground truth)"
 done
 say "PASS ($MODE mode, image $IMAGE, $(awk -v s="$SIZE" 'BEGIN{printf "%.0f MB", s/1e6}'))"
