@@ -11,7 +11,7 @@
 # programs run from the image's own file tree (`podman image mount`) with chroot, as the image's
 # user, with a writable folder bound at /data; the script says so.
 #
-# Not part of ctest (about 10 minutes, root needed for podman/chroot). Environment:
+# Not part of ctest (the image build takes 10-25 minutes; root needed for podman/chroot). Environment:
 #   CSLAM_SMOKE_DIR   work folder (default /var/tmp/cslam-smoke): rootfs, build log, /data volume
 #   CSLAM_IMAGE       image tag (default localhost/cslam:smoke)
 #   CSLAM_ENGINE      docker | podman (default: docker if its engine answers, else podman)
