@@ -234,6 +234,8 @@ class PythonClientProtocol(unittest.TestCase):
         third = server.recv_kind("frame").frame
         self.assertEqual((third.seq, third.timestamp), (3, 104.0))  # the newest frame, next seq
         self.assertEqual(sender.last_ack.seq, 1)
+        self.assertEqual([(a.seq, a.fields) for a in sender.take_acks()], [(1, {"client_id": 7, "seq": 1, "credits": 1})])
+        self.assertEqual(sender.take_acks(), [])
         sender.close()
         server.close()
 

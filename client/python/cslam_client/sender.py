@@ -12,10 +12,12 @@ counted in stats.dropped_no_credit) and sends it as soon as a credit comes; call
 idle loop. A silent server triggers a reconnect that resumes the session (same client id,
 sequence numbers continue after the welcome's last_seq).
 
-Every Ack is passed to ``on_ack(AckInfo)`` and kept as ``last_ack``; fields the server adds to
-the Ack (tracking state, pose...) appear in ``AckInfo.fields`` when the wire schema has them.
+Every Ack is passed to ``on_ack(AckInfo)`` (callback style), kept as ``last_ack`` and queued for
+``take_acks()`` (poll style, the newest 1024); fields the server adds to the Ack (tracking state,
+pose...) appear in ``AckInfo.fields`` when the wire schema has them.
 ``curve=CurveKeys(...)`` turns on ZeroMQ CURVE encryption and authentication.
 """
+import collections
 import logging
 import time
 from dataclasses import dataclass, field
@@ -125,6 +127,7 @@ class FrameSender:
         # The newest version the generated schema knows, unless a test asks for another.
         self.protocol_version = protocol_version or max(pb.ProtocolVersion.values())
         self.last_ack: Optional[AckInfo] = None
+        self._acks = collections.deque(maxlen=1024)
         self.stats = SenderStats()
         self.credits = 0
         self.in_flight = 0
@@ -254,6 +257,12 @@ class FrameSender:
         self._raise_rejected()
         return got
 
+    def take_acks(self):
+        """The acks received since the last call (oldest first; at most the newest 1024)."""
+        out = list(self._acks)
+        self._acks.clear()
+        return out
+
     def _send_frame(self, frame):
         self.last_seq += 1
         frame.client_id = self.client_id
@@ -350,6 +359,7 @@ class FrameSender:
             self.stats.acks += 1
             info = AckInfo(a.seq, a.credits, self._last_reply, {f.name: v for f, v in a.ListFields()})
             self.last_ack = info
+            self._acks.append(info)
             if self.on_ack:
                 self.on_ack(info)
         elif kind == "error":
