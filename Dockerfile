@@ -31,7 +31,8 @@ RUN if [ -d /ccache ] && command -v ccache > /dev/null; then \
     fi; \
     bash scripts/build.sh -DCSLAM_BUILD_TESTS=OFF
 # The programs a deployment runs (benchmarks stay out), stripped, with curl for the healthcheck;
-# then every shared library they load that the bare base image lacks, at its real path.
+# then every shared library they load that the bare base image lacks, at its real path, with its
+# Debian package's copyright file.
 # OPTIONAL_PROGRAMS are shipped when the build has them (cslam-keygen comes with CURVE support).
 ARG PROGRAMS="cslam-server cslam-client cslam-synth cslam-slam cslam-eval cslam-recon cslam-experiment cslam-vocab"
 ARG OPTIONAL_PROGRAMS="cslam-keygen cslam-map"
@@ -45,6 +46,9 @@ RUN set -eu; mkdir -p /stage/opt/cslam/bin /stage/usr/local/bin; \
       real=$(readlink -f "$lib"); pkg=$(dpkg -S "$real" 2>/dev/null | head -1 | cut -d: -f1 || true); \
       if [ -n "$pkg" ] && [ "$(dpkg-query -W -f='${Priority}' "$pkg")" = required ]; then continue; fi; \
       dir=$(readlink -f "$(dirname "$lib")"); mkdir -p "/stage$dir"; cp -L "$lib" "/stage$dir/$(basename "$lib")"; \
+      if [ -n "$pkg" ] && [ -f "/usr/share/doc/$pkg/copyright" ]; then \
+        mkdir -p "/stage/usr/share/doc/$pkg"; cp "/usr/share/doc/$pkg/copyright" "/stage/usr/share/doc/$pkg/"; \
+      fi; \
     done < /tmp/libs.txt; \
     mkdir -p /stage/opt/cslam/data/vocabulary /stage/opt/cslam/web/node_modules/three/build; \
     cp data/vocabulary/cslam_orb.voc data/vocabulary/README.md /stage/opt/cslam/data/vocabulary/; \
