@@ -13,8 +13,10 @@ idle loop. A silent server triggers a reconnect that resumes the session (same c
 sequence numbers continue after the welcome's last_seq).
 
 Every Ack is passed to ``on_ack(AckInfo)`` (callback style), kept as ``last_ack`` and queued for
-``take_acks()`` (poll style, the newest 1024); fields the server adds to the Ack (tracking state,
-pose...) appear in ``AckInfo.fields`` when the wire schema has them.
+``take_acks()`` (poll style, the newest 1024). With pose feedback (protocol version 2) an AckInfo
+carries the frame's tracking ``state``, ``T_world_cam`` (only when tracked: never a stale pose),
+``group``, ``map_epoch`` and the send-to-ack ``latency_s``; every set field is in ``fields``.
+Live frames are marked ``live`` so the server may skip a stale one.
 ``curve=CurveKeys(...)`` turns on ZeroMQ CURVE encryption and authentication.
 """
 import collections
@@ -90,6 +92,40 @@ class AckInfo:
     credits: int
     received_at: float          # time.monotonic() when the ack arrived
     fields: Dict[str, object]   # every field of the Ack message that is set
+    # Pose feedback (protocol version 2; None from a server without it):
+    state: Optional[str] = None           # "TRACK_OK", "TRACK_LOST", "TRACK_SKIPPED", ...
+    T_world_cam: Optional[tuple] = None   # (tx, ty, tz, qx, qy, qz, qw), camera-to-world, TRACK_OK only
+    group: Optional[int] = None           # fused group whose frame the pose is in
+    map_epoch: Optional[int] = None       # increases when a fusion/loop may have moved earlier poses
+    latency_s: Optional[float] = None     # this frame's send to its ack, seconds
+
+    def pose_matrix(self):
+        """T_world_cam as a 4x4 numpy array (None without a pose)."""
+        if self.T_world_cam is None:
+            return None
+        import numpy as np
+        tx, ty, tz, x, y, z, w = self.T_world_cam
+        T = np.eye(4)
+        T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        T[:3, 3] = [tx, ty, tz]
+        return T
+
+
+def _ack_info(a, received_at, sent_at):
+    info = AckInfo(a.seq, a.credits, received_at, {f.name: v for f, v in a.ListFields()})
+    names = a.DESCRIPTOR.fields_by_name
+    if "state" in names:  # the schema has pose feedback
+        info.state = pb.TrackState.Name(a.state) if a.state in pb.TrackState.values() else str(a.state)
+        if info.state == "TRACK_OK" and a.HasField("T_world_cam"):
+            p = a.T_world_cam
+            info.T_world_cam = (p.tx, p.ty, p.tz, p.qx, p.qy, p.qz, p.qw)
+        info.group = a.group
+        info.map_epoch = a.map_epoch
+    if sent_at is not None:
+        info.latency_s = received_at - sent_at
+    return info
 
 
 @dataclass
@@ -128,6 +164,8 @@ class FrameSender:
         self.protocol_version = protocol_version or max(pb.ProtocolVersion.values())
         self.last_ack: Optional[AckInfo] = None
         self._acks = collections.deque(maxlen=1024)
+        self._sent_at = collections.OrderedDict()  # seq -> send time, for the pose latency
+        self._live_field = "live" in pb.RgbdFrame.DESCRIPTOR.fields_by_name  # protocol version 2
         self.stats = SenderStats()
         self.credits = 0
         self.in_flight = 0
@@ -267,10 +305,15 @@ class FrameSender:
         self.last_seq += 1
         frame.client_id = self.client_id
         frame.seq = self.last_seq
+        if self.live and self._live_field:
+            frame.live = True  # the server may skip it for a newer one
         message = pb.ClientMessage()
         message.frame.CopyFrom(frame)
         body = message.SerializeToString()
         self._send_bytes(body)
+        self._sent_at[frame.seq] = time.monotonic()
+        while len(self._sent_at) > 4096:
+            self._sent_at.popitem(last=False)
         self.credits -= 1
         self.in_flight += 1
         self.stats.frames_sent += 1
@@ -357,7 +400,7 @@ class FrameSender:
             if self.in_flight > 0:
                 self.in_flight -= 1
             self.stats.acks += 1
-            info = AckInfo(a.seq, a.credits, self._last_reply, {f.name: v for f, v in a.ListFields()})
+            info = _ack_info(a, self._last_reply, self._sent_at.pop(a.seq, None))
             self.last_ack = info
             self._acks.append(info)
             if self.on_ack:
