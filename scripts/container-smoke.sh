@@ -109,6 +109,9 @@ if ! "${E[@]}" run --rm "$IMAGE" cslam-server --help > "$DIR/run-probe.log" 2>&1
   say "running the image's own programs from 'podman image mount' under chroot, /data bound to $DATA"
 fi
 
+# Runs a program of the image (chroot: as the image's user with the image's PATH). Started in the
+# background as "${IMG[@]}" CMD &, so that $! is the program itself (chroot and env exec it).
+img() { "${IMG[@]}" "$@"; }
 PIDS=()
 cleanup() {
   for p in "${PIDS[@]}"; do kill "$p" 2> /dev/null || true; done
@@ -129,15 +132,14 @@ if [ "$MODE" = chroot ]; then
   mount --bind "$DATA" "$MNT/data"
   mount --bind /proc "$MNT/proc"
   mount --bind /dev "$MNT/dev"
-  # Runs a program of the image as the image's user, with the image's environment.
-  img() { chroot --userspec=10001:10001 "$MNT" /usr/bin/env -i PATH=/opt/cslam/bin:/usr/local/bin:/usr/bin:/bin HOME=/data "$@"; }
+  IMG=(chroot --userspec=10001:10001 "$MNT" /usr/bin/env -i PATH=/opt/cslam/bin:/usr/local/bin:/usr/bin:/bin HOME=/data)
   SERVER_HOST=127.0.0.1
   ZMQ_PORT=$(( 20000 + RANDOM % 20000 )); HTTP_PORT=$(( ZMQ_PORT + 1 ))
   HTTP_URL="http://127.0.0.1:$HTTP_PORT"
   in_net() { "$@"; }
 else
   "${E[@]}" network create cslam-smoke > /dev/null
-  img() { "${E[@]}" run --rm -i --network cslam-smoke -v "$DATA:/data" "$IMAGE" "$@"; }
+  IMG=("${E[@]}" run --rm -i --network cslam-smoke -v "$DATA:/data" "$IMAGE")
   SERVER_HOST=cslam-smoke-server
   ZMQ_PORT=5555; HTTP_PORT=8080
   HTTP_URL="http://cslam-smoke-server:8080"
@@ -170,7 +172,7 @@ say "starting cslam-server"
 SERVER_CMD=(cslam-server --bind "tcp://*:$ZMQ_PORT" --http "$HTTP_PORT" --http-bind 0.0.0.0 --out-dir /data/out
             --clients 2 --exit-when-done --log-interval 5 "${SERVER_KEYS[@]}")
 if [ "$MODE" = chroot ]; then
-  img "${SERVER_CMD[@]}" > "$DIR/server.log" 2>&1 &
+  "${IMG[@]}" "${SERVER_CMD[@]}" > "$DIR/server.log" 2>&1 &
   PIDS+=($!)
 else
   "${E[@]}" run -d --name cslam-smoke-server --network cslam-smoke -v "$DATA:/data" "$IMAGE" "${SERVER_CMD[@]}" > /dev/null
@@ -208,7 +210,7 @@ CPIDS=()
 for k in 1 2; do
   KEYS=()
   [ ${#CLIENT_KEYS[@]} -gt 0 ] && KEYS=("${CLIENT_KEYS[@]}" --curve-secret "/data/keys/robot$k.key")
-  img cslam-client --server "tcp://$SERVER_HOST:$ZMQ_PORT" --id "$k" --dataset "/data/scene/robot_$k" --rate max \
+  "${IMG[@]}" cslam-client --server "tcp://$SERVER_HOST:$ZMQ_PORT" --id "$k" --dataset "/data/scene/robot_$k" --rate max \
     "${KEYS[@]}" > "$DIR/client_$k.log" 2>&1 &
   CPIDS+=($!)
 done
