@@ -1,4 +1,6 @@
 // cslam-client: replays a TUM-layout RGB-D dataset to cslam-server, as one client robot.
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <thread>
@@ -7,6 +9,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/progress.h"
 #include "core/stopwatch.h"
 #include "server/auth/curve_keys.h"
 #include "geometry/camera_io.h"
@@ -90,8 +93,9 @@ int run(int argc, char** argv) {
             dir, rate_text, cslam::to_string(config.codecs.rgb), cslam::to_string(config.codecs.depth));
 
   const auto start = std::chrono::steady_clock::now();
-  cslam::Stopwatch since_progress;
-  std::uint64_t bytes_at_progress = 0, frames_at_progress = 0;
+  cslam::ProgressOptions progress_options;
+  progress_options.interval_s = progress_interval;
+  cslam::Progress progress("client " + std::to_string(id) + ": sent", pairs.size(), "frames", progress_options);
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     if (rate > 0) std::this_thread::sleep_until(start + std::chrono::duration<double>(double(i) / rate));
     if (preloaded.empty()) {
@@ -99,17 +103,14 @@ int run(int argc, char** argv) {
     } else {
       sender.send_encoded(preloaded[i]);
     }
-    if (since_progress.ms() >= progress_interval * 1000.0 || i + 1 == pairs.size()) {
-      const auto& s = sender.stats();
-      const double dt = since_progress.ms() / 1000.0;
-      log->info("client {}: sent {}/{} frames, {:.1f} fps, {:.2f} MB/s, {:.1f} KB/frame", id, s.frames_sent,
-                pairs.size(), double(s.frames_sent - frames_at_progress) / dt,
-                double(s.bytes_sent - bytes_at_progress) / dt / 1e6, double(s.bytes_sent) / double(s.frames_sent) / 1e3);
-      since_progress.reset();
-      bytes_at_progress = s.bytes_sent;
-      frames_at_progress = s.frames_sent;
-    }
+    const auto& s = sender.stats();
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    char extra[96];
+    std::snprintf(extra, sizeof extra, "%.2f MB/s, %.1f KB/frame", double(s.bytes_sent) / std::max(elapsed, 1e-9) / 1e6,
+                  double(s.bytes_sent) / double(s.frames_sent) / 1e3);
+    progress.update(s.frames_sent, extra);
   }
+  progress.finish();
   const bool all_acked = sender.goodbye();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const auto& s = sender.stats();

@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages cslam needs to build, test and run.
 # Safe to run repeatedly: it only calls apt-get when a package is missing.
+# --build-only: only what building the programs needs (the container's build stage).
 set -euo pipefail
+BUILD_ONLY=0
+[ "${1:-}" = "--build-only" ] && BUILD_ONLY=1
 
 PKGS=(
   build-essential cmake pkg-config git ca-certificates
@@ -11,9 +14,19 @@ PKGS=(
   nodejs chromium curl
 )
 # nodejs: the web viewer's npm packages (scripts/install-web.sh); chromium: its browser test.
+TEST_PKGS=(
+  python3-zmq python3-protobuf python3-opencv python3-zstandard python3-numpy python3-rosbag python3-sensor-msgs
+)
+# python3-*: the Python client (client/python), tools/cslam-bag-replay and their tests (sensor-msgs: test bags).
+if [ "$BUILD_ONLY" = 1 ]; then
+  PKGS=("${PKGS[@]/chromium}")
+else
+  PKGS+=("${TEST_PKGS[@]}")
+fi
 
 missing=()
 for p in "${PKGS[@]}"; do
+  [ -n "$p" ] || continue
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
     missing+=("$p")
   fi

@@ -35,6 +35,22 @@ void install_signal_handlers(cslam::server::WakePipe* pipe) {
   sigaction(SIGTERM, &sa, nullptr);
 }
 
+// Fails at start, not after the session, when results could not be written there.
+void require_writable_dir(const std::string& option, const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  std::string reason = ec ? ec.message() : "";
+  if (reason.empty()) {
+    const fs::path probe = fs::path(dir) / ".cslam-write-probe";
+    const bool ok = bool(std::ofstream(probe) << "ok\n");
+    fs::remove(probe, ec);
+    if (!ok) reason = "cannot create a file in it";
+  }
+  if (!reason.empty())
+    throw cslam::ConfigError("cslam-server: " + option + " '" + dir + "' is not writable: " + reason);
+}
+
 int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-server", "Receives RGB-D frames from cslam clients over ZeroMQ and runs collaborative SLAM.");
   cli.option("bind", "ZeroMQ endpoint to bind (tcp://127.0.0.1:* picks a free port; beyond loopback needs "
@@ -63,6 +79,7 @@ int run(int argc, char** argv) {
   cslam::http::declare_options(cli);
   if (!cli.parse(argc, argv)) return 0;
   cslam::set_log_level(cli.get("log-level"));
+  require_writable_dir("--out-dir", cli.get("out-dir"));
 
   cslam::server::ReceiverConfig rc;
   rc.bind = cli.get("bind");

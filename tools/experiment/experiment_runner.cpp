@@ -7,6 +7,7 @@
 
 #include "cloud_evaluation.h"
 #include "core/error.h"
+#include "core/progress.h"
 #include "core/stopwatch.h"
 #include "machine_info.h"
 #include "process.h"
@@ -148,6 +149,9 @@ int run_experiment(const ExperimentOptions& o) {
     write_json(o.out_dir + "/results.json", meta, summaries);
   };
   int index = 0, failed = 0;
+  ProgressOptions progress_options;
+  progress_options.interval_s = 0;  // runs take minutes: a line after each
+  Progress progress("cslam-experiment:", std::uint64_t(runs_total), "runs", progress_options);
   try {
     for (int rep = 1; rep <= o.repeat; ++rep) {
       for (const auto& cfg : configs) {
@@ -185,8 +189,10 @@ int run_experiment(const ExperimentOptions& o) {
         }
         failed += !rec.ok;
         records.push_back(std::move(rec));
+        progress.clear();
         std::printf("%s\n", progress_line(++index, runs_total, records.back()).c_str());
         std::fflush(stdout);
+        progress.update(std::uint64_t(index), failed ? std::to_string(failed) + " failed" : "");
         write_partial();
         if (interrupt_requested()) throw Interrupted();
       }
@@ -195,6 +201,7 @@ int run_experiment(const ExperimentOptions& o) {
     write_partial();
     throw;
   }
+  progress.finish();
 
   auto summaries = summarize(configs, records);
   meta.overview_figures = write_figures(o.out_dir, summaries, details);

@@ -3,6 +3,7 @@
 // optionally a TSDF mesh (PLY).
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include "cloud/pcd_io.h"
@@ -10,6 +11,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/progress.h"
 #include "dense/trajectory_recon.h"
 #include "eval/trajectory_eval.h"
 #include "io/trajectory_io.h"
@@ -115,13 +117,11 @@ int run(int argc, char** argv) {
   std::fprintf(stderr, "cslam-recon: %zu poses from %zu trajectory file(s), %zu dataset(s)\n", total_poses, pose_files.size(),
                datasets.size());
 
-  int last_decile = -1;
+  std::optional<Progress> progress;  // created at the first frame, when the frame count is known
   const DenseResult r = reconstruct_from_trajectories(sources, cfg, [&](const DenseProgress& p) {
-    const int decile = p.total ? p.done * 10 / p.total : 10;
-    if (decile != last_decile) {
-      last_decile = decile;
-      std::fprintf(stderr, "  %3d%%  frame %d/%d, used %d\n", decile * 10, p.done, p.total, p.used);
-    }
+    if (!progress) progress.emplace("cslam-recon: integrated", std::uint64_t(p.total), "frames");
+    progress->update(std::uint64_t(p.done), "used " + std::to_string(p.used));
+    if (p.done == p.total) progress->finish();
   });
   print_counts(r.counts);
   if (r.cloud.empty())

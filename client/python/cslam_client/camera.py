@@ -1,0 +1,94 @@
+"""Camera intrinsics as cslam-server expects them in the hello (geometry/camera.h twin).
+
+Presets match src/geometry/camera.cpp; files are the YAML/JSON camera files that
+``cslam-synth`` writes (``camera.yaml``) and ``cslam-client --camera`` reads.
+"""
+import os
+from dataclasses import dataclass, field
+from typing import List
+
+_KNOWN = {"name", "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "width", "height", "depth_factor",
+          "depth_scale_correction"}
+_REQUIRED = {"fx", "fy", "cx", "cy", "width", "height"}
+
+
+@dataclass
+class Camera:
+    fx: float = 525.0
+    fy: float = 525.0
+    cx: float = 319.5
+    cy: float = 239.5
+    distortion: List[float] = field(default_factory=lambda: [0.0] * 5)  # k1 k2 p1 p2 k3
+    width: int = 640
+    height: int = 480
+    depth_factor: float = 5000.0  # raw 16-bit depth units per metre
+    depth_scale_correction: float = 1.0
+    name: str = "custom"
+
+    def validate(self):
+        for key in ("fx", "fy", "depth_factor"):
+            v = getattr(self, key)
+            if not (v > 0) or v != v:
+                raise ValueError(f"camera {self.name}: {key} must be positive, got {v}")
+        if not (0 < self.width <= 8192 and 0 < self.height <= 8192):
+            raise ValueError(f"camera {self.name}: size {self.width}x{self.height} out of range")
+        if len(self.distortion) != 5:
+            raise ValueError(f"camera {self.name}: distortion needs 5 coefficients (k1 k2 p1 p2 k3)")
+
+    def to_wire(self, pb):
+        c = pb.CameraIntrinsics(fx=self.fx, fy=self.fy, cx=self.cx, cy=self.cy, width=self.width, height=self.height,
+                                depth_factor=self.depth_factor, depth_scale_correction=self.depth_scale_correction,
+                                name=self.name)
+        c.distortion.extend(float(d) for d in self.distortion)
+        return c
+
+
+def preset(name):
+    """tum1 | tum2 | tum2-corrected | tum3 | synthetic (as src/geometry/camera.cpp)."""
+    if name in ("tum1", "fr1"):
+        return Camera(517.306408, 516.469215, 318.643040, 255.313989,
+                      [0.262383, -0.953104, -0.005358, 0.002628, 1.163314], name="tum1")
+    if name in ("tum2", "fr2", "tum2-corrected"):
+        return Camera(520.908620, 521.007327, 325.141442, 249.701764,
+                      [0.231222, -0.784899, -0.003257, -0.000105, 0.917205],
+                      depth_scale_correction=1.031 if name == "tum2-corrected" else 1.0, name=name)
+    if name in ("tum3", "fr3"):
+        return Camera(535.4, 539.2, 320.1, 247.6, name="tum3")
+    if name == "synthetic":
+        c = preset("tum1")
+        c.distortion = [0.0] * 5
+        c.name = "synthetic"
+        return c
+    raise ValueError(f"unknown camera preset '{name}' (use tum1, tum2, tum2-corrected, tum3, synthetic or a file)")
+
+
+def load_file(path):
+    """A camera file (YAML/JSON, OpenCV FileStorage) as written by cslam-synth."""
+    import cv2
+    fs = cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
+    if not fs.isOpened():
+        raise ValueError(f"{path}: cannot open camera file")
+    root = fs.root()
+    keys = set(root.keys())
+    unknown = keys - _KNOWN
+    if unknown:
+        raise ValueError(f"{path}: unknown camera key '{sorted(unknown)[0]}'")
+    missing = _REQUIRED - keys
+    if missing:
+        raise ValueError(f"{path}: missing camera key '{sorted(missing)[0]}'")
+
+    def num(key, default):
+        return root.getNode(key).real() if key in keys else default
+
+    c = Camera(num("fx", 0), num("fy", 0), num("cx", 0), num("cy", 0),
+               [num(k, 0.0) for k in ("k1", "k2", "p1", "p2", "k3")], int(num("width", 0)), int(num("height", 0)),
+               num("depth_factor", 5000.0), num("depth_scale_correction", 1.0),
+               root.getNode("name").string() if "name" in keys else os.path.splitext(os.path.basename(path))[0])
+    fs.release()
+    c.validate()
+    return c
+
+
+def load(preset_or_path):
+    """A file if the path exists, else a preset name (like cslam-client --camera)."""
+    return load_file(preset_or_path) if os.path.exists(preset_or_path) else preset(preset_or_path)

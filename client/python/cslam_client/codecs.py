@@ -1,0 +1,127 @@
+"""Image codecs of the cslam wire protocol, bit-compatible with src/codec.
+
+RGB: raw BGR8, JPEG and PNG through OpenCV (python3-opencv links the same libjpeg/libpng as the
+C++ programs, so the same quality gives the same bytes). Depth (16-bit, lossless): raw
+little-endian, 16-bit PNG, and zstd-delta, the default: the layout of
+``depth_codec::zstd_delta_encode`` in src/codec/depth_codecs.cpp, vectorised with numpy:
+
+  u32 T; T sorted distinct non-zero depth values (u16 LE, delta-coded); W*H bytes hole mask
+  (1 valid, 0 hole); M low bytes then M high bytes of the zig-zag residuals of the valid pixels'
+  value ranks against the LOCO-I median edge predictor (M valid pixels, raster order); all zstd.
+
+zstd comes from python3-zstandard, which links Debian's libzstd: the compressed bytes equal the
+C++ encoder's at the same level. RVL is not offered here (a per-nibble loop is slow in Python).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+RGB_CODECS = ("raw", "jpeg", "png")
+DEPTH_CODECS = ("raw", "png", "zstd")
+
+
+@dataclass
+class Codecs:
+    rgb: str = "jpeg"
+    depth: str = "zstd"
+    jpeg_quality: int = 75     # as CodecOptions in src/codec/image_codec.h
+    png_compression: int = 1
+    zstd_level: int = 1
+
+    def validate(self):
+        if self.rgb not in RGB_CODECS:
+            raise ValueError(f"unknown RGB codec '{self.rgb}' ({', '.join(RGB_CODECS)})")
+        if self.depth not in DEPTH_CODECS:
+            raise ValueError(f"unknown depth codec '{self.depth}' ({', '.join(DEPTH_CODECS)}; rvl only in C++)")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError("JPEG quality must be in 1..100")
+        if not 0 <= self.png_compression <= 9:
+            raise ValueError("PNG compression must be in 0..9")
+        if not 1 <= self.zstd_level <= 19:
+            raise ValueError("zstd level must be in 1..19")
+
+
+def _imencode(ext, image, params):
+    import cv2
+    ok, buf = cv2.imencode(ext, image, params)
+    if not ok:
+        raise RuntimeError(f"cannot encode {ext}")
+    return buf.tobytes()
+
+
+def encode_rgb(bgr, codecs):
+    """bgr: HxWx3 uint8 (OpenCV order). Returns (wire encoding name, bytes)."""
+    import cv2
+    if not isinstance(bgr, np.ndarray) or bgr.dtype != np.uint8 or bgr.ndim != 3 or bgr.shape[2] != 3:
+        raise TypeError("encode_rgb: expected an HxWx3 uint8 BGR image")
+    if codecs.rgb == "raw":
+        return "RGB_RAW_BGR8", np.ascontiguousarray(bgr).tobytes()
+    if codecs.rgb == "jpeg":
+        return "RGB_JPEG", _imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, codecs.jpeg_quality])
+    return "RGB_PNG", _imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, codecs.png_compression])
+
+
+def encode_depth(depth, codecs):
+    """depth: HxW uint16 raw units (camera.depth_factor per metre). Returns (encoding name, bytes)."""
+    import cv2
+    if not isinstance(depth, np.ndarray) or depth.dtype != np.uint16 or depth.ndim != 2:
+        raise TypeError("encode_depth: expected an HxW uint16 depth image")
+    if codecs.depth == "raw":
+        return "DEPTH_RAW_U16LE", np.ascontiguousarray(depth, dtype="<u2").tobytes()
+    if codecs.depth == "png":
+        return "DEPTH_PNG16", _imencode(".png", depth, [cv2.IMWRITE_PNG_COMPRESSION, codecs.png_compression])
+    return "DEPTH_ZSTD_DELTA", zstd_delta_encode(depth, codecs.zstd_level)
+
+
+def _predict(ranks, valid):
+    """The predictor of depth_codecs.cpp for every pixel at once (it only reads encoder-side ranks)."""
+    h, w = ranks.shape
+    a = np.zeros_like(ranks)
+    b = np.zeros_like(ranks)
+    c = np.zeros_like(ranks)
+    va = np.zeros_like(valid)
+    vb = np.zeros_like(valid)
+    vc = np.zeros_like(valid)
+    a[:, 1:] = ranks[:, :-1]
+    va[:, 1:] = valid[:, :-1]
+    b[1:, :] = ranks[:-1, :]
+    vb[1:, :] = valid[:-1, :]
+    c[1:, 1:] = ranks[:-1, :-1]
+    vc[1:, 1:] = valid[:-1, :-1]
+    # `last`: the rank of the previous valid pixel in raster order (0 before the first).
+    flat_valid = valid.ravel()
+    idx = np.where(flat_valid, np.arange(flat_valid.size), -1)
+    prev = np.empty_like(idx)
+    prev[0] = -1
+    prev[1:] = np.maximum.accumulate(idx)[:-1]
+    last = np.where(prev >= 0, ranks.ravel()[np.maximum(prev, 0)], 0).reshape(h, w)
+
+    hi = np.maximum(a, b)
+    lo = np.minimum(a, b)
+    med = np.where(c <= lo, hi, np.where(c >= hi, lo, a + b - c))
+    both = va & vb
+    pred = np.where(both & vc, med, np.where(both, (a + b) // 2, np.where(va, a, np.where(vb, b, last))))
+    return pred
+
+
+def zstd_delta_encode(depth, level=1):
+    import zstandard
+    d = np.ascontiguousarray(depth, dtype=np.uint16)
+    h, w = d.shape
+    valid = d != 0
+    table = np.unique(d[valid]).astype(np.uint16)
+    lut = np.zeros(65536, dtype=np.int32)
+    lut[table] = np.arange(table.size, dtype=np.int32)
+    ranks = lut[d]
+    residual = (ranks - _predict(ranks, valid))[valid]          # raster order of the valid pixels
+    r16 = residual.astype(np.int16)                              # wraps like the C++ int16 cast
+    z = (r16.astype(np.uint16) << 1) ^ (r16 >> 15).astype(np.uint16)
+    deltas = np.diff(table.astype(np.int32), prepend=0).astype("<u2")
+    payload = b"".join([
+        np.uint32(table.size).astype("<u4").tobytes(),
+        deltas.tobytes(),
+        valid.astype(np.uint8).tobytes(),
+        (z & 0xFF).astype(np.uint8).tobytes(),
+        (z >> 8).astype(np.uint8).tobytes(),
+    ])
+    return zstandard.ZstdCompressor(level=level, write_content_size=True).compress(payload)

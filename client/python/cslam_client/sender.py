@@ -1,0 +1,432 @@
+"""FrameSender: the cslam wire protocol from Python, as client/frame_sender.cpp does it.
+
+  sender = FrameSender("tcp://127.0.0.1:5555", client_id=1, camera=camera.preset("tum1"))
+  sender.connect()                      # hello -> welcome (credits)
+  sender.send(bgr, depth, timestamp)    # encodes, waits for a credit, sends
+  sender.goodbye()                      # waits for the last acks, says goodbye
+
+Flow control: at most `window` frames are unacknowledged. In the default (lossless) mode send()
+blocks, sending heartbeats, until the server hands a credit back. With ``live=True`` send()
+never blocks: without a credit it keeps only the newest frame (older ones are dropped and
+counted in stats.dropped_no_credit) and sends it as soon as a credit comes; call poll() from an
+idle loop. A silent server triggers a reconnect that resumes the session (same client id,
+sequence numbers continue after the welcome's last_seq).
+
+Every Ack is passed to ``on_ack(AckInfo)`` (callback style), kept as ``last_ack`` and queued for
+``take_acks()`` (poll style, the newest 1024). With pose feedback (protocol version 2) an AckInfo
+carries the frame's tracking ``state``, ``T_world_cam`` (only when tracked: never a stale pose),
+``group``, ``map_epoch`` and the send-to-ack ``latency_s``; every set field is in ``fields``.
+Live frames are marked ``live`` so the server may skip a stale one.
+``curve=CurveKeys(...)`` turns on ZeroMQ CURVE encryption and authentication.
+"""
+import collections
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Dict, Optional
+
+import zmq
+
+from . import errors
+from .codecs import Codecs, encode_depth, encode_rgb
+from .wire import pb
+
+log = logging.getLogger("cslam_client")
+
+
+@dataclass
+class CurveKeys:
+    """ZeroMQ CURVE keys, Z85 text (40 characters), as cslam-keygen and zmq.curve_keypair() make."""
+    server_public: str
+    client_public: str
+    client_secret: str
+
+    @staticmethod
+    def load(server_key_file, client_secret_file):
+        """cslam-client's --server-key and --curve-secret files: the server's NAME.pub (or .key) and
+        this robot's NAME.key (``public-key = ...`` / ``secret-key = ...`` lines; a file holding
+        just the key works too). The robot's public key is derived if its file lacks it."""
+        server = read_key_file(server_key_file)
+        own = read_key_file(client_secret_file)
+        server_public = server.get("public-key") or server.get("key")
+        secret = own.get("secret-key") or own.get("key")
+        if not server_public:
+            raise ValueError(f"{server_key_file}: no public-key")
+        if not secret:
+            raise ValueError(f"{client_secret_file}: no secret-key (give this robot's .key file, not a .pub)")
+        public = own.get("public-key") if "secret-key" in own else None
+        return CurveKeys(server_public, public or zmq.curve_public(secret.encode()).decode(), secret)
+
+    def apply(self, socket):
+        socket.curve_serverkey = self.server_public.encode()
+        socket.curve_publickey = self.client_public.encode()
+        socket.curve_secretkey = self.client_secret.encode()
+
+
+def read_key_file(path):
+    """{'public-key': ..., 'secret-key': ..., 'client-ids': ...} from a cslam-keygen key file
+    (``key = value`` lines, '#' comment lines; Z85 may contain '=' and '#', so only the first '='
+    of a known key splits). A file holding one bare 40-character key gives {'key': KEY}."""
+    values = {}
+    with open(path) as f:
+        lines = [line.strip() for line in f]
+    for line in lines:
+        if not line or line.startswith("#"):
+            continue
+        name, sep, value = line.partition("=")
+        if sep and name.strip() in ("public-key", "secret-key", "client-ids"):
+            values[name.strip()] = value.strip().strip('"')
+        elif len(line) == 40 and not values:
+            values = {"key": line}
+        else:
+            raise ValueError(f"{path}: unexpected line '{line[:20]}...' (expected 'public-key = KEY' lines)")
+    for key in ("public-key", "secret-key", "key"):
+        if key in values and len(values[key]) != 40:
+            raise ValueError(f"{path}: {key} is not a 40-character Z85 key")
+    return values
+
+
+@dataclass
+class AckInfo:
+    seq: int
+    credits: int
+    received_at: float          # time.monotonic() when the ack arrived
+    fields: Dict[str, object]   # every field of the Ack message that is set
+    # Pose feedback (protocol version 2; None from a server without it):
+    state: Optional[str] = None           # "TRACK_OK", "TRACK_LOST", "TRACK_SKIPPED", ...
+    T_world_cam: Optional[tuple] = None   # (tx, ty, tz, qx, qy, qz, qw), camera-to-world, TRACK_OK only
+    group: Optional[int] = None           # fused group whose frame the pose is in
+    map_epoch: Optional[int] = None       # increases when a fusion/loop may have moved earlier poses
+    latency_s: Optional[float] = None     # this frame's send to its ack, seconds
+
+    def pose_matrix(self):
+        """T_world_cam as a 4x4 numpy array (None without a pose)."""
+        if self.T_world_cam is None:
+            return None
+        import numpy as np
+        tx, ty, tz, x, y, z, w = self.T_world_cam
+        T = np.eye(4)
+        T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        T[:3, 3] = [tx, ty, tz]
+        return T
+
+
+def _ack_info(a, received_at, sent_at):
+    info = AckInfo(a.seq, a.credits, received_at, {f.name: v for f, v in a.ListFields()})
+    names = a.DESCRIPTOR.fields_by_name
+    if "state" in names:  # the schema has pose feedback
+        info.state = pb.TrackState.Name(a.state) if a.state in pb.TrackState.values() else str(a.state)
+        if info.state == "TRACK_OK" and a.HasField("T_world_cam"):
+            p = a.T_world_cam
+            info.T_world_cam = (p.tx, p.ty, p.tz, p.qx, p.qy, p.qz, p.qw)
+        info.group = a.group
+        info.map_epoch = a.map_epoch
+    if sent_at is not None:
+        info.latency_s = received_at - sent_at
+    return info
+
+
+@dataclass
+class SenderStats:
+    frames_sent: int = 0
+    bytes_sent: int = 0
+    acks: int = 0
+    heartbeats: int = 0
+    reconnects: int = 0
+    dropped_no_credit: int = 0   # live mode: frames replaced by a newer one before a credit came
+    frames_refused: int = 0      # errors about a sent frame (seq != 0): frames the server did not take
+    errors: Dict[str, int] = field(default_factory=dict)  # server error code name -> count
+
+
+class FrameSender:
+    def __init__(self, server, client_id, camera, name="", codecs=None, reply_timeout=10.0, heartbeat_interval=1.0,
+                 max_reconnects=3, live=False, strict=False, curve: Optional[CurveKeys] = None,
+                 on_ack: Optional[Callable[[AckInfo], None]] = None, context=None, protocol_version=None):
+        if not 0 <= int(client_id) <= 65535:
+            raise ValueError("client id must be in 0..65535")
+        self.server = server
+        self.client_id = int(client_id)
+        self.camera = camera
+        self.name = name or f"client{client_id}"
+        self.codecs = codecs or Codecs()
+        self.codecs.validate()
+        camera.validate()
+        self.reply_timeout = float(reply_timeout)
+        self.heartbeat_interval = float(heartbeat_interval)
+        self.max_reconnects = int(max_reconnects)
+        self.live = live
+        self.strict = strict
+        self.curve = curve
+        self.on_ack = on_ack
+        # The newest version the generated schema knows, unless a test asks for another.
+        self.protocol_version = protocol_version or max(pb.ProtocolVersion.values())
+        self.last_ack: Optional[AckInfo] = None
+        self._acks = collections.deque(maxlen=1024)
+        self._sent_at = collections.OrderedDict()  # seq -> send time, for the pose latency
+        self._live_field = "live" in pb.RgbdFrame.DESCRIPTOR.fields_by_name  # protocol version 2
+        self.stats = SenderStats()
+        self.credits = 0
+        self.in_flight = 0
+        self.window = 0
+        self.last_seq = 0
+        self.welcome = None
+        self._context = context or zmq.Context.instance()
+        self._socket = None
+        self._welcomed = False
+        self._pending = None          # live mode: the newest frame waiting for a credit
+        self._hello_busy = False      # the server asked to repeat the hello a little later
+        self._rejected = []           # strict mode: frame errors to raise at the next call
+        now = time.monotonic()
+        self._last_reply = now
+        self._last_heartbeat = now
+
+    # -- connection ------------------------------------------------------------------------
+    def __enter__(self):
+        self.connect()
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.goodbye()
+        else:
+            self.close()
+
+    def _open_socket(self):
+        self.close()
+        s = self._context.socket(zmq.DEALER)
+        s.setsockopt(zmq.LINGER, 2000)  # let a goodbye leave before close
+        s.setsockopt(zmq.SNDTIMEO, int(self.reply_timeout * 1000))
+        if self.curve:
+            self.curve.apply(s)
+        s.connect(self.server)
+        self._socket = s
+
+    def close(self):
+        if self._socket is not None:
+            self._socket.close()
+            self._socket = None
+
+    def connect(self):
+        """Hello -> welcome. Raises ConnectionFailed on timeout, a ServerError on refusal."""
+        self._open_socket()
+        self._welcomed = False
+        hello = pb.ClientMessage()
+        hello.hello.version = self.protocol_version
+        hello.hello.client_id = self.client_id
+        hello.hello.name = self.name
+        hello.hello.camera.CopyFrom(self.camera.to_wire(pb))
+        self._send_message(hello)
+        deadline = time.monotonic() + self.reply_timeout
+        while not self._welcomed:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise errors.ConnectionFailed(
+                    f"client {self.client_id}: no welcome from {self.server} within {self.reply_timeout} s")
+            self._handle_reply(left)
+            if self._hello_busy and not self._welcomed:
+                self._hello_busy = False
+                self._handle_reply(min(left, 0.5))
+                self._send_message(hello)
+
+    def reconnect(self):
+        attempt = 0
+        while True:
+            attempt += 1
+            self.stats.reconnects += 1
+            log.warning("client %d: reconnecting to %s (attempt %d)", self.client_id, self.server, attempt)
+            try:
+                self.connect()
+                return
+            except errors.ConnectionFailed:
+                if attempt >= self.max_reconnects:
+                    raise
+
+    # -- frames ----------------------------------------------------------------------------
+    def encode(self, bgr, depth, timestamp):
+        """An encoded cslam.wire.RgbdFrame (id and seq are stamped when it is sent)."""
+        h, w = depth.shape[:2]
+        if bgr.shape[:2] != (h, w) or (w, h) != (self.camera.width, self.camera.height):
+            raise ValueError(f"images are {bgr.shape[1]}x{bgr.shape[0]} / {w}x{h}, "
+                             f"camera is {self.camera.width}x{self.camera.height}")
+        frame = pb.RgbdFrame(timestamp=float(timestamp))
+        enc, data = encode_rgb(bgr, self.codecs)
+        frame.rgb.width, frame.rgb.height, frame.rgb.encoding, frame.rgb.data = w, h, pb.Encoding.Value(enc), data
+        enc, data = encode_depth(depth, self.codecs)
+        frame.depth.width, frame.depth.height, frame.depth.encoding, frame.depth.data = w, h, pb.Encoding.Value(enc), data
+        return frame
+
+    def send(self, bgr, depth, timestamp):
+        """Encodes and sends one frame; returns the message size (0 when live mode kept it pending)."""
+        return self.send_encoded(self.encode(bgr, depth, timestamp))
+
+    def send_encoded(self, frame):
+        if self._socket is None:
+            raise RuntimeError("FrameSender: send before connect()")
+        self._raise_rejected()
+        if self.live:
+            self.poll(0)
+            if self.credits == 0:
+                if self._pending is not None:
+                    self.stats.dropped_no_credit += 1
+                self._pending = frame
+                return 0
+            self._pending = None
+        else:
+            self._wait_for_credit()
+        return self._send_frame(frame)
+
+    def poll(self, timeout=0.0):
+        """Handles replies for up to `timeout` s (heartbeats if due); live mode: sends the pending
+        frame when a credit has come. Returns True if a reply arrived."""
+        got = False
+        deadline = time.monotonic() + timeout
+        while True:
+            self._heartbeat_if_due()
+            got |= self._handle_reply(max(0.0, deadline - time.monotonic()))
+            if self._pending is not None and self.credits > 0:
+                frame, self._pending = self._pending, None
+                self._send_frame(frame)
+            if time.monotonic() >= deadline:
+                break
+        if time.monotonic() - self._last_reply > self.reply_timeout and (self.in_flight or self._pending):
+            self.reconnect()
+        self._raise_rejected()
+        return got
+
+    def take_acks(self):
+        """The acks received since the last call (oldest first; at most the newest 1024)."""
+        out = list(self._acks)
+        self._acks.clear()
+        return out
+
+    def _send_frame(self, frame):
+        self.last_seq += 1
+        frame.client_id = self.client_id
+        frame.seq = self.last_seq
+        if self.live and self._live_field:
+            frame.live = True  # the server may skip it for a newer one
+        message = pb.ClientMessage()
+        message.frame.CopyFrom(frame)
+        body = message.SerializeToString()
+        self._send_bytes(body)
+        self._sent_at[frame.seq] = time.monotonic()
+        while len(self._sent_at) > 4096:
+            self._sent_at.popitem(last=False)
+        self.credits -= 1
+        self.in_flight += 1
+        self.stats.frames_sent += 1
+        self.stats.bytes_sent += len(body)
+        return len(body)
+
+    def _wait_for_credit(self):
+        while self.credits == 0:
+            if time.monotonic() - self._last_reply > self.reply_timeout:
+                self.reconnect()
+                continue
+            self._heartbeat_if_due()
+            self._handle_reply(self.heartbeat_interval)
+
+    def keep_alive(self, timeout):
+        """Handles replies for `timeout` s, heartbeating, for a robot that is idle a while."""
+        self.poll(timeout)
+
+    def goodbye(self, timeout=30.0):
+        """Waits (up to timeout s) for every sent frame's ack, then says goodbye. False if some
+        acks did not come (goodbye is sent anyway)."""
+        if self._socket is None:
+            return False
+        deadline = time.monotonic() + timeout
+        while (self.in_flight > 0 or self._pending is not None) and time.monotonic() < deadline:
+            self.poll(min(self.heartbeat_interval, max(0.0, deadline - time.monotonic())))
+        all_acked = self.in_flight == 0 and self._pending is None
+        if not all_acked:
+            log.warning("client %d: %d frame(s) not acknowledged before goodbye", self.client_id, self.in_flight)
+        bye = pb.ClientMessage()
+        bye.goodbye.client_id = self.client_id
+        bye.goodbye.frames_sent = self.stats.frames_sent
+        self._send_message(bye)
+        self.close()  # linger delivers the goodbye
+        return all_acked
+
+    # -- wire ------------------------------------------------------------------------------
+    def _send_message(self, message):
+        self._send_bytes(message.SerializeToString())
+
+    def _send_bytes(self, body):
+        try:
+            self._socket.send(body)
+        except zmq.Again:
+            raise errors.ConnectionFailed(f"client {self.client_id}: send timed out") from None
+
+    def _heartbeat_if_due(self):
+        now = time.monotonic()
+        if self._socket is not None and now - self._last_heartbeat >= self.heartbeat_interval:
+            hb = pb.ClientMessage()
+            hb.heartbeat.client_id = self.client_id
+            self._send_message(hb)
+            self.stats.heartbeats += 1
+            self._last_heartbeat = now
+
+    def _handle_reply(self, timeout):
+        """Receives and handles one reply if one arrives within `timeout` s."""
+        if not self._socket.poll(int(timeout * 1000), zmq.POLLIN):
+            return False
+        try:
+            body = self._socket.recv(zmq.NOBLOCK)
+        except zmq.Again:
+            return False
+        self._last_reply = time.monotonic()
+        m = pb.ServerMessage()
+        try:
+            m.ParseFromString(body)
+        except Exception:  # noqa: BLE001 - protobuf's DecodeError
+            raise errors.CslamError(f"not a cslam ServerMessage from {self.server} ({len(body)} bytes)") from None
+        kind = m.WhichOneof("body")
+        if kind == "welcome":
+            w = m.welcome
+            self.welcome = w
+            self.window = w.window
+            self.credits = w.credits
+            self.in_flight = w.window - w.credits if w.window >= w.credits else 0
+            self.last_seq = max(self.last_seq, w.last_seq)
+            self._welcomed = True
+            log.info("client %d: %s session at %s, window %d, %d credits, last seq %d", self.client_id,
+                     "resumed" if w.resumed else "new", self.server, w.window, w.credits, w.last_seq)
+        elif kind == "ack":
+            a = m.ack
+            self.credits += a.credits
+            if self.in_flight > 0:
+                self.in_flight -= 1
+            self.stats.acks += 1
+            info = _ack_info(a, self._last_reply, self._sent_at.pop(a.seq, None))
+            self.last_ack = info
+            self._acks.append(info)
+            if self.on_ack:
+                self.on_ack(info)
+        elif kind == "error":
+            e = m.error
+            err = errors.from_wire(e, pb)
+            self.stats.errors[err.code_name] = self.stats.errors.get(err.code_name, 0) + 1
+            self.credits += e.credits
+            if e.seq != 0:
+                self.stats.frames_refused += 1
+                if self.in_flight > 0:
+                    self.in_flight -= 1
+            log.warning("client %d: server error %s for seq %d: %s", self.client_id, err.code_name, e.seq, e.message)
+            fatal = (errors.ProtocolVersionError, errors.HelloRejected, errors.ServerShuttingDown, errors.TooManyClients)
+            if isinstance(err, fatal) or (isinstance(err, errors.NotAuthorized) and e.seq == 0):
+                raise err  # the session cannot go on (as client/frame_sender.cpp)
+            if isinstance(err, errors.SessionBusy) and not self._welcomed:
+                self._hello_busy = True  # our previous connection has not timed out: connect() asks again
+            elif err.code_name == "ERROR_NOT_REGISTERED" and self._welcomed:
+                self.reconnect()
+            elif self.strict and e.seq != 0:
+                self._rejected.append(err)
+        return True
+
+    def _raise_rejected(self):
+        if self._rejected:
+            err = self._rejected.pop(0)
+            raise err

@@ -1,0 +1,239 @@
+#!/usr/bin/env bash
+# Builds the cslam image with docker or podman (whichever works) and runs what compose.yaml runs:
+# the image's cslam-synth makes a small synthetic scene in the /data volume, the image's
+# cslam-server serves it, two of the image's cslam-client replay robots 1 and 2. Checks
+# /api/status, the viewer page and its three.js, the healthcheck command, both trajectories
+# (ATE with the image's cslam-eval) and the refusal of a read-only --out-dir; reports the image size.
+#
+# Where no registry is reachable, the Debian 12 base image is made locally: debootstrap bookworm
+# into a folder, trimmed like debian:bookworm-slim, `podman import`. Where containers cannot
+# start (crun: "setrlimit RLIMIT_NOFILE: Operation not permitted" in some sandboxes), the same
+# programs run from the image's own file tree (`podman image mount`) with chroot, as the image's
+# user, with a writable folder bound at /data; the script says so.
+#
+# Not part of ctest (the image build takes 10-25 minutes; root needed for podman/chroot). Environment:
+#   CSLAM_SMOKE_DIR   work folder (default /var/tmp/cslam-smoke): rootfs, build log, /data volume
+#   CSLAM_IMAGE       image tag (default localhost/cslam:smoke)
+#   CSLAM_ENGINE      docker | podman (default: docker if its engine answers, else podman)
+#   CSLAM_CCACHE_DIR  optional compiler cache folder bound into the build stage at /ccache
+#   NODE_EXTRA_CA_CERTS  if set, bound into the build stage for npm ci (TLS-inspecting proxies)
+#   CSLAM_SKIP_BUILD  1: use the already built image
+set -euo pipefail
+cd "$(dirname "$0")/.."
+DIR="${CSLAM_SMOKE_DIR:-/var/tmp/cslam-smoke}"
+IMAGE="${CSLAM_IMAGE:-localhost/cslam:smoke}"
+BASE=docker.io/library/debian:bookworm
+mkdir -p "$DIR"
+say() { echo "[container-smoke] $*"; }
+fail() { echo "[container-smoke] FAIL: $*" >&2; exit 1; }
+
+# --- engine ---------------------------------------------------------------------------------
+ENGINE="${CSLAM_ENGINE:-}"
+if [ -z "$ENGINE" ]; then
+  if command -v docker > /dev/null && docker info > /dev/null 2>&1; then ENGINE=docker
+  elif command -v podman > /dev/null; then ENGINE=podman
+  else fail "neither a docker engine nor podman is available (Debian: apt-get install podman)"; fi
+fi
+if [ "$ENGINE" = podman ]; then
+  # cgroupfs: no systemd in these sandboxes.
+  E=(podman --cgroup-manager=cgroupfs)
+else
+  E=(docker)
+fi
+say "engine: ${E[*]}"
+
+# --- base image -------------------------------------------------------------------------------
+if ! "${E[@]}" image exists "$BASE" 2> /dev/null && ! "${E[@]}" image inspect "$BASE" > /dev/null 2>&1; then
+  if "${E[@]}" pull "$BASE" > "$DIR/pull.log" 2>&1; then
+    say "pulled $BASE"
+  else
+    [ "$ENGINE" = podman ] || fail "cannot pull $BASE (see $DIR/pull.log)"
+    command -v debootstrap > /dev/null || fail "no registry and no debootstrap (apt-get install debootstrap)"
+    say "no registry: debootstrap bookworm into $DIR/rootfs (a few minutes)"
+    rm -rf "$DIR/rootfs"
+    debootstrap --variant=minbase bookworm "$DIR/rootfs" http://deb.debian.org/debian > "$DIR/debootstrap.log" 2>&1 \
+      || fail "debootstrap failed (see $DIR/debootstrap.log)"
+    # Trim like debian:bookworm-slim: no package caches or lists, no docs/man/locales (also for
+    # packages installed later in the image).
+    R="$DIR/rootfs"
+    rm -rf "$R"/var/cache/apt/archives/*.deb "$R"/var/cache/apt/*.bin "$R"/var/lib/apt/lists/*
+    find "$R/usr/share/doc" -mindepth 1 ! -name copyright ! -type d -delete
+    find "$R/usr/share/man" "$R/usr/share/info" -type f -delete  # keep the folders (postinst scripts use them)
+    find "$R/usr/share/locale" -mindepth 1 -maxdepth 1 ! -name locale.alias -exec rm -rf {} +
+    cat > "$R/etc/dpkg/dpkg.cfg.d/docker-slim" << 'EOF'
+path-exclude /usr/share/doc/*
+path-include /usr/share/doc/*/copyright
+path-exclude /usr/share/man/*
+path-exclude /usr/share/info/*
+path-exclude /usr/share/locale/*
+path-include /usr/share/locale/locale.alias
+EOF
+    tar -C "$R" -c . | "${E[@]}" import - "$BASE" > /dev/null
+    say "imported $BASE from the debootstrapped folder"
+  fi
+fi
+say "base image $BASE: $("${E[@]}" image inspect --format '{{.Size}}' "$BASE" | awk '{printf "%.0f MB", $1/1e6}')"
+
+# --- build ------------------------------------------------------------------------------------
+if [ "${CSLAM_SKIP_BUILD:-0}" != 1 ]; then
+  BUILD_ARGS=(-t "$IMAGE" -f Dockerfile)
+  if [ "$ENGINE" = podman ]; then
+    BUILD_ARGS+=(--isolation=chroot --format docker)  # docker format keeps HEALTHCHECK
+    if [ -n "${CSLAM_CCACHE_DIR:-}" ]; then mkdir -p "$CSLAM_CCACHE_DIR"; BUILD_ARGS+=(-v "$CSLAM_CCACHE_DIR:/ccache"); fi
+    # A host that reaches the npm registry through a TLS-inspecting proxy trusts its CA with
+    # NODE_EXTRA_CA_CERTS: the build stage's npm ci gets the same file (nothing of it enters the image).
+    if [ -n "${NODE_EXTRA_CA_CERTS:-}" ] && [ -f "$NODE_EXTRA_CA_CERTS" ]; then
+      BUILD_ARGS+=(-v "$NODE_EXTRA_CA_CERTS:/run/cslam-npm-ca.crt:ro" --build-arg CSLAM_NPM_CA=/run/cslam-npm-ca.crt)
+    fi
+  fi
+  say "building $IMAGE (log: $DIR/build.log)"
+  t0=$(date +%s)
+  "${E[@]}" build "${BUILD_ARGS[@]}" . > "$DIR/build.log" 2>&1 || { tail -30 "$DIR/build.log" >&2; fail "image build failed"; }
+  say "built in $(( $(date +%s) - t0 )) s"
+fi
+SIZE=$("${E[@]}" image inspect --format '{{.Size}}' "$IMAGE")
+say "image size: $SIZE bytes ($(awk -v s="$SIZE" 'BEGIN{printf "%.0f MB", s/1e6}'))"
+HC=$("${E[@]}" image inspect --format '{{json .Config.Healthcheck}}' "$IMAGE" 2> /dev/null || echo null)
+echo "$HC" | grep -q "api/status" || fail "the image has no healthcheck on /api/status (got $HC)"
+USER_=$("${E[@]}" image inspect --format '{{.Config.User}}' "$IMAGE")
+[ -n "$USER_" ] && [ "$USER_" != root ] && [ "$USER_" != 0 ] || fail "the image runs as root"
+
+# --- run: containers, or the image's files under chroot -----------------------------------------
+DATA="$DIR/data"
+rm -rf "$DATA" && mkdir -p "$DATA" && chown 10001:10001 "$DATA"
+MODE=container
+if ! "${E[@]}" run --rm "$IMAGE" cslam-server --help > "$DIR/run-probe.log" 2>&1; then
+  [ "$ENGINE" = podman ] || { cat "$DIR/run-probe.log" >&2; fail "the engine cannot run the image"; }
+  MODE=chroot
+  say "containers cannot start here ($(grep -m1 -o 'setrlimit[^"]*' "$DIR/run-probe.log" || tail -1 "$DIR/run-probe.log"));"
+  say "running the image's own programs from 'podman image mount' under chroot, /data bound to $DATA"
+fi
+
+# Runs a program of the image (chroot: as the image's user with the image's PATH). Started in the
+# background as "${IMG[@]}" CMD &, so that $! is the program itself (chroot and env exec it).
+img() { "${IMG[@]}" "$@"; }
+PIDS=()
+cleanup() {
+  for p in "${PIDS[@]}"; do kill "$p" 2> /dev/null || true; done
+  wait 2> /dev/null || true
+  if [ "$MODE" = chroot ] && [ -n "${MNT:-}" ]; then
+    for m in data proc dev; do umount "$MNT/$m" 2> /dev/null || true; done
+    "${E[@]}" image unmount "$IMAGE" > /dev/null 2>&1 || true
+  elif [ "$MODE" = container ]; then
+    "${E[@]}" rm -f cslam-smoke-server > /dev/null 2>&1 || true
+    "${E[@]}" network rm cslam-smoke > /dev/null 2>&1 || true
+  fi
+}
+trap cleanup EXIT
+
+if [ "$MODE" = chroot ]; then
+  MNT=$("${E[@]}" image mount "$IMAGE")
+  for m in data proc dev; do [ -d "$MNT/$m" ] || fail "image lacks /$m"; done
+  mount --bind "$DATA" "$MNT/data"
+  mount --bind /proc "$MNT/proc"
+  mount --bind /dev "$MNT/dev"
+  IMG=(chroot --userspec=10001:10001 "$MNT" /usr/bin/env -i PATH=/opt/cslam/bin:/usr/local/bin:/usr/bin:/bin HOME=/data)
+  SERVER_HOST=127.0.0.1
+  ZMQ_PORT=$(( 20000 + RANDOM % 20000 )); HTTP_PORT=$(( ZMQ_PORT + 1 ))
+  HTTP_URL="http://127.0.0.1:$HTTP_PORT"
+  in_net() { "$@"; }
+else
+  "${E[@]}" network create cslam-smoke > /dev/null
+  IMG=("${E[@]}" run --rm -i --network cslam-smoke -v "$DATA:/data" "$IMAGE")
+  SERVER_HOST=cslam-smoke-server
+  ZMQ_PORT=5555; HTTP_PORT=8080
+  HTTP_URL="http://cslam-smoke-server:8080"
+  in_net() { img "$@"; }
+fi
+
+say "cslam-server refuses a read-only --out-dir at start"
+if img cslam-server --out-dir /proc/cslam-out --http off --bind "tcp://127.0.0.1:$ZMQ_PORT" > "$DIR/ro.log" 2>&1; then
+  fail "the server started with an unwritable --out-dir"
+fi
+[ "$(wc -l < "$DIR/ro.log")" -le 2 ] || { cat "$DIR/ro.log" >&2; fail "expected one clear line for an unwritable --out-dir"; }
+say "  -> $(tail -1 "$DIR/ro.log")"
+
+# A server built with CURVE support (cslam-keygen in the image) runs keyed, as a deployment should:
+# keys made by the image's cslam-keygen, each robot's key bound to its id.
+SERVER_KEYS=(); CLIENT_KEYS=()
+if img cslam-server --help 2> /dev/null | grep -q -- --curve-secret; then
+  say "the image's server supports CURVE: keys from its cslam-keygen in /data/keys"
+  img sh -c 'mkdir -p /data/keys/clients && cslam-keygen --out /data/keys/server > /dev/null &&
+             for k in 1 2; do cslam-keygen --out /data/keys/robot$k --client-ids $k > /dev/null &&
+             cp /data/keys/robot$k.pub /data/keys/clients/; done' || fail "cslam-keygen"
+  SERVER_KEYS=(--curve-secret /data/keys/server.key --clients-allowed /data/keys/clients)
+  CLIENT_KEYS=(--server-key /data/keys/server.pub)
+fi
+
+say "synthetic scene (cslam-synth --preset test-small) into /data/scene"
+img cslam-synth --preset test-small --out /data/scene --log-level warn > "$DIR/synth.log" 2>&1 || { cat "$DIR/synth.log"; fail "cslam-synth"; }
+
+say "starting cslam-server"
+SERVER_CMD=(cslam-server --bind "tcp://*:$ZMQ_PORT" --http "$HTTP_PORT" --http-bind 0.0.0.0 --out-dir /data/out
+            --clients 2 --exit-when-done --log-interval 5 "${SERVER_KEYS[@]}")
+if [ "$MODE" = chroot ]; then
+  "${IMG[@]}" "${SERVER_CMD[@]}" > "$DIR/server.log" 2>&1 &
+  PIDS+=($!)
+else
+  "${E[@]}" run -d --name cslam-smoke-server --network cslam-smoke -v "$DATA:/data" "$IMAGE" "${SERVER_CMD[@]}" > /dev/null
+fi
+STATUS=""
+for _ in $(seq 1 100); do
+  STATUS=$(in_net curl -sf "$HTTP_URL/api/status" 2> /dev/null) && break
+  sleep 0.2
+done
+[ -n "$STATUS" ] || { cat "$DIR/server.log" 2> /dev/null; fail "no /api/status answer"; }
+say "/api/status answers: $STATUS"
+in_net curl -sf "$HTTP_URL/" > "$DIR/index.html" && grep -qi "<html" "$DIR/index.html" || fail "the viewer page is not served"
+in_net curl -sf "$HTTP_URL/vendor/three.module.js" > "$DIR/three.module.js" || fail "three.js is not served"
+THREE=$(grep -o "REVISION = '[0-9]*'" "$DIR/three.module.js" | head -1)
+[ -n "$THREE" ] || fail "/vendor/three.module.js is not three.js"
+say "viewer page and /vendor/three.module.js served ($(wc -c < "$DIR/three.module.js") bytes, $THREE)"
+if [ "$MODE" = chroot ]; then
+  # The image's HEALTHCHECK command, with the port of this run.
+  img curl -sf -o /dev/null "http://127.0.0.1:$HTTP_PORT/api/status" || fail "healthcheck command failed"
+else
+  "${E[@]}" healthcheck run cslam-smoke-server > /dev/null 2>&1 || say "(engine has no healthcheck run; curl checked above)"
+fi
+say "healthcheck command passes"
+
+if [ ${#SERVER_KEYS[@]} -gt 0 ]; then
+  if img cslam-client --server "tcp://$SERVER_HOST:$ZMQ_PORT" --id 1 --dataset /data/scene/robot_1 --range 1:2 \
+       --reply-timeout 3 > "$DIR/client_nokey.log" 2>&1; then
+    fail "a client without keys got through"
+  fi
+  say "a client without keys gets nothing"
+fi
+
+say "two replay clients (robot_1, robot_2)"
+CPIDS=()
+for k in 1 2; do
+  KEYS=()
+  [ ${#CLIENT_KEYS[@]} -gt 0 ] && KEYS=("${CLIENT_KEYS[@]}" --curve-secret "/data/keys/robot$k.key")
+  "${IMG[@]}" cslam-client --server "tcp://$SERVER_HOST:$ZMQ_PORT" --id "$k" --dataset "/data/scene/robot_$k" --rate max \
+    "${KEYS[@]}" > "$DIR/client_$k.log" 2>&1 &
+  CPIDS+=($!)
+done
+PIDS+=("${CPIDS[@]}")
+# /api/status while the robots stream (as a service next to them would see it).
+for _ in $(seq 1 150); do
+  LIVE=$(in_net curl -sf "$HTTP_URL/api/status" 2> /dev/null || true)
+  [ "$(echo "$LIVE" | grep -o '"id":[0-9]*' | sort -u | wc -l)" -ge 2 ] && break
+  sleep 0.2
+done
+say "/api/status with the robots connected: $LIVE"
+for p in "${CPIDS[@]}"; do wait "$p" || { cat "$DIR"/client_*.log >&2; fail "a client failed"; }; done
+say "clients done; waiting for the server to write its results"
+if [ "$MODE" = chroot ]; then
+  wait "${PIDS[0]}" || { tail -20 "$DIR/server.log" >&2; fail "the server failed"; }
+else
+  [ "$("${E[@]}" wait cslam-smoke-server)" = 0 ] || { "${E[@]}" logs cslam-smoke-server >&2; fail "the server failed"; }
+fi
+for k in 1 2; do
+  f="$DATA/out/client_$k.txt"
+  [ -s "$f" ] || fail "no trajectory $f"
+  n=$(grep -vc '^#' "$f")
+  ate=$(img cslam-eval ate "/data/scene/robot_$k/groundtruth.txt" "/data/out/client_$k.txt" | tail -1 | awk '{print $6}')
+  say "client $k: $n poses, APE RMSE $ate m (the image's cslam-eval against the scene's ground truth)"
+done
+say "PASS ($MODE mode, image $IMAGE, $(awk -v s="$SIZE" 'BEGIN{printf "%.0f MB", s/1e6}'))"
