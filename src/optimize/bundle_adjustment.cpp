@@ -1,15 +1,15 @@
 // Bundle adjustment in two stages (Huber kernel, then the inliers without kernel), each one a
 // Levenberg-Marquardt solve over the current inliers followed by a re-classification of every
 // observation. Local-BA-sized problems use the Schur-complement solver of schur_ba.h; problems
-// with more free cameras than its dense reduced system suits go to Ceres (SPARSE_SCHUR).
+// with more free cameras than its dense reduced system suits go to sparse_ba.h (Ceres).
 #include "optimize/bundle_adjustment.h"
 
 #include <cmath>
 #include <limits>
 
-#include "optimize/ceres_reference.h"
 #include "optimize/pose_param.h"
 #include "optimize/schur_ba.h"
+#include "optimize/sparse_ba.h"
 
 namespace cslam {
 
@@ -27,7 +27,7 @@ double ba_observation_chi2(const BaCamera& cam, const Eigen::Vector3d& pw, const
 }
 
 BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::atomic<bool>* abort) {
-  if (count_free_observing_cameras(prob) > kMaxDenseSchurCameras) return bundle_adjust_ceres(prob, cfg, abort);
+  if (count_free_observing_cameras(prob) > kMaxDenseSchurCameras) return bundle_adjust_sparse(prob, cfg, abort);
   BaResult res;
   std::vector<std::array<double, 6>> poses;
   poses.reserve(prob.cameras.size());

@@ -9,6 +9,7 @@
 #include "optimize/ceres_reference.h"
 #include "optimize/pose_param.h"
 #include "optimize/se3_projection.h"
+#include "optimize/sparse_ba.h"
 
 using namespace cslam;
 
@@ -50,9 +51,9 @@ std::vector<Eigen::Matrix3d> point_information(const BaProblem& p, const BaResul
   return info;
 }
 
-}  // namespace
+using Solver = BaResult (*)(const BaProblem&, const BaConfig&, const std::atomic<bool>*);
 
-TEST(BundleAdjustmentVsCeres, SameResultsOnRandomProblems) {
+void compare_with_reference(Solver solver) {
   const BaConfig cfg;
   const Case cases[] = {{3, 2, 80, 0.0, 1.0}, {6, 4, 300, 0.05, 0.8}, {10, 5, 600, 0.1, 0.5}, {20, 8, 1500, 0.05, 0.9}, {8, 2, 400, 0.1, 0.3}};
   std::mt19937 rng(77);
@@ -62,7 +63,7 @@ TEST(BundleAdjustmentVsCeres, SameResultsOnRandomProblems) {
     for (int rep = 0; rep < 3; ++rep) {
       const test::BaSynthetic s = test::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
       const BaProblem& p = s.problem;
-      const BaResult fast = bundle_adjust(p, cfg);
+      const BaResult fast = solver(p, cfg, nullptr);
       const BaResult ref = bundle_adjust_ceres(p, cfg);
       ASSERT_EQ(fast.T_cam_world.size(), ref.T_cam_world.size());
       ASSERT_EQ(fast.points.size(), ref.points.size());
@@ -101,6 +102,16 @@ TEST(BundleAdjustmentVsCeres, SameResultsOnRandomProblems) {
   EXPECT_LE(borderline_count, 2);
   std::printf("worst pose difference %.3g, point difference %.3g whitened px, borderline flips %d\n", worst_pose, worst_point, borderline_count);
 }
+
+BaResult sparse_solver(const BaProblem& p, const BaConfig& c, const std::atomic<bool>* a) { return bundle_adjust_sparse(p, c, a); }
+BaResult schur_solver(const BaProblem& p, const BaConfig& c, const std::atomic<bool>* a) { return bundle_adjust(p, c, a); }
+
+}  // namespace
+
+TEST(BundleAdjustmentVsCeres, SchurSolverMatchesReference) { compare_with_reference(schur_solver); }
+
+// The Ceres path for large problems (analytic Jacobians, explicit ordering, problem built once).
+TEST(BundleAdjustmentVsCeres, SparseSolverMatchesReference) { compare_with_reference(sparse_solver); }
 
 TEST(BundleAdjustmentVsCeres, RepeatedCallsAreBitIdentical) {
   std::mt19937 rng(8);
