@@ -139,3 +139,23 @@ TEST(BundleAdjustmentVsCeres, AbortBeforeTheFirstStepLeavesTheProblemUnchanged) 
   for (size_t k = 0; k < s.problem.points.size(); ++k) EXPECT_LT((a.points[k] - s.problem.points[k]).norm(), 1e-15);
   EXPECT_EQ(a.inlier, r.inlier);
 }
+
+TEST(BundleAdjustmentVsCeres, AllKeyframesFixedAndUnobservedPoints) {
+  // Only points move (an empty reduced camera system); a point without observations stays put.
+  std::mt19937 rng(12);
+  test::BaSynthetic s = test::random_ba_problem(rng, 4, 2, 150, 0.05, 0.8);
+  for (auto& c : s.problem.cameras) c.fixed = true;
+  s.problem.points.push_back({0.5, -0.5, 3.0});
+  const BaResult fast = bundle_adjust(s.problem), ref = bundle_adjust_ceres(s.problem);
+  EXPECT_TRUE(fast.converged);
+  EXPECT_EQ(fast.iterations, ref.iterations);
+  EXPECT_EQ(fast.inlier, ref.inlier);
+  const auto info = point_information(s.problem, ref);
+  for (size_t k = 0; k + 1 < s.problem.points.size(); ++k) {
+    const Eigen::Vector3d d = fast.points[k] - ref.points[k];
+    EXPECT_LT(std::sqrt(std::max(0.0, d.dot(info[k] * d))), 1e-5) << k;
+  }
+  EXPECT_EQ(fast.points.back(), s.problem.points.back());
+  for (size_t c = 0; c < s.problem.cameras.size(); ++c)
+    EXPECT_EQ(fast.T_cam_world[c].translation(), ref.T_cam_world[c].translation());
+}
