@@ -39,7 +39,15 @@ BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::at
     bool any = false;
     for (char c : res.inlier) any = any || c;
     if (!any) return;
+    // As Ceres: a stage that ends unusable (aborted, numerical failure) leaves the values it
+    // started from.
+    const auto poses_before = poses;
+    const auto pts_before = pts;
     const LmOutcome lm = schur_ba_stage(prob, res.inlier, robust, cfg, iterations, abort, poses, pts);
+    if (!lm.usable) {
+      poses = poses_before;
+      pts = pts_before;
+    }
     if (res.iterations == 0) res.initial_cost = lm.initial_cost;
     res.final_cost = lm.final_cost;
     res.iterations += lm.iterations;

@@ -5,7 +5,8 @@
 // r / max(1/3, 1 - (2 rho - 1)^3), on failure r / f with f doubling; Jacobi-scaled LM diagonal
 // clamped to [1e-6, 1e32]; a step is accepted when its relative decrease exceeds 1e-3;
 // termination on function tolerance 1e-6 (the candidate is then discarded, as in Ceres),
-// gradient tolerance 1e-10, parameter tolerance 1e-8, or the iteration limit.
+// gradient tolerance 1e-10, parameter tolerance 1e-8, or the iteration limit. As Ceres, callers
+// keep the starting values when the outcome is not usable (abort, numerical failure).
 #include <algorithm>
 #include <atomic>
 #include <cmath>

@@ -136,8 +136,10 @@ PoseOptimizationResult optimize_pose(const SE3& initial, const std::vector<PoseO
     int used = 0;
     for (char c : res.inlier) used += c ? 1 : 0;
     if (used < 3) break;
+    const std::array<double, 6> x_before = x;
     PoseProblem problem(obs, res.inlier, k, round < cfg.robust_rounds, cfg, x);
     const LmOutcome lm = levenberg_marquardt(problem, cfg.iterations_per_round);
+    if (!lm.usable) x = x_before;  // as Ceres: an unusable solve leaves the parameters
     res.final_cost = lm.final_cost;
     res.converged = lm.converged;
     // Re-classify every observation (outliers may come back) against the new pose.
