@@ -1,37 +1,17 @@
+// Bundle adjustment in two stages (Huber kernel, then the inliers without kernel), each one a
+// Levenberg-Marquardt solve over the current inliers followed by a re-classification of every
+// observation. Local-BA-sized problems use the Schur-complement solver of schur_ba.h; problems
+// with more free cameras than its dense reduced system suits go to sparse_ba.h (Ceres).
 #include "optimize/bundle_adjustment.h"
 
 #include <cmath>
 #include <limits>
 
-#include <ceres/ceres.h>
-
 #include "optimize/pose_param.h"
+#include "optimize/schur_ba.h"
+#include "optimize/sparse_ba.h"
 
 namespace cslam {
-
-namespace {
-
-class AbortCallback : public ceres::IterationCallback {
- public:
-  explicit AbortCallback(const std::atomic<bool>* flag) : flag_(flag) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    return flag_ && flag_->load() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  const std::atomic<bool>* flag_;
-};
-
-ceres::CostFunction* make_cost(const BaCamera& cam, const BaObservation& o) {
-  const double w = std::sqrt(o.inv_sigma2);
-  if (o.u_right >= 0)
-    return new ceres::AutoDiffCostFunction<ReprojectionCost<3>, 3, 6, 3>(
-        new ReprojectionCost<3>(cam.intrinsics, o.uv.x(), o.uv.y(), o.u_right, w));
-  return new ceres::AutoDiffCostFunction<ReprojectionCost<2>, 2, 6, 3>(
-      new ReprojectionCost<2>(cam.intrinsics, o.uv.x(), o.uv.y(), -1, w));
-}
-
-}  // namespace
 
 double ba_observation_chi2(const BaCamera& cam, const Eigen::Vector3d& pw, const BaObservation& o) {
   const Eigen::Vector3d p = cam.T_cam_world * pw;
@@ -47,54 +27,39 @@ double ba_observation_chi2(const BaCamera& cam, const Eigen::Vector3d& pw, const
 }
 
 BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::atomic<bool>* abort) {
+  if (count_free_observing_cameras(prob) > kMaxDenseSchurCameras) return bundle_adjust_sparse(prob, cfg, abort);
   BaResult res;
   std::vector<std::array<double, 6>> poses;
   poses.reserve(prob.cameras.size());
   for (const auto& c : prob.cameras) poses.push_back(to_param(c.T_cam_world));
-  std::vector<std::array<double, 3>> pts;
-  pts.reserve(prob.points.size());
-  for (const auto& p : prob.points) pts.push_back({p.x(), p.y(), p.z()});
+  std::vector<Eigen::Vector3d> pts = prob.points;
   res.inlier.assign(prob.observations.size(), 1);
 
-  AbortCallback callback(abort);
   auto run_stage = [&](int iterations, bool robust) {
-    ceres::Problem::Options popts;
-    popts.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-    ceres::Problem problem(popts);
-    std::vector<char> camera_used(prob.cameras.size(), 0);
-    for (size_t i = 0; i < prob.observations.size(); ++i) {
-      if (!res.inlier[i]) continue;
-      const auto& o = prob.observations[i];
-      const auto& cam = prob.cameras[o.camera];
-      ceres::LossFunction* loss =
-          robust ? new ceres::HuberLoss(std::sqrt(o.u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono)) : nullptr;
-      problem.AddResidualBlock(make_cost(cam, o), loss, poses[o.camera].data(), pts[o.point].data());
-      camera_used[o.camera] = 1;
+    bool any = false;
+    for (char c : res.inlier) any = any || c;
+    if (!any) return;
+    // As Ceres: a stage that ends unusable (aborted, numerical failure) leaves the values it
+    // started from.
+    const auto poses_before = poses;
+    const auto pts_before = pts;
+    const LmOutcome lm = schur_ba_stage(prob, res.inlier, robust, cfg, iterations, abort, poses, pts);
+    if (!lm.usable) {
+      poses = poses_before;
+      pts = pts_before;
     }
-    for (size_t c = 0; c < prob.cameras.size(); ++c)
-      if (camera_used[c] && prob.cameras[c].fixed) problem.SetParameterBlockConstant(poses[c].data());
-    if (problem.NumResidualBlocks() == 0) return;
-    ceres::Solver::Options opts;
-    opts.linear_solver_type = ceres::SPARSE_SCHUR;
-    opts.max_num_iterations = iterations;
-    opts.num_threads = cfg.threads;
-    opts.logging_type = ceres::SILENT;
-    if (abort) opts.callbacks.push_back(&callback);
-    ceres::Solver::Summary summary;
-    ceres::Solve(opts, &problem, &summary);
-    if (res.iterations == 0) res.initial_cost = summary.initial_cost;
-    res.final_cost = summary.final_cost;
-    res.iterations += int(summary.iterations.size());
-    res.converged = summary.termination_type == ceres::CONVERGENCE || summary.termination_type == ceres::NO_CONVERGENCE;
-    if (summary.termination_type == ceres::USER_FAILURE) res.aborted = true;
+    if (res.iterations == 0) res.initial_cost = lm.initial_cost;
+    res.final_cost = lm.final_cost;
+    res.iterations += lm.iterations;
+    res.converged = lm.usable;
+    if (lm.aborted) res.aborted = true;
   };
   auto classify = [&] {
+    std::vector<BaCamera> cams = prob.cameras;
+    for (size_t c = 0; c < cams.size(); ++c) cams[c].T_cam_world = from_param(poses[c].data());
     for (size_t i = 0; i < prob.observations.size(); ++i) {
       const auto& o = prob.observations[i];
-      BaCamera cam = prob.cameras[o.camera];
-      cam.T_cam_world = from_param(poses[o.camera].data());
-      const Eigen::Vector3d p(pts[o.point][0], pts[o.point][1], pts[o.point][2]);
-      res.inlier[i] = ba_observation_chi2(cam, p, o) <= (o.u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono);
+      res.inlier[i] = ba_observation_chi2(cams[o.camera], pts[o.point], o) <= (o.u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono);
     }
   };
 
@@ -105,7 +70,7 @@ BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::at
   }
   classify();
   for (const auto& p : poses) res.T_cam_world.push_back(from_param(p.data()));
-  for (const auto& p : pts) res.points.emplace_back(p[0], p[1], p[2]);
+  res.points = std::move(pts);
   return res;
 }
 

@@ -1,6 +1,9 @@
 #pragma once
 // Bundle adjustment of keyframe poses and points over reprojection (RGB-D "stereo") residuals,
 // used for local BA (covisible keyframes free, the second ring fixed) and global BA.
+// Up to 96 free keyframes: an own Schur-complement Levenberg-Marquardt (schur_ba.h); beyond:
+// Ceres SPARSE_SCHUR (sparse_ba.h). Both take the steps of the Ceres reference
+// (bundle_adjust_ceres in ceres_reference.h); see docs/performance.md.
 #include <atomic>
 #include <vector>
 
@@ -32,7 +35,7 @@ struct BaConfig {
   int first_iterations = 5;    // with the Huber kernel
   int second_iterations = 10;  // after dropping outliers, no kernel (0: single stage)
   double chi2_mono = 5.991, chi2_stereo = 7.815;
-  int threads = 1;
+  int threads = 1;  // Ceres threads (sparse path only; the Schur solver is single-threaded)
 };
 
 struct BaResult {

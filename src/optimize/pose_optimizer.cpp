@@ -1,15 +1,111 @@
+// Pose-only optimisation: fixed-size Levenberg-Marquardt with analytic Jacobians. It minimises
+// the cost of the Ceres reference (optimize_pose_ceres: 0.5 sum rho(chi2), Huber rho in the
+// robust rounds) in the same parameters with the same step control (lm_driver.h), so it ends
+// where Ceres ends, without building a Ceres problem per round. The only heap allocation per
+// call is the result's inlier vector.
 #include "optimize/pose_optimizer.h"
 
+#include <array>
 #include <cmath>
+#include <limits>
 
-#include <ceres/ceres.h>
+#include <Eigen/Cholesky>
 
+#include "optimize/lm_driver.h"
 #include "optimize/pose_param.h"
+#include "optimize/se3_projection.h"
 
 namespace cslam {
 
-double observation_chi2(const SE3& T, const PoseObservation& o, const StereoIntrinsics& k) {
-  const Eigen::Vector3d p = T * o.p_world;
+namespace {
+
+struct Linearization {
+  Matrix6d H;  // J^T W J with the kernel's IRLS weights
+  Vector6d g;  // J^T W r
+  double cost = 0;
+};
+
+class PoseProblem {
+ public:
+  PoseProblem(const std::vector<PoseObservation>& obs, const std::vector<char>& inlier, const StereoIntrinsics& k, bool robust,
+              const PoseOptimizationConfig& cfg, std::array<double, 6>& x)
+      : obs_(obs), inlier_(inlier), k_(k), robust_(robust), delta_mono_(std::sqrt(cfg.chi2_mono)),
+        delta_stereo_(std::sqrt(cfg.chi2_stereo)), x_(x) {}
+
+  bool linearize() { return linearize_at(x_.data(), cur_); }
+  double cost() const { return cur_.cost; }
+  double gradient_max_norm() const { return cur_.g.lpNorm<Eigen::Infinity>(); }
+  double x_norm() const { return Eigen::Map<const Vector6d>(x_.data()).norm(); }
+
+  bool solve(double radius, double& step_norm, double& model_cost_change) {
+    Matrix6d A = cur_.H;
+    for (int d = 0; d < 6; ++d) A(d, d) += lm_damping(cur_.H(d, d), radius);
+    step_ = -A.ldlt().solve(cur_.g);
+    step_norm = step_.norm();
+    model_cost_change = -(cur_.g.dot(step_) + 0.5 * step_.dot(cur_.H * step_));
+    return step_.allFinite();
+  }
+  double try_step() {
+    for (int d = 0; d < 6; ++d) candidate_x_[d] = x_[d] + step_(d);
+    return linearize_at(candidate_x_.data(), next_) ? next_.cost : std::numeric_limits<double>::infinity();
+  }
+  void accept() {
+    x_ = candidate_x_;
+    std::swap(cur_, next_);
+  }
+
+ private:
+  bool linearize_at(const double* x, Linearization& lin) const {
+    PoseLinearizationPoint T;
+    T.set(x);
+    lin.H.setZero();
+    lin.g.setZero();
+    double cost = 0;
+    Eigen::Vector3d uvr;
+    Matrix36d J;
+    Eigen::Matrix3d J_point;
+    for (size_t i = 0; i < obs_.size(); ++i) {
+      if (!inlier_[i]) continue;
+      const PoseObservation& o = obs_[i];
+      project_with_jacobians(k_, T, o.p_world, uvr, J, J_point);
+      const bool stereo = o.u_right >= 0;
+      const Eigen::Vector3d r(uvr.x() - o.uv.x(), uvr.y() - o.uv.y(), stereo ? uvr.z() - o.u_right : 0.0);
+      const double s = r.squaredNorm() * o.inv_sigma2;
+      double w = o.inv_sigma2;
+      if (robust_) {
+        const double d = stereo ? delta_stereo_ : delta_mono_;
+        const HuberValue h = huber(s, d, d * d);
+        cost += h.rho;
+        w *= h.weight;
+      } else {
+        cost += s;
+      }
+      if (stereo) {
+        lin.H.noalias() += (w * J.transpose()) * J;
+        lin.g.noalias() += (w * J.transpose()) * r;
+      } else {
+        const auto J2 = J.topRows<2>();
+        lin.H.noalias() += (w * J2.transpose()) * J2;
+        lin.g.noalias() += (w * J2.transpose()) * r.head<2>();
+      }
+    }
+    lin.cost = 0.5 * cost;
+    return std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  }
+
+  const std::vector<PoseObservation>& obs_;
+  const std::vector<char>& inlier_;
+  const StereoIntrinsics& k_;
+  const bool robust_;
+  const double delta_mono_, delta_stereo_;
+  std::array<double, 6>& x_;
+  std::array<double, 6> candidate_x_{};
+  Vector6d step_ = Vector6d::Zero();
+  Linearization cur_, next_;
+};
+
+double chi2_at(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const PoseObservation& o, const StereoIntrinsics& k) {
+  const Eigen::Vector3d p = R * o.p_world + t;
   if (p.z() <= 0) return std::numeric_limits<double>::infinity();
   const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
   double e2 = (u - o.uv.x()) * (u - o.uv.x()) + (v - o.uv.y()) * (v - o.uv.y());
@@ -20,8 +116,14 @@ double observation_chi2(const SE3& T, const PoseObservation& o, const StereoIntr
   return e2 * o.inv_sigma2;
 }
 
-PoseOptimizationResult optimize_pose(const SE3& initial, const std::vector<PoseObservation>& obs,
-                                     const StereoIntrinsics& k, const PoseOptimizationConfig& cfg) {
+}  // namespace
+
+double observation_chi2(const SE3& T, const PoseObservation& o, const StereoIntrinsics& k) {
+  return chi2_at(T.R(), T.translation(), o, k);
+}
+
+PoseOptimizationResult optimize_pose(const SE3& initial, const std::vector<PoseObservation>& obs, const StereoIntrinsics& k,
+                                     const PoseOptimizationConfig& cfg) {
   PoseOptimizationResult res;
   res.T_cam_world = initial;
   res.inlier.assign(obs.size(), 1);
@@ -29,44 +131,24 @@ PoseOptimizationResult optimize_pose(const SE3& initial, const std::vector<PoseO
     res.num_inliers = 0;
     return res;
   }
-  std::array<double, 6> param = to_param(initial);
+  std::array<double, 6> x = to_param(initial);
   for (int round = 0; round < cfg.rounds; ++round) {
-    ceres::Problem::Options popts;
-    popts.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-    ceres::Problem problem(popts);
     int used = 0;
-    for (size_t i = 0; i < obs.size(); ++i) {
-      if (!res.inlier[i]) continue;
-      const auto& o = obs[i];
-      const double w = std::sqrt(o.inv_sigma2);
-      const bool stereo = o.u_right >= 0;
-      ceres::LossFunction* loss = round < cfg.robust_rounds ? new ceres::HuberLoss(std::sqrt(stereo ? cfg.chi2_stereo : cfg.chi2_mono)) : nullptr;
-      ceres::CostFunction* cost =
-          stereo ? static_cast<ceres::CostFunction*>(new ceres::AutoDiffCostFunction<PoseOnlyReprojectionCost<3>, 3, 6>(
-                       new PoseOnlyReprojectionCost<3>(k, o.p_world, o.uv.x(), o.uv.y(), o.u_right, w)))
-                 : new ceres::AutoDiffCostFunction<PoseOnlyReprojectionCost<2>, 2, 6>(
-                       new PoseOnlyReprojectionCost<2>(k, o.p_world, o.uv.x(), o.uv.y(), -1, w));
-      problem.AddResidualBlock(cost, loss, param.data());
-      ++used;
-    }
+    for (char c : res.inlier) used += c ? 1 : 0;
     if (used < 3) break;
-    ceres::Solver::Options opts;
-    opts.linear_solver_type = ceres::DENSE_QR;
-    opts.max_num_iterations = cfg.iterations_per_round;
-    opts.num_threads = 1;
-    opts.logging_type = ceres::SILENT;
-    ceres::Solver::Summary summary;
-    ceres::Solve(opts, &problem, &summary);
-    res.final_cost = summary.final_cost;
-    res.converged = summary.termination_type == ceres::CONVERGENCE;
-    const SE3 T = from_param(param.data());
+    const std::array<double, 6> x_before = x;
+    PoseProblem problem(obs, res.inlier, k, round < cfg.robust_rounds, cfg, x);
+    const LmOutcome lm = levenberg_marquardt(problem, cfg.iterations_per_round);
+    if (!lm.usable) x = x_before;  // as Ceres: an unusable solve leaves the parameters
+    res.final_cost = lm.final_cost;
+    res.converged = lm.converged;
     // Re-classify every observation (outliers may come back) against the new pose.
-    for (size_t i = 0; i < obs.size(); ++i) {
-      const double chi2 = observation_chi2(T, obs[i], k);
-      res.inlier[i] = chi2 <= (obs[i].u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono);
-    }
+    const SE3 T = from_param(x.data());
+    const Eigen::Matrix3d R = T.R();
+    for (size_t i = 0; i < obs.size(); ++i)
+      res.inlier[i] = chi2_at(R, T.translation(), obs[i], k) <= (obs[i].u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono);
   }
-  res.T_cam_world = from_param(param.data());
+  res.T_cam_world = from_param(x.data());
   res.num_inliers = 0;
   for (char c : res.inlier) res.num_inliers += c ? 1 : 0;
   return res;

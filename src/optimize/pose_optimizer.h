@@ -2,6 +2,8 @@
 // Pose-only optimisation of one camera against known 3D points, with a Huber kernel and
 // several rounds of outlier rejection (ORB-SLAM2's scheme: 4 rounds of 10 iterations,
 // chi2 thresholds 5.991 (2 dof) / 7.815 (3 dof), kernel dropped in the last rounds).
+// A fixed-size Levenberg-Marquardt with analytic Jacobians that takes the steps of the Ceres
+// reference (optimize_pose_ceres in ceres_reference.h); no per-call solver setup.
 #include <vector>
 
 #include "geometry/se3.h"

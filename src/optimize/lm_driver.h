@@ -1,0 +1,109 @@
+#pragma once
+// Levenberg-Marquardt step control of Ceres' trust-region minimiser (Ceres 2.1 defaults), shared
+// by the fast pose-only and bundle-adjustment solvers so both take the steps the Ceres
+// reference takes: initial radius 1e4, radius update on success
+// r / max(1/3, 1 - (2 rho - 1)^3), on failure r / f with f doubling; Jacobi-scaled LM diagonal
+// clamped to [1e-6, 1e32]; a step is accepted when its relative decrease exceeds 1e-3;
+// termination on function tolerance 1e-6 (the candidate is then discarded, as in Ceres),
+// gradient tolerance 1e-10, parameter tolerance 1e-8, or the iteration limit. As Ceres, callers
+// keep the starting values when the outcome is not usable (abort, numerical failure).
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+namespace cslam {
+
+struct LmOutcome {
+  double initial_cost = 0, final_cost = 0;
+  int iterations = 0;      // as Ceres' Solver::Summary::iterations.size() (iteration 0 included)
+  bool usable = false;     // CONVERGENCE or NO_CONVERGENCE in Ceres' terms
+  bool converged = false;  // CONVERGENCE
+  bool aborted = false;    // the abort flag was seen (Ceres' USER_FAILURE)
+};
+
+// LM damping of one diagonal entry of J^T J, as Ceres computes it on the Jacobi-scaled Jacobian
+// (scale 1 / (1 + sqrt(h))) and maps back to the unscaled system.
+inline double lm_damping(double h, double radius) {
+  const double s = 1.0 / (1.0 + std::sqrt(h));
+  return std::clamp(s * s * h, 1e-6, 1e32) / (s * s * radius);
+}
+
+// Problem interface:
+//   bool linearize()            at the current x: cost, gradient, normal equations; false if not finite
+//   double cost() const, gradient_max_norm() const, x_norm() const
+//   bool solve(double radius, double& step_norm, double& model_cost_change)   damped step
+//   double try_step()           cost at x + step (linearised there for acceptance); +inf if not finite
+//   void accept()               x <- x + step, the candidate's linearisation becomes current
+template <class Problem>
+LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<bool>* abort = nullptr) {
+  constexpr double kFunctionTolerance = 1e-6, kGradientTolerance = 1e-10, kParameterTolerance = 1e-8;
+  constexpr double kMinRelativeDecrease = 1e-3, kMaxRadius = 1e16, kMinRadius = 1e-32;
+  constexpr int kMaxConsecutiveInvalidSteps = 5;
+  LmOutcome out;
+  out.iterations = 1;
+  if (!p.linearize()) return out;
+  out.initial_cost = out.final_cost = p.cost();
+  out.usable = true;
+  if (p.gradient_max_norm() <= kGradientTolerance) {
+    out.converged = true;
+    return out;
+  }
+  auto aborted = [&] { return abort && abort->load(); };
+  if (aborted()) {
+    out.usable = false;
+    out.aborted = true;
+    return out;
+  }
+  double radius = 1e4, decrease_factor = 2.0;
+  int invalid_steps = 0;
+  for (int iteration = 1; iteration <= max_iterations; ++iteration) {
+    double step_norm = 0, model_cost_change = 0;
+    const bool valid = p.solve(radius, step_norm, model_cost_change) && model_cost_change > 0 && std::isfinite(step_norm);
+    if (!valid) {
+      if (++invalid_steps >= kMaxConsecutiveInvalidSteps) {
+        out.usable = false;
+        return out;
+      }
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+    } else {
+      invalid_steps = 0;
+      if (step_norm <= kParameterTolerance * (p.x_norm() + kParameterTolerance)) {
+        out.converged = true;
+        return out;
+      }
+      const double cost = p.cost(), candidate_cost = p.try_step();
+      if (std::abs(cost - candidate_cost) <= kFunctionTolerance * cost) {
+        out.converged = true;
+        return out;
+      }
+      const double relative_decrease = (cost - candidate_cost) / model_cost_change;
+      if (std::isfinite(candidate_cost) && relative_decrease > kMinRelativeDecrease) {
+        p.accept();
+        out.final_cost = p.cost();
+        radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * relative_decrease - 1.0, 3)));
+        decrease_factor = 2.0;
+        if (p.gradient_max_norm() <= kGradientTolerance) {
+          out.converged = true;
+          return out;
+        }
+      } else {
+        radius /= decrease_factor;
+        decrease_factor *= 2.0;
+      }
+    }
+    ++out.iterations;
+    if (aborted()) {
+      out.usable = false;
+      out.aborted = true;
+      return out;
+    }
+    if (radius < kMinRadius) {
+      out.converged = true;
+      return out;
+    }
+  }
+  return out;
+}
+
+}  // namespace cslam

@@ -1,0 +1,259 @@
+#include "optimize/schur_ba.h"
+
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+
+#include "optimize/se3_projection.h"
+
+namespace cslam {
+
+namespace {
+
+// One active observation, in the order of its point (points' observations are contiguous).
+struct Entry {
+  int obs;      // index into BaProblem::observations
+  int cam_var;  // index of its camera among the free variable cameras, -1 if the camera is fixed
+};
+
+struct Linearization {
+  std::vector<Matrix6d> U;         // per free camera: J_c^T W J_c
+  std::vector<Vector6d> gc;        // per free camera: J_c^T W r
+  std::vector<Eigen::Matrix3d> V;  // per point: J_p^T W J_p
+  std::vector<Eigen::Vector3d> gp;
+  std::vector<Matrix63d> W;  // per entry (free camera): J_c^T W J_p
+  double cost = 0, gradient_max_norm = 0;
+  void resize(size_t cams, size_t points, size_t entries) {
+    U.resize(cams);
+    gc.resize(cams);
+    V.resize(points);
+    gp.resize(points);
+    W.resize(entries);
+  }
+};
+
+class SchurBaProblem {
+ public:
+  SchurBaProblem(const BaProblem& prob, const std::vector<char>& active, bool robust, const BaConfig& cfg,
+                 std::vector<std::array<double, 6>>& poses, std::vector<Eigen::Vector3d>& points)
+      : prob_(prob), robust_(robust), delta_mono_(std::sqrt(cfg.chi2_mono)), delta_stereo_(std::sqrt(cfg.chi2_stereo)),
+        poses_(poses), points_(points) {
+    const int num_cams = int(prob.cameras.size()), num_points = int(prob.points.size());
+    std::vector<int> count(num_points, 0), cam_var(num_cams, -2);  // -2: not observed in this stage
+    for (size_t i = 0; i < prob.observations.size(); ++i) {
+      if (!active[i]) continue;
+      const BaObservation& o = prob.observations[i];
+      ++count[o.point];
+      if (cam_var[o.camera] == -2) {
+        cam_var[o.camera] = prob.cameras[o.camera].fixed ? -1 : 0;
+        cams_used_.push_back(o.camera);
+      }
+    }
+    for (int c = 0; c < num_cams; ++c)
+      if (cam_var[c] == 0) {
+        cam_var[c] = int(cam_vars_.size());
+        cam_vars_.push_back(c);
+      }
+    std::vector<int> point_var(num_points, -1);
+    point_start_.push_back(0);
+    for (int p = 0; p < num_points; ++p)
+      if (count[p] > 0) {
+        point_var[p] = int(point_vars_.size());
+        point_vars_.push_back(p);
+        point_start_.push_back(point_start_.back() + count[p]);
+      }
+    entries_.resize(point_start_.back());
+    std::vector<int> fill(point_start_.begin(), point_start_.end() - 1);
+    for (size_t i = 0; i < prob.observations.size(); ++i) {
+      if (!active[i]) continue;
+      const BaObservation& o = prob.observations[i];
+      entries_[fill[point_var[o.point]]++] = {int(i), cam_var[o.camera]};
+    }
+    const size_t F = cam_vars_.size(), P = point_vars_.size();
+    cur_.resize(F, P, entries_.size());
+    next_.resize(F, P, entries_.size());
+    lp_.resize(num_cams);
+    S_.resize(6 * F, 6 * F);
+    rhs_.resize(6 * F);
+    dc_.resize(6 * F);
+    Vinv_.resize(P);
+    dp_.resize(P);
+    T_.resize(entries_.size());
+    candidate_poses_ = poses_;
+    candidate_points_ = points_;
+  }
+
+  bool linearize() { return linearize_at(poses_, points_, cur_); }
+  double cost() const { return cur_.cost; }
+  double gradient_max_norm() const { return cur_.gradient_max_norm; }
+  double x_norm() const {
+    double n2 = 0;
+    for (int c : cam_vars_) n2 += Eigen::Map<const Vector6d>(poses_[c].data()).squaredNorm();
+    for (int p : point_vars_) n2 += points_[p].squaredNorm();
+    return std::sqrt(n2);
+  }
+
+  bool solve(double radius, double& step_norm, double& model_cost_change) {
+    const Linearization& L = cur_;
+    const int F = int(cam_vars_.size());
+    S_.setZero();
+    for (int v = 0; v < F; ++v) {
+      Matrix6d Ud = L.U[v];
+      for (int d = 0; d < 6; ++d) Ud(d, d) += lm_damping(L.U[v](d, d), radius);
+      S_.block<6, 6>(6 * v, 6 * v) = Ud;
+      rhs_.segment<6>(6 * v) = -L.gc[v];
+    }
+    // Eliminate the points: S = U - sum W V^-1 W^T, rhs = -gc + sum W V^-1 gp (lower triangle).
+    for (size_t p = 0; p < point_vars_.size(); ++p) {
+      Eigen::Matrix3d Vd = L.V[p];
+      for (int d = 0; d < 3; ++d) Vd(d, d) += lm_damping(L.V[p](d, d), radius);
+      Vinv_[p] = Vd.inverse();
+      const int begin = point_start_[p], end = point_start_[p + 1];
+      for (int e = begin; e < end; ++e) {
+        const int a = entries_[e].cam_var;
+        if (a < 0) continue;
+        T_[e].noalias() = L.W[e] * Vinv_[p];
+        rhs_.segment<6>(6 * a).noalias() += T_[e] * L.gp[p];
+        for (int f = begin; f < end; ++f) {
+          const int b = entries_[f].cam_var;
+          if (b < 0 || b > a) continue;
+          S_.block<6, 6>(6 * a, 6 * b).noalias() -= T_[e] * L.W[f].transpose();
+        }
+      }
+    }
+    llt_.compute(S_);
+    if (llt_.info() != Eigen::Success) return false;
+    dc_ = llt_.solve(rhs_);
+    double g_dot = 0, h_quad = 0, n2 = dc_.squaredNorm();
+    for (int v = 0; v < F; ++v) {
+      const Vector6d d = dc_.segment<6>(6 * v);
+      g_dot += L.gc[v].dot(d);
+      h_quad += d.dot(L.U[v] * d);
+    }
+    for (size_t p = 0; p < point_vars_.size(); ++p) {
+      Eigen::Vector3d b = -L.gp[p];
+      for (int e = point_start_[p]; e < point_start_[p + 1]; ++e)
+        if (entries_[e].cam_var >= 0) b.noalias() -= L.W[e].transpose() * dc_.segment<6>(6 * entries_[e].cam_var);
+      dp_[p].noalias() = Vinv_[p] * b;
+      n2 += dp_[p].squaredNorm();
+      g_dot += L.gp[p].dot(dp_[p]);
+      h_quad += dp_[p].dot(L.V[p] * dp_[p]);
+      for (int e = point_start_[p]; e < point_start_[p + 1]; ++e)
+        if (entries_[e].cam_var >= 0) h_quad += 2.0 * dc_.segment<6>(6 * entries_[e].cam_var).dot(L.W[e] * dp_[p]);
+    }
+    step_norm = std::sqrt(n2);
+    model_cost_change = -(g_dot + 0.5 * h_quad);
+    return std::isfinite(model_cost_change);
+  }
+
+  double try_step() {
+    candidate_poses_ = poses_;
+    candidate_points_ = points_;
+    for (size_t v = 0; v < cam_vars_.size(); ++v)
+      for (int d = 0; d < 6; ++d) candidate_poses_[cam_vars_[v]][d] += dc_(6 * v + d);
+    for (size_t p = 0; p < point_vars_.size(); ++p) candidate_points_[point_vars_[p]] += dp_[p];
+    return linearize_at(candidate_poses_, candidate_points_, next_) ? next_.cost : std::numeric_limits<double>::infinity();
+  }
+
+  void accept() {
+    std::swap(poses_, candidate_poses_);
+    std::swap(points_, candidate_points_);
+    std::swap(cur_, next_);
+  }
+
+ private:
+  bool linearize_at(const std::vector<std::array<double, 6>>& poses, const std::vector<Eigen::Vector3d>& points, Linearization& L) {
+    for (int c : cams_used_) lp_[c].set(poses[c].data());
+    for (auto& m : L.U) m.setZero();
+    for (auto& g : L.gc) g.setZero();
+    double cost = 0;
+    Eigen::Vector3d uvr;
+    Matrix36d Jc;
+    Eigen::Matrix3d Jp;
+    for (size_t p = 0; p < point_vars_.size(); ++p) {
+      const Eigen::Vector3d& X = points[point_vars_[p]];
+      Eigen::Matrix3d V = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d gp = Eigen::Vector3d::Zero();
+      for (int e = point_start_[p]; e < point_start_[p + 1]; ++e) {
+        const BaObservation& o = prob_.observations[entries_[e].obs];
+        project_with_jacobians(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jc, Jp);
+        const bool stereo = o.u_right >= 0;
+        const Eigen::Vector3d r(uvr.x() - o.uv.x(), uvr.y() - o.uv.y(), stereo ? uvr.z() - o.u_right : 0.0);
+        const double s = r.squaredNorm() * o.inv_sigma2;
+        double w = o.inv_sigma2;
+        if (robust_) {
+          const double d = stereo ? delta_stereo_ : delta_mono_;
+          const HuberValue h = huber(s, d, d * d);
+          cost += h.rho;
+          w *= h.weight;
+        } else {
+          cost += s;
+        }
+        if (!stereo) {
+          Jc.row(2).setZero();
+          Jp.row(2).setZero();
+        }
+        const Eigen::Matrix3d wJpT = w * Jp.transpose();
+        V.noalias() += wJpT * Jp;
+        gp.noalias() += wJpT * r;
+        const int v = entries_[e].cam_var;
+        if (v >= 0) {
+          const Matrix63d wJcT = w * Jc.transpose();
+          L.U[v].noalias() += wJcT * Jc;
+          L.gc[v].noalias() += wJcT * r;
+          L.W[e].noalias() = wJcT * Jp;
+        }
+      }
+      L.V[p] = V;
+      L.gp[p] = gp;
+    }
+    L.cost = 0.5 * cost;
+    double gmax = 0;
+    for (const auto& g : L.gc) gmax = std::max(gmax, g.lpNorm<Eigen::Infinity>());
+    for (const auto& g : L.gp) gmax = std::max(gmax, g.lpNorm<Eigen::Infinity>());
+    L.gradient_max_norm = gmax;
+    return std::isfinite(L.cost) && std::isfinite(gmax);
+  }
+
+  const BaProblem& prob_;
+  const bool robust_;
+  const double delta_mono_, delta_stereo_;
+  std::vector<std::array<double, 6>>& poses_;
+  std::vector<Eigen::Vector3d>& points_;
+  std::vector<int> cams_used_, cam_vars_, point_vars_, point_start_;
+  std::vector<Entry> entries_;
+  std::vector<PoseLinearizationPoint> lp_;
+  Linearization cur_, next_;
+  Eigen::MatrixXd S_;
+  Eigen::VectorXd rhs_, dc_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+  std::vector<Eigen::Matrix3d> Vinv_;
+  std::vector<Eigen::Vector3d> dp_;
+  std::vector<Matrix63d> T_;
+  std::vector<std::array<double, 6>> candidate_poses_;
+  std::vector<Eigen::Vector3d> candidate_points_;
+};
+
+}  // namespace
+
+int count_free_observing_cameras(const BaProblem& problem) {
+  std::vector<char> seen(problem.cameras.size(), 0);
+  int n = 0;
+  for (const auto& o : problem.observations)
+    if (!problem.cameras[o.camera].fixed && !seen[o.camera]) {
+      seen[o.camera] = 1;
+      ++n;
+    }
+  return n;
+}
+
+LmOutcome schur_ba_stage(const BaProblem& problem, const std::vector<char>& active, bool robust, const BaConfig& config,
+                         int max_iterations, const std::atomic<bool>* abort, std::vector<std::array<double, 6>>& poses,
+                         std::vector<Eigen::Vector3d>& points) {
+  SchurBaProblem p(problem, active, robust, config, poses, points);
+  return levenberg_marquardt(p, max_iterations, abort);
+}
+
+}  // namespace cslam

@@ -1,0 +1,29 @@
+#pragma once
+// Levenberg-Marquardt bundle adjustment with the points eliminated by a Schur complement and a
+// dense Cholesky factorisation of the reduced camera system, for windows of up to a few dozen
+// free keyframes (local BA). Fixed-size Eigen blocks and analytic Jacobians; buffers are sized
+// once per stage and reused by every iteration. Same cost, parameters and step control as the
+// Ceres reference (bundle_adjust_ceres), see lm_driver.h.
+#include <array>
+#include <atomic>
+#include <vector>
+
+#include "optimize/bundle_adjustment.h"
+#include "optimize/lm_driver.h"
+
+namespace cslam {
+
+// Free cameras the dense reduced camera system is used for; bundle_adjust hands larger problems
+// to Ceres' sparse Schur solver.
+constexpr int kMaxDenseSchurCameras = 96;
+
+// One stage: minimises over the observations with active[i] != 0 (Huber kernel if robust),
+// updating poses (T_cam_world as [angle-axis, t], fixed cameras untouched) and points in place.
+LmOutcome schur_ba_stage(const BaProblem& problem, const std::vector<char>& active, bool robust, const BaConfig& config,
+                         int max_iterations, const std::atomic<bool>* abort, std::vector<std::array<double, 6>>& poses,
+                         std::vector<Eigen::Vector3d>& points);
+
+// Free cameras with at least one observation (the size of the reduced camera system / 6).
+int count_free_observing_cameras(const BaProblem& problem);
+
+}  // namespace cslam

@@ -1,0 +1,85 @@
+#pragma once
+// Analytic derivatives of the RGB-D ("stereo") reprojection for the fast optimisers.
+// The pose parameters are the ones of the Ceres reference (pose_param.h): T_cam_world as
+// [angle-axis w (3), translation t (3)], p_cam = R(w) p_world + t, updated additively
+// (x <- x + delta), so the fast solvers take the same Levenberg-Marquardt steps as Ceres.
+// With the right Jacobian Jr of SO3, R(w + d) ~ R(w) Exp(Jr(w) d), hence
+// d p_cam / d w = -R [p_world]x Jr(w), d p_cam / d t = I, d p_cam / d p_world = R.
+#include <cmath>
+
+#include <ceres/rotation.h>
+
+#include <Eigen/Core>
+
+#include "optimize/reprojection_cost.h"
+
+namespace cslam {
+
+using Matrix36d = Eigen::Matrix<double, 3, 6>;
+using Matrix63d = Eigen::Matrix<double, 6, 3>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+inline Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+// Right Jacobian of SO3 at the angle-axis vector w.
+inline Eigen::Matrix3d so3_right_jacobian(const Eigen::Vector3d& w) {
+  const double theta2 = w.squaredNorm();
+  const Eigen::Matrix3d W = skew(w);
+  if (theta2 < 1e-10) return Eigen::Matrix3d::Identity() - 0.5 * W + (1.0 / 6.0) * W * W;
+  const double theta = std::sqrt(theta2);
+  return Eigen::Matrix3d::Identity() - (1.0 - std::cos(theta)) / theta2 * W + (theta - std::sin(theta)) / (theta2 * theta) * W * W;
+}
+
+// Everything about one camera pose the per-observation derivatives need (computed once per
+// camera and evaluation).
+struct PoseLinearizationPoint {
+  Eigen::Matrix3d R, Jr;
+  Eigen::Vector3d t;
+  void set(const double* param) {
+    ceres::AngleAxisToRotationMatrix(param, ceres::ColumnMajorAdapter3x3(R.data()));
+    const Eigen::Vector3d w(param[0], param[1], param[2]);
+    Jr = so3_right_jacobian(w);
+    t = Eigen::Vector3d(param[3], param[4], param[5]);
+  }
+};
+
+// (u, v, u_right) of p_world seen from the pose, and its derivatives w.r.t. the pose
+// parameters (3x6) and the point (3x3). Rows beyond the observation's residual count are
+// ignored by the callers.
+inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLinearizationPoint& T, const Eigen::Vector3d& pw,
+                                   Eigen::Vector3d& uvr, Matrix36d& J_pose, Eigen::Matrix3d& J_point) {
+  const Eigen::Vector3d pc = T.R * pw + T.t;
+  const double iz = 1.0 / pc.z(), iz2 = iz * iz;
+  uvr.x() = k.fx * pc.x() * iz + k.cx;
+  uvr.y() = k.fy * pc.y() * iz + k.cy;
+  uvr.z() = uvr.x() - k.bf * iz;
+  Eigen::Matrix3d d_pc;
+  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
+      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
+      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
+  J_point.noalias() = d_pc * T.R;
+  // Row b of J_point times -[pw]x is (pw x b)^T.
+  Eigen::Matrix3d C;
+  for (int r = 0; r < 3; ++r) C.row(r) = pw.cross(J_point.row(r).transpose()).transpose();
+  J_pose.leftCols<3>().noalias() = C * T.Jr;
+  J_pose.rightCols<3>() = d_pc;
+}
+
+// Huber kernel on a squared whitened error s (Ceres' HuberLoss(delta)): rho(s) = s inside
+// delta^2, 2 delta sqrt(s) - delta^2 beyond; weight = rho'(s). Ceres' residual correction for
+// this kernel (rho'' <= 0) scales residuals and Jacobians by sqrt(rho'), i.e. plain IRLS.
+struct HuberValue {
+  double rho, weight;
+};
+inline HuberValue huber(double s, double delta, double delta2) {
+  if (s <= delta2) return {s, 1.0};
+  const double r = std::sqrt(s);
+  return {2.0 * delta * r - delta2, delta / r};
+}
+
+}  // namespace cslam
