@@ -1,9 +1,13 @@
 #pragma once
 // One client inside the collaborative system: a bounded frame queue and the worker thread that
-// drains it into the client's SLAM (or, with run_slam off, only counts frames).
+// drains it into the client's SLAM (or, with run_slam off, only counts frames). A live frame with
+// a newer frame of the same client queued behind it is skipped (counted, reported as skipped), so
+// a worker that falls behind catches up with the camera instead of processing stale frames.
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <thread>
+#include <vector>
 
 #include "core/bounded_queue.h"
 #include "slam/client_slam.h"
@@ -13,8 +17,10 @@ namespace cslam {
 
 class ClientPipeline {
  public:
+  // `group_of` names the fused group of one of this client's maps (-1: none yet); it is called
+  // on the worker thread and must not lock the system's client table.
   ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
-                 KeyFrameListener listener);
+                 KeyFrameListener listener, std::function<int(const Map*)> group_of = {});
   ~ClientPipeline();
 
   // Blocks while the queue is full. False once finishing.
@@ -31,14 +37,21 @@ class ClientPipeline {
 
  private:
   void run();
+  FrameDone process(const RgbdFrame& frame);
+  void report(FrameDone done, const RgbdFrame& frame);
+
+  static constexpr std::size_t kLatencyWindow = 512;  // frames kept for the latency percentiles
 
   const ClientInfo info_;
   const SystemConfig& config_;
+  std::function<int(const Map*)> group_of_;
   std::unique_ptr<ClientSlam> slam_;  // null when run_slam is off
   BoundedQueue<RgbdFrame> queue_;
   mutable std::mutex mutex_;
   ClientSnapshot counters_;
   Trajectory counted_trajectory_;  // run_slam off: timestamps with identity poses
+  std::vector<double> latency_ms_;  // ring of the last kLatencyWindow frames
+  std::size_t latency_next_ = 0;
   std::thread thread_;
 };
 
