@@ -79,7 +79,13 @@ std::size_t FrameSender::send_frame(const RgbdFrame& frame) {
 
 std::size_t FrameSender::send_encoded(wire::RgbdFrame& frame) {
   if (!socket_) throw std::logic_error("FrameSender: send before connect()");
+  const auto captured = Clock::now();
   wait_for_credit();
+  frame.set_live(false);
+  return send_now(frame, captured);
+}
+
+std::size_t FrameSender::send_now(wire::RgbdFrame& frame, Clock::time_point captured) {
   frame.set_client_id(config_.info.id);
   frame.set_seq(++seq_);
   wire::ClientMessage message;
@@ -92,38 +98,97 @@ std::size_t FrameSender::send_encoded(wire::RgbdFrame& frame) {
   ++in_flight_;
   ++stats_.frames_sent;
   stats_.bytes_sent += body.size();
+  captured_at_[seq_] = captured;
   return body.size();
+}
+
+void FrameSender::offer_frame(const RgbdFrame& frame) { offer_encoded(encode(frame), Clock::now()); }
+
+void FrameSender::offer_encoded(wire::RgbdFrame frame, Clock::time_point captured) {
+  if (!socket_) throw std::logic_error("FrameSender: offer before connect()");
+  ++stats_.frames_offered;
+  while (handle_reply(std::chrono::milliseconds(0))) {
+  }
+  if (waiting_) ++stats_.frames_dropped_live;  // a newer frame makes the waiting one stale
+  frame.set_live(true);
+  waiting_ = std::move(frame);
+  waiting_captured_ = captured;
+  send_waiting_if_credit();
+}
+
+void FrameSender::send_waiting_if_credit() {
+  if (!waiting_ || credits_ == 0) return;
+  send_now(*waiting_, waiting_captured_);
+  waiting_.reset();
+}
+
+void FrameSender::service_until(Clock::time_point until) {
+  if (!socket_) throw std::logic_error("FrameSender: service before connect()");
+  for (;;) {
+    send_waiting_if_credit();
+    const auto now = Clock::now();
+    if ((in_flight_ > 0 || waiting_) && now - last_reply_ > to_ms(config_.reply_timeout_s)) {
+      reconnect();
+      continue;
+    }
+    if (credits_ == 0) send_heartbeat_if_due();
+    if (now >= until) return;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - now) + std::chrono::milliseconds(1);
+    handle_reply(std::min(left, to_ms(config_.heartbeat_interval_s)));
+  }
+}
+
+void FrameSender::send_heartbeat_if_due() {
+  const auto now = Clock::now();
+  if (now - last_heartbeat_ < to_ms(config_.heartbeat_interval_s)) return;
+  wire::ClientMessage hb;
+  hb.mutable_heartbeat()->set_client_id(config_.info.id);
+  send_message(hb);
+  ++stats_.heartbeats;
+  last_heartbeat_ = now;
 }
 
 void FrameSender::wait_for_credit() {
   while (credits_ == 0) {
-    const auto now = Clock::now();
-    if (now - last_reply_ > to_ms(config_.reply_timeout_s)) {
+    if (Clock::now() - last_reply_ > to_ms(config_.reply_timeout_s)) {
       reconnect();
       continue;
     }
-    if (now - last_heartbeat_ >= to_ms(config_.heartbeat_interval_s)) {
-      wire::ClientMessage hb;
-      hb.mutable_heartbeat()->set_client_id(config_.info.id);
-      send_message(hb);
-      ++stats_.heartbeats;
-      last_heartbeat_ = now;
-    }
+    send_heartbeat_if_due();
     handle_reply(to_ms(config_.heartbeat_interval_s));
   }
+}
+
+std::vector<wire::PoseFeedback> FrameSender::take_poses() {
+  std::vector<wire::PoseFeedback> out(poses_.begin(), poses_.end());
+  poses_.clear();
+  return out;
+}
+
+void FrameSender::on_ack(const wire::Ack& ack) {
+  wire::PoseFeedback f = wire::from_wire_ack(ack);
+  const auto now = Clock::now();
+  if (auto it = captured_at_.find(ack.seq()); it != captured_at_.end()) {
+    f.latency_ms = std::chrono::duration<double, std::milli>(now - it->second).count();
+    captured_at_.erase(captured_at_.begin(), std::next(it));  // older seqs cannot be acked any more
+  }
+  latest_pose_ = f;
+  if (pose_callback_) {
+    pose_callback_(f);
+    return;
+  }
+  if (poses_.size() >= kMaxQueuedPoses) {
+    poses_.pop_front();
+    ++stats_.poses_dropped;
+  }
+  poses_.push_back(std::move(f));
 }
 
 void FrameSender::keep_alive(double timeout_s) {
   const auto deadline = Clock::now() + to_ms(timeout_s);
   while (Clock::now() < deadline) {
     const auto now = Clock::now();
-    if (now - last_heartbeat_ >= to_ms(config_.heartbeat_interval_s)) {
-      wire::ClientMessage hb;
-      hb.mutable_heartbeat()->set_client_id(config_.info.id);
-      send_message(hb);
-      ++stats_.heartbeats;
-      last_heartbeat_ = now;
-    }
+    send_heartbeat_if_due();
     handle_reply(std::min(to_ms(config_.heartbeat_interval_s),
                           std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now)));
   }
@@ -132,9 +197,11 @@ void FrameSender::keep_alive(double timeout_s) {
 bool FrameSender::goodbye(double timeout_s) {
   if (!socket_) return false;
   const auto deadline = Clock::now() + to_ms(timeout_s);
-  while (in_flight_ > 0 && Clock::now() < deadline)
+  while ((in_flight_ > 0 || waiting_) && Clock::now() < deadline) {
+    send_waiting_if_credit();  // live: the last frame still goes out when its credit comes
     handle_reply(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
-  const bool all_acked = in_flight_ == 0;
+  }
+  const bool all_acked = in_flight_ == 0 && !waiting_;
   if (!all_acked)
     log()->warn("client {}: {} frame(s) not acknowledged before goodbye", config_.info.id, in_flight_);
   wire::ClientMessage bye;
@@ -167,6 +234,10 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       credits_ = w.credits();
       in_flight_ = w.window() >= w.credits() ? w.window() - w.credits() : 0;
       seq_ = std::max(seq_, w.last_seq());
+      if (w.version() != wire::kProtocolVersion)
+        throw ConnectionError("client " + std::to_string(config_.info.id) + ": server " + config_.server +
+                              " speaks protocol version " + std::to_string(int(w.version())) + ", this client " +
+                              std::to_string(int(wire::kProtocolVersion)) + ": update the server");
       welcomed_ = true;
       session_started_ = true;
       log()->info("client {}: {} session at {}, window {}, {} credits, last seq {}", config_.info.id,
@@ -177,6 +248,7 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       credits_ += m.ack().credits();
       if (in_flight_ > 0) --in_flight_;
       ++stats_.acks;
+      on_ack(m.ack());
       break;
     case wire::ServerMessage::kError: {
       const wire::Error& e = m.error();
@@ -185,6 +257,7 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       credits_ += e.credits();
       if (e.seq() != 0 && in_flight_ > 0) --in_flight_;
       if (e.seq() != 0) ++stats_.frames_refused;
+      if (e.seq() != 0) captured_at_.erase(e.seq());
       log()->warn("client {}: server error {} for seq {}: {}", config_.info.id, code, e.seq(), e.message());
       if (e.code() == wire::ERROR_SESSION_BUSY && !welcomed_) hello_busy_ = true;
       if (e.code() == wire::ERROR_BAD_VERSION || e.code() == wire::ERROR_BAD_HELLO ||

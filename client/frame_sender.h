@@ -2,14 +2,24 @@
 // Client library: what a robot program links to stream its RGB-D frames to cslam-server.
 //   FrameSender sender(config);   // config.info: client id, name, camera
 //   sender.connect();             // hello -> welcome (credits)
-//   sender.send_frame(frame);     // encodes, waits for a credit, sends
+//   sender.send_frame(frame);     // lossless: encodes, waits for a credit, sends
+//   sender.offer_frame(frame);    // live: sends if a credit is free, else keeps only the newest
+//   sender.service_until(t);      // live: between captures, handles acks, sends the kept frame
 //   sender.goodbye();             // waits for the last acks, says goodbye
-// Flow control: at most `window` frames are unacknowledged; send_frame() blocks (sending
-// heartbeats) until the server hands a credit back. A silent server triggers a reconnect that
-// resumes the session (same client id, sequence numbers continue).
+// Flow control: at most `window` frames are unacknowledged. Lossless mode (send_frame) blocks
+// (sending heartbeats) until the server hands a credit back. Live mode never waits for a credit:
+// a frame offered with none free replaces the one kept waiting (the older is dropped, counted),
+// and the server may skip a live frame that a newer one overtook in its queue.
+// Pose feedback: every ack carries the frame's tracking state and, when tracked, its pose in the
+// client's group frame; read them with take_poses() or get them through set_pose_callback().
+// A silent server triggers a reconnect that resumes the session (same client id, sequence
+// numbers continue). One thread uses a FrameSender (it owns a ZeroMQ socket).
 #include <chrono>
 #include <cstdint>
+#include <deque>
+#include <functional>
 #include <map>
+#include <optional>
 #include <memory>
 #include <string>
 
@@ -17,6 +27,7 @@
 
 #include "codec/image_codec.h"
 #include "proto/adapter.h"
+#include "proto/pose_feedback.h"
 #include "system/rgbd_frame.h"
 
 namespace cslam::client {
@@ -36,6 +47,9 @@ struct SenderConfig {
 
 struct SenderStats {
   std::uint64_t frames_sent = 0, bytes_sent = 0, acks = 0, heartbeats = 0, reconnects = 0;
+  std::uint64_t frames_offered = 0;        // live: frames given to offer_*()
+  std::uint64_t frames_dropped_live = 0;   // live: replaced by a newer frame before a credit came
+  std::uint64_t poses_dropped = 0;         // feedback not taken before the poll queue was full
   std::map<std::string, std::uint64_t> errors;  // server error code name -> count
   std::uint64_t frames_refused = 0;  // errors about a sent frame (seq != 0): frames not delivered
 };
@@ -65,6 +79,24 @@ class FrameSender {
   std::size_t send_encoded(wire::RgbdFrame& frame);
   std::size_t send_frame(const RgbdFrame& frame);
 
+  // Live mode: never waits for a credit. Handles pending replies, then sends the frame (marked
+  // live) if a credit is free; otherwise keeps it as the one waiting frame, dropping (and
+  // counting) the frame that waited before. `captured` is when the camera took it (pose latency
+  // is measured from there).
+  void offer_encoded(wire::RgbdFrame frame, std::chrono::steady_clock::time_point captured);
+  void offer_frame(const RgbdFrame& frame);
+  // Live mode, between captures: handles replies until `until`, sending the waiting frame as
+  // soon as a credit comes back (heartbeats and reconnects as in lossless mode).
+  void service_until(std::chrono::steady_clock::time_point until);
+  bool has_waiting_frame() const { return waiting_.has_value(); }
+
+  // Pose feedback. With a callback set, every ack's feedback goes there (on the calling thread,
+  // from inside the sender's calls); otherwise it is queued (bounded) for take_poses().
+  void set_pose_callback(std::function<void(const wire::PoseFeedback&)> callback) { pose_callback_ = std::move(callback); }
+  std::vector<wire::PoseFeedback> take_poses();
+  // The newest feedback received so far (tracked or not).
+  const std::optional<wire::PoseFeedback>& latest_pose() const { return latest_pose_; }
+
   // Handles replies for up to timeout_s (heartbeats if due), for robots that are idle a while.
   void keep_alive(double timeout_s);
   // Waits (up to timeout_s) until every sent frame is acknowledged, then says goodbye.
@@ -84,6 +116,12 @@ class FrameSender {
   // Receives and handles one reply if any arrives within timeout; returns true if one did.
   bool handle_reply(std::chrono::milliseconds timeout);
   void wait_for_credit();
+  void send_heartbeat_if_due();
+  void send_waiting_if_credit();
+  std::size_t send_now(wire::RgbdFrame& frame, Clock::time_point captured);
+  void on_ack(const wire::Ack& ack);
+
+  static constexpr std::size_t kMaxQueuedPoses = 100000;
 
   SenderConfig config_;
   zmq::context_t context_;
@@ -95,6 +133,12 @@ class FrameSender {
   bool hello_busy_ = false;  // the server asked to retry the hello (its old connection is still live)
   Clock::time_point last_reply_, last_heartbeat_;
   SenderStats stats_;
+  std::optional<wire::RgbdFrame> waiting_;          // live: the newest frame without a credit
+  Clock::time_point waiting_captured_;
+  std::map<std::uint64_t, Clock::time_point> captured_at_;  // seq -> capture time, until acked
+  std::function<void(const wire::PoseFeedback&)> pose_callback_;
+  std::deque<wire::PoseFeedback> poses_;
+  std::optional<wire::PoseFeedback> latest_pose_;
 };
 
 }  // namespace cslam::client

@@ -1,11 +1,15 @@
 // cslam-client: replays a TUM-layout RGB-D dataset to cslam-server, as one client robot.
 #include <algorithm>
 #include <cstdio>
+// Lossless (--rate N | max): every frame waits for a credit. Live (--live): frames come on the
+// dataset's own clock like a camera's; without a credit only the newest is kept.
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <thread>
 
 #include "client/frame_sender.h"
+#include "client/pose_log.h"
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -34,7 +38,11 @@ int run(int argc, char** argv) {
       .option("name", "client name shown by the server", "")
       .option("dataset", "TUM-layout folder (rgb.txt, depth.txt, images)")
       .option("range", "frames a:b, 1-based inclusive ('a:' = to the end)", "1:")
-      .option("rate", "frames per second, or 'max' to send as fast as credits allow", "30")
+      .option("rate", "lossless mode: frames per second, or 'max' to send as fast as credits allow", "30")
+      .flag("live", "live mode: frames on the dataset's own clock; no credit -> keep only the newest (--rate ignored)")
+      .option("poses-out", "write the poses received in acks (TUM) and FILE.feedback.csv (state, latency per ack)", "")
+      .option("start-at", "wall-clock time (Unix seconds) to start streaming at, after loading (benchmarks start robots together)", "0")
+      .option("summary-out", "write a JSON summary (frames sent/dropped/skipped, pose latency p50/p99)", "")
       .option("camera", "tum1 | tum2 | tum3 | synthetic | camera file (default: DIR/camera.yaml if present, else tum1)", "")
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
@@ -92,16 +100,35 @@ int run(int argc, char** argv) {
   log->info("client {}: sending frames {}..{} ({} frames) of {} at {}, codecs {}/{}", id, first, last, pairs.size(),
             dir, rate_text, cslam::to_string(config.codecs.rgb), cslam::to_string(config.codecs.depth));
 
+  const bool live = cli.flag_set("live");
+  const double start_at = cli.get_double("start-at");
+  if (start_at > 0) {
+    const auto when = std::chrono::system_clock::time_point(
+        std::chrono::duration_cast<std::chrono::system_clock::duration>(std::chrono::duration<double>(start_at)));
+    while (std::chrono::system_clock::now() < when)  // stay connected while waiting
+      sender.keep_alive(std::min(1.0, std::chrono::duration<double>(when - std::chrono::system_clock::now()).count()));
+  }
+  cslam::client::PoseLog pose_log;
+  sender.set_pose_callback([&pose_log](const cslam::wire::PoseFeedback& f) { pose_log.add(f); });
   const auto start = std::chrono::steady_clock::now();
   cslam::ProgressOptions progress_options;
   progress_options.interval_s = progress_interval;
   cslam::Progress progress("client " + std::to_string(id) + ": sent", pairs.size(), "frames", progress_options);
   for (std::size_t i = 0; i < pairs.size(); ++i) {
-    if (rate > 0) std::this_thread::sleep_until(start + std::chrono::duration<double>(double(i) / rate));
-    if (preloaded.empty()) {
-      sender.send_frame(load_frame(pairs[i], config.info.id));
+    if (live) {
+      // The camera's clock: frame i is captured at its dataset time after the first frame's.
+      const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                   std::chrono::duration<double>(pairs[i].rgb_time - pairs[0].rgb_time));
+      cslam::wire::RgbdFrame frame = preloaded.empty() ? sender.encode(load_frame(pairs[i], config.info.id)) : preloaded[i];
+      sender.service_until(due);
+      sender.offer_encoded(std::move(frame), due);
     } else {
-      sender.send_encoded(preloaded[i]);
+      if (rate > 0) std::this_thread::sleep_until(start + std::chrono::duration<double>(double(i) / rate));
+      if (preloaded.empty()) {
+        sender.send_frame(load_frame(pairs[i], config.info.id));
+      } else {
+        sender.send_encoded(preloaded[i]);
+      }
     }
     const auto& s = sender.stats();
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -116,11 +143,18 @@ int run(int argc, char** argv) {
   const auto& s = sender.stats();
   std::uint64_t errors = 0;
   for (const auto& [code, n] : s.errors) errors += n;
-  // Session-level errors the sender recovered from (e.g. a heartbeat to a restarted server) do
-  // not fail the run; a frame the server refused or never acknowledged does.
+  const nlohmann::json summary = pose_log.summary(s, wall, pairs.size());
   log->info("client {}: done, {} frames in {:.2f} s ({:.1f} fps), {:.1f} KB/frame, {:.2f} MB/s, {} acks, {} errors, {} reconnects",
-            id, s.frames_sent, wall, double(s.frames_sent) / wall, double(s.bytes_sent) / double(s.frames_sent) / 1e3,
-            double(s.bytes_sent) / wall / 1e6, s.acks, errors, s.reconnects);
+            id, s.frames_sent, wall, double(s.frames_sent) / wall,
+            s.frames_sent ? double(s.bytes_sent) / double(s.frames_sent) / 1e3 : 0.0, double(s.bytes_sent) / wall / 1e6,
+            s.acks, errors, s.reconnects);
+  log->info("client {}: pose feedback {}, {} dropped without credit, latency p50 {:.1f} ms p99 {:.1f} ms", id,
+            summary["states"].dump(), s.frames_dropped_live, summary["latency_ms"]["p50"].get<double>(),
+            summary["latency_ms"]["p99"].get<double>());
+  if (!cli.get("poses-out").empty()) pose_log.write(cli.get("poses-out"));
+  if (!cli.get("summary-out").empty()) std::ofstream(cli.get("summary-out")) << summary.dump(2) << "\n";
+    // Session-level errors the sender recovered from (e.g. a heartbeat to a restarted server) do
+  // not fail the run; a frame the server refused or never acknowledged does.
   return all_acked && s.frames_refused == 0 ? 0 : 1;
 }
 

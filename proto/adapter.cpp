@@ -57,6 +57,18 @@ void check_size(const Image& image, const PinholeCamera& camera, const char* wha
 
 }  // namespace
 
+std::string version_mismatch_text(int peer_version) {
+  std::string text = "protocol version " + std::to_string(peer_version) + " is not supported: this server speaks version " +
+                     std::to_string(int(kProtocolVersion));
+  if (peer_version >= 1 && peer_version < int(kProtocolVersion))
+    text += " (since version 2 every ack carries the frame's pose); update the client to this cslam release";
+  else if (peer_version == 0)
+    text += " (the hello carries no version: not a cslam client?)";
+  else
+    text += "; the client is newer than this server: update the server";
+  return text;
+}
+
 Hello to_hello(const ClientInfo& info) {
   Hello h;
   h.set_version(kProtocolVersion);
@@ -79,9 +91,7 @@ Hello to_hello(const ClientInfo& info) {
 
 ClientInfo from_hello(const Hello& hello, const std::string& source, std::uint64_t max_pixels) {
   if (hello.version() != kProtocolVersion)
-    throw WireError(ERROR_BAD_VERSION, source,
-                    "protocol version " + std::to_string(hello.version()) + ", server speaks " +
-                        std::to_string(int(kProtocolVersion)));
+    throw WireError(ERROR_BAD_VERSION, source, version_mismatch_text(hello.version()));
   if (hello.client_id() > 0xffff) throw WireError(ERROR_BAD_HELLO, source, "client id above 65535");
   if (!hello.has_camera()) throw WireError(ERROR_BAD_HELLO, source, "hello without camera");
   const CameraIntrinsics& c = hello.camera();
@@ -122,6 +132,7 @@ void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, R
   out->set_client_id(frame.client);
   out->set_seq(frame.seq);
   out->set_timestamp(frame.timestamp);
+  out->set_live(frame.live);
   const Bytes rgb = encode_rgb(frame.bgr, options);
   const Bytes depth = encode_depth(frame.depth, options);
   Image* r = out->mutable_rgb();
@@ -168,6 +179,7 @@ cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& ca
   out.client = ClientId(frame.client_id());
   out.seq = frame.seq();
   out.timestamp = frame.timestamp();
+  out.live = frame.live();
   const std::string& rgb = frame.rgb().data();
   const std::string& depth = frame.depth().data();
   // RGB and depth decode in parallel (OpenCV's thread pool): about half the latency per frame.

@@ -10,7 +10,9 @@
 
 namespace cslam::wire {
 
-constexpr ProtocolVersion kProtocolVersion = PROTOCOL_VERSION_1;
+constexpr ProtocolVersion kProtocolVersion = PROTOCOL_VERSION_2;
+// The one-line explanation an old (or newer) peer gets with ERROR_BAD_VERSION.
+std::string version_mismatch_text(int peer_version);
 
 // A bad packet: one-line message naming its source, plus the code the server replies with.
 class WireError : public InputError {

@@ -131,7 +131,7 @@ int run(int argc, char** argv) {
   cslam::SystemConfig sc;
   sc.client_queue_capacity = std::size_t(capacity);
   sc.run_slam = !cli.flag_set("no-slam");
-  sc.on_frame_done = [&done](cslam::ClientId client, std::uint64_t seq) { done.push(client, seq); };
+  sc.on_frame_done = [&done](const cslam::FrameDone& d) { done.push(d); };
   cslam::CollaborativeSystem system(sc);
   // Loads the newest snapshot (refuses to start on a bad one unless --state-reset).
   cslam::server::StateStore state(state_config, system);

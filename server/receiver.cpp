@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "core/log.h"
+#include "proto/pose_feedback.h"
 
 namespace cslam::server {
 
@@ -277,6 +278,7 @@ void Receiver::on_hello(const std::string& routing_id, const std::string& key, c
   w->set_last_seq(session->last_seq);
   w->set_resumed(resumed);
   w->set_max_message_bytes(std::uint64_t(config_.max_message_bytes));
+  w->set_version(wire::kProtocolVersion);
   send(routing_id, reply);
 }
 
@@ -381,16 +383,13 @@ void Receiver::on_heartbeat(const std::string& routing_id, const wire::Heartbeat
 }
 
 void Receiver::on_frames_done() {
-  for (const auto& [client, seq] : done_.drain()) {
-    Session* session = sessions_.by_client(client);
+  for (const FrameDone& done : done_.drain()) {
+    Session* session = sessions_.by_client(done.client);
     if (!session) continue;
     if (session->in_flight > 0) --session->in_flight;
     if (session->state != SessionState::kActive) continue;
     wire::ServerMessage reply;
-    wire::Ack* ack = reply.mutable_ack();
-    ack->set_client_id(client);
-    ack->set_seq(seq);
-    ack->set_credits(1);
+    wire::to_wire_ack(done, 1, reply.mutable_ack());  // the frame's pose feedback and its credit
     send(session->routing_id, reply);
   }
 }

@@ -32,20 +32,20 @@ void WakePipe::clear() noexcept {
   }
 }
 
-void DoneChannel::push(ClientId client, std::uint64_t seq) {
+void DoneChannel::push(const FrameDone& done) {
   bool was_empty;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     was_empty = items_.empty();
-    items_.emplace_back(client, seq);
+    items_.push_back(done);
   }
   if (was_empty) pipe_.notify();
 }
 
-std::vector<std::pair<ClientId, std::uint64_t>> DoneChannel::drain() {
+std::vector<FrameDone> DoneChannel::drain() {
   pipe_.clear();
   std::lock_guard<std::mutex> lock(mutex_);
-  std::vector<std::pair<ClientId, std::uint64_t>> out;
+  std::vector<FrameDone> out;
   out.swap(items_);
   return out;
 }

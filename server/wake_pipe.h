@@ -1,13 +1,14 @@
 #pragma once
 // Waking the receiving thread's poll loop from other threads or from a signal handler:
 //  - WakePipe: a non-blocking self-pipe; notify() is async-signal-safe; the read end is polled.
-//  - DoneChannel: (client, seq) pairs from SLAM worker threads (frame consumed -> credit back),
+//  - DoneChannel: FrameDone reports from SLAM worker threads (frame consumed -> ack with its pose
+//    and a credit back),
 //    a mutex-guarded list plus a WakePipe. No ZeroMQ socket is shared between threads.
 #include <mutex>
 #include <utility>
 #include <vector>
 
-#include "core/ids.h"
+#include "system/system_config.h"
 
 namespace cslam::server {
 
@@ -28,14 +29,14 @@ class WakePipe {
 
 class DoneChannel {
  public:
-  void push(ClientId client, std::uint64_t seq);
-  std::vector<std::pair<ClientId, std::uint64_t>> drain();
+  void push(const FrameDone& done);
+  std::vector<FrameDone> drain();
   int read_fd() const { return pipe_.read_fd(); }
 
  private:
   WakePipe pipe_;
   std::mutex mutex_;
-  std::vector<std::pair<ClientId, std::uint64_t>> items_;
+  std::vector<FrameDone> items_;
 };
 
 }  // namespace cslam::server

@@ -165,6 +165,21 @@ Trajectory ClientSlam::trajectory() const {
   return out;
 }
 
+std::optional<ClientSlam::FramePose> ClientSlam::last_frame_pose(double timestamp) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (records_.empty() || records_.back().timestamp != timestamp) return std::nullopt;
+  const FrameRecord& r = records_.back();
+  std::shared_lock<std::shared_mutex> map_lock(maps_[r.map_index]->mutex);
+  SE3 T_cam_ref = r.T_cam_ref;
+  KeyFrame* ref = r.reference.get();
+  while (ref && ref->bad && ref->parent) {
+    T_cam_ref = T_cam_ref * ref->T_cam_parent;
+    ref = ref->parent.get();
+  }
+  if (!ref) return std::nullopt;
+  return FramePose{(T_cam_ref * ref->T_cam_world).inverse(), r.map_index};
+}
+
 std::shared_ptr<Map> ClientSlam::main_map() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return maps_.empty() ? nullptr : maps_[main_map_index()];

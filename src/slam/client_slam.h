@@ -4,6 +4,7 @@
 // trajectory kept relative to reference keyframes so map corrections reach every frame.
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -58,6 +59,14 @@ class ClientSlam {
   ClientSlamSnapshot snapshot() const;
   // Every tracked frame of the map with most frames (camera-to-world), current estimates.
   Trajectory trajectory() const;
+  // Current estimate of the frame processed last, if it had `timestamp` and was tracked: the
+  // same computation as its trajectory() entry (its reference keyframe's current pose), in the
+  // frame of the map it was tracked in (map_index). For pose feedback to the robot.
+  struct FramePose {
+    SE3 T_world_cam;
+    int map_index = 0;
+  };
+  std::optional<FramePose> last_frame_pose(double timestamp) const;
   // The map the trajectory is expressed in.
   std::shared_ptr<Map> main_map() const;
   // Keyframes of that map.

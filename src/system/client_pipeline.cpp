@@ -1,17 +1,43 @@
 #include "system/client_pipeline.h"
 
+#include <algorithm>
+#include <shared_mutex>
+
 #include "core/log.h"
 #include "core/thread_priority.h"
 
 namespace cslam {
 
+const char* to_string(FrameFate f) {
+  switch (f) {
+    case FrameFate::kNotInitialized: return "not_initialized";
+    case FrameFate::kTracked: return "tracked";
+    case FrameFate::kLost: return "lost";
+    case FrameFate::kSkipped: return "skipped";
+    case FrameFate::kRejected: return "rejected";
+  }
+  return "unknown";
+}
+
+namespace {
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  const std::size_t k = std::min(v.size() - 1, std::size_t(p * double(v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + long(k), v.end());
+  return v[k];
+}
+
+}  // namespace
+
 ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
-                               KeyFrameListener listener)
-    : info_(info), config_(config), queue_(config.client_queue_capacity) {
+                               KeyFrameListener listener, std::function<int(const Map*)> group_of)
+    : info_(info), config_(config), group_of_(std::move(group_of)), queue_(config.client_queue_capacity) {
   if (config_.run_slam) slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = info_.id;
+  latency_ms_.reserve(kLatencyWindow);
   // Stepped SLAM (config.slam.threaded off): frames are processed inside submit(), in order.
   if (config_.slam.threaded) thread_ = std::thread([this] { run(); });
 }
@@ -19,13 +45,14 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
 ClientPipeline::~ClientPipeline() { finish(); }
 
 bool ClientPipeline::submit(RgbdFrame frame) {
+  if (frame.received == std::chrono::steady_clock::time_point{}) frame.received = std::chrono::steady_clock::now();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counters_.frames_submitted;
   }
   if (!config_.slam.threaded) {
     if (queue_.closed()) return false;
-    consume(frame);
+    report(process(frame), frame);
     return true;
   }
   return queue_.push(std::move(frame));
@@ -39,35 +66,106 @@ void ClientPipeline::finish() {
 
 void ClientPipeline::run() {
   lower_current_thread_priority();
-  while (auto frame = queue_.pop()) consume(*frame);
+  while (auto frame = queue_.pop()) {
+    // Live: only the newest queued frame is worth processing; older ones are skipped (acked).
+    while (frame->live) {
+      auto newer = queue_.try_pop();
+      if (!newer) break;
+      FrameDone skipped;
+      skipped.fate = FrameFate::kSkipped;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++counters_.frames_skipped;
+      }
+      report(skipped, *frame);
+      frame = std::move(newer);
+    }
+    report(process(*frame), *frame);
+  }
 }
 
-void ClientPipeline::consume(const RgbdFrame& frame) {
-  if (slam_) {
-    if (new_session_.exchange(false)) slam_->start_new_session();
-    const ProcessResult r = slam_->process(frame);
-    if (r.outcome == FrameOutcome::kRejected)
-      logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++counters_.frames_processed;
-    if (r.outcome == FrameOutcome::kRejected) ++counters_.frames_rejected;
-    counters_.last_timestamp = frame.timestamp;
-  } else {
+FrameDone ClientPipeline::process(const RgbdFrame& frame) {
+  FrameDone done;
+  if (!slam_) {
     std::lock_guard<std::mutex> lock(mutex_);
     counted_trajectory_.push_back({frame.timestamp, SE3()});
     ++counters_.frames_processed;
     counters_.tracking = TrackingState::kTracking;
     counters_.last_timestamp = frame.timestamp;
+    done.fate = FrameFate::kTracked;
+    done.has_pose = true;  // identity: the counting-only pipeline's trajectory
+    return done;
   }
-  if (config_.on_frame_done) config_.on_frame_done(frame.client, frame.seq);
+  if (new_session_.exchange(false)) slam_->start_new_session();
+  const ProcessResult r = slam_->process(frame);
+  if (r.outcome == FrameOutcome::kRejected)
+    logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);
+  switch (r.outcome) {
+    case FrameOutcome::kTracked: done.fate = FrameFate::kTracked; break;
+    case FrameOutcome::kLost: done.fate = FrameFate::kLost; break;
+    case FrameOutcome::kNotInitialized: done.fate = FrameFate::kNotInitialized; break;
+    case FrameOutcome::kRejected: done.fate = FrameFate::kRejected; break;
+  }
+  if (done.fate == FrameFate::kTracked) {
+    // The same computation as the frame's trajectory entry; a frame that did not make it into
+    // the trajectory gets no pose (never the previous frame's).
+    if (const auto pose = slam_->last_frame_pose(frame.timestamp)) {
+      done.has_pose = true;
+      done.T_world_cam = pose->T_world_cam;
+      done.map = pose->map_index;
+    } else {
+      done.fate = FrameFate::kLost;
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++counters_.frames_processed;
+  if (r.outcome == FrameOutcome::kRejected) ++counters_.frames_rejected;
+  counters_.last_timestamp = frame.timestamp;
+  return done;
+}
+
+void ClientPipeline::report(FrameDone done, const RgbdFrame& frame) {
+  done.client = frame.client;
+  done.seq = frame.seq;
+  done.timestamp = frame.timestamp;
+  done.server_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame.received).count();
+  if (slam_) {
+    // Group and epoch of the map the frame belongs to (the current map when it has no pose).
+    const auto maps = slam_->maps();
+    if (!done.has_pose) done.map = slam_->snapshot().current_map;
+    for (const auto& m : maps) {
+      std::shared_lock<std::shared_mutex> map_lock(m->mutex);
+      done.map_epoch += m->big_change_index();
+    }
+    const int g = done.map >= 0 && std::size_t(done.map) < maps.size() && group_of_ ? group_of_(maps[done.map].get()) : -1;
+    done.group = g < 0 ? int(info_.id) * 100 : g;
+  } else {
+    done.group = int(info_.id);
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    done.frames_skipped = counters_.frames_skipped;
+    if (done.fate != FrameFate::kSkipped) {
+      if (latency_ms_.size() < kLatencyWindow) latency_ms_.push_back(done.server_ms);
+      else latency_ms_[latency_next_] = done.server_ms;
+      latency_next_ = (latency_next_ + 1) % kLatencyWindow;
+      counters_.pose_latency_last_ms = done.server_ms;
+    }
+  }
+  if (config_.on_frame_done) config_.on_frame_done(done);
 }
 
 ClientSnapshot ClientPipeline::snapshot() const {
   ClientSnapshot s;
+  std::vector<double> latencies;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     s = counters_;
+    latencies = latency_ms_;
   }
+  s.pose_latency_samples = latencies.size();
+  s.pose_latency_p50_ms = percentile(latencies, 0.5);
+  s.pose_latency_p99_ms = percentile(latencies, 0.99);
   s.queue_depth = queue_.size();
   if (slam_) {
     const ClientSlamSnapshot q = slam_->snapshot();

@@ -1,10 +1,14 @@
 #pragma once
 // One client inside the collaborative system: a bounded frame queue and the worker thread that
-// drains it into the client's SLAM (or, with run_slam off, only counts frames).
+// drains it into the client's SLAM (or, with run_slam off, only counts frames). A live frame with
+// a newer frame of the same client queued behind it is skipped (counted, reported as skipped), so
+// a worker that falls behind catches up with the camera instead of processing stale frames.
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <thread>
+#include <vector>
 
 #include "core/bounded_queue.h"
 #include "slam/client_slam.h"
@@ -14,12 +18,14 @@ namespace cslam {
 
 class ClientPipeline {
  public:
+  // `group_of` names the fused group of one of this client's maps (-1: none yet); it is called
+  // on the worker thread and must not lock the system's client table.
   ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
-                 KeyFrameListener listener);
+                 KeyFrameListener listener, std::function<int(const Map*)> group_of = {});
   ~ClientPipeline();
 
-  // Blocks while the queue is full. False once finishing. With stepped SLAM (SlamConfig::threaded
-  // off) the frame is processed before it returns.
+  // With stepped SLAM (SlamConfig::threaded off) the frame is processed before submit returns.
+  // Blocks while the queue is full. False once finishing.
   bool submit(RgbdFrame frame);
   // Drains the queue, stops the worker and the SLAM threads. Idempotent.
   void finish();
@@ -30,21 +36,28 @@ class ClientPipeline {
   const ClientInfo& info() const { return info_; }
   ClientSlam* slam() { return slam_.get(); }
   ClientSlamTimings timings() const;
+
   // The next frame starts a new session (ClientSlam::start_new_session on the worker thread).
   void start_new_session() { new_session_ = true; }
 
  private:
   void run();
-  void consume(const RgbdFrame& frame);  // one frame into SLAM (or the counters), then on_frame_done
+  FrameDone process(const RgbdFrame& frame);
+  void report(FrameDone done, const RgbdFrame& frame);
+
+  static constexpr std::size_t kLatencyWindow = 512;  // frames kept for the latency percentiles
 
   const ClientInfo info_;
   const SystemConfig& config_;
+  std::function<int(const Map*)> group_of_;
   std::unique_ptr<ClientSlam> slam_;  // null when run_slam is off
   BoundedQueue<RgbdFrame> queue_;
   mutable std::mutex mutex_;
   ClientSnapshot counters_;
   Trajectory counted_trajectory_;  // run_slam off: timestamps with identity poses
   std::atomic<bool> new_session_{false};
+  std::vector<double> latency_ms_;  // ring of the last kLatencyWindow frames
+  std::size_t latency_next_ = 0;
   std::thread thread_;
 };
 

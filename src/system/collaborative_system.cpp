@@ -77,7 +77,13 @@ void CollaborativeSystem::add_client(const ClientInfo& info) {
     FusionManager* fusion = impl_->fusion.get();
     listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion->notify(c, m, kf); };
   }
-  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary, std::move(listener)));
+  std::function<int(const Map*)> group_of;
+  if (impl_->fusion) {
+    FusionManager* fusion = impl_->fusion.get();
+    group_of = [fusion](const Map* m) { return fusion->group_of(m); };
+  }
+  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary,
+                                                                   std::move(listener), std::move(group_of)));
   logger("system")->info("client {} ('{}') registered, camera {} {}x{}", info.id, info.name, info.camera.name,
                          info.camera.width, info.camera.height);
 }
@@ -232,7 +238,10 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
     write_tum_trajectory(dir + "/client_" + id + ".txt", trajs.at(c.id), "client " + id + ", frame of group " + std::to_string(c.group));
     nlohmann::json cj = {{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
                          {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
-                         {"frames_lost", c.frames_lost}, {"trajectory_poses", trajs.at(c.id).size()},
+                         {"frames_lost", c.frames_lost}, {"frames_skipped", c.frames_skipped},
+                         {"pose_latency_ms", {{"p50", c.pose_latency_p50_ms}, {"p99", c.pose_latency_p99_ms},
+                                              {"samples", c.pose_latency_samples}}},
+                         {"trajectory_poses", trajs.at(c.id).size()},
                          {"keyframes", c.keyframes}, {"map_points", c.map_points}, {"maps", c.maps}, {"group", c.group},
                          {"tracking", to_string(c.tracking)}};
     std::lock_guard<std::mutex> lock(impl_->mutex);

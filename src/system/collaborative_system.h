@@ -23,6 +23,10 @@ struct ClientSnapshot {
   std::string name;
   TrackingState tracking = TrackingState::kNotInitialized;
   std::uint64_t frames_submitted = 0, frames_processed = 0, frames_rejected = 0, frames_lost = 0;
+  std::uint64_t frames_skipped = 0;  // live frames skipped because a newer one was queued
+  // Receipt to pose (frame done) on the server over the client's last frames, milliseconds.
+  double pose_latency_last_ms = 0, pose_latency_p50_ms = 0, pose_latency_p99_ms = 0;
+  std::size_t pose_latency_samples = 0;
   int maps = 1;
   std::size_t queue_depth = 0;
   int keyframes = 0, map_points = 0;

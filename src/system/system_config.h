@@ -6,10 +6,29 @@
 #include <string>
 
 #include "core/ids.h"
+#include "geometry/se3.h"
 #include "fusion/fusion_manager.h"
 #include "slam/slam_config.h"
 
 namespace cslam {
+
+// What became of one submitted frame, reported by its client's worker once it is consumed.
+enum class FrameFate { kNotInitialized, kTracked, kLost, kSkipped, kRejected };
+const char* to_string(FrameFate f);
+
+struct FrameDone {
+  ClientId client = 0;
+  std::uint64_t seq = 0;
+  double timestamp = 0;
+  FrameFate fate = FrameFate::kRejected;
+  bool has_pose = false;     // only for kTracked: never a stale pose
+  SE3 T_world_cam;           // camera-to-world in the frame of `group` (the tracked map's frame)
+  int group = -1;            // fused group of the map the frame was tracked in
+  int map = 0;               // index of the client's map the frame was tracked in
+  std::uint64_t map_epoch = 0;       // bumps when a fusion, group BA or loop correction may move maps
+  std::uint64_t frames_skipped = 0;  // live frames of this client skipped so far
+  double server_ms = 0;              // submit() to done, milliseconds
+};
 
 struct SystemConfig {
   // Frames queued per client before submit() blocks the producer.
@@ -22,10 +41,10 @@ struct SystemConfig {
   bool run_slam = true;
   // Per-client SLAM settings (every client gets the same).
   SlamConfig slam;
-  // Called from a client's worker thread after each frame has been consumed (processed or
-  // rejected), e.g. so the network layer can hand the client a flow-control credit back.
+  // Called from a client's worker thread after each frame has been consumed (processed, skipped
+  // or rejected), e.g. so the network layer can hand the client a credit and its pose back.
   // Must be cheap and must not call back into the system.
-  std::function<void(ClientId client, std::uint64_t seq)> on_frame_done;
+  std::function<void(const FrameDone& done)> on_frame_done;
 };
 
 }  // namespace cslam

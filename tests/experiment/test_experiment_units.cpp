@@ -29,6 +29,14 @@ TEST(Options, OverlapsArePercent) {
   EXPECT_THROW(parse_overlaps("-1"), ConfigError);
 }
 
+TEST(Options, RunModes) {
+  EXPECT_EQ(parse_mode("offline"), RunMode::kOffline);
+  EXPECT_EQ(parse_mode("network"), RunMode::kNetwork);
+  EXPECT_EQ(parse_mode("live"), RunMode::kLive);
+  EXPECT_STREQ(to_string(RunMode::kLive), "live");
+  EXPECT_THROW(parse_mode("realtime"), ConfigError);
+}
+
 TEST(Options, ClientCounts) {
   EXPECT_EQ(parse_client_counts("3,1,2"), (std::vector<int>{1, 2, 3}));
   EXPECT_THROW(parse_client_counts("0"), ConfigError);

@@ -26,7 +26,7 @@ TEST(FusionDisconnect, ClientStoppingAfterFusionKeepsItsPartOfTheFusedMap) {
   std::condition_variable cv;
   std::uint64_t done = 0;
   SystemConfig config;
-  config.on_frame_done = [&](ClientId, std::uint64_t) {
+  config.on_frame_done = [&](const FrameDone&) {
     std::lock_guard<std::mutex> lock(m);
     ++done;
     cv.notify_all();

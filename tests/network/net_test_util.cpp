@@ -112,9 +112,9 @@ wire::ClientMessage make_frame(ClientId id, std::uint64_t seq, double timestamp,
 InProcessServer::InProcessServer(server::ReceiverConfig config, SystemConfig system_config) {
   if (config.bind == server::ReceiverConfig().bind) config.bind = "tcp://127.0.0.1:*";  // a free port
   auto user_callback = system_config.on_frame_done;
-  system_config.on_frame_done = [this, user_callback](ClientId c, std::uint64_t s) {
-    if (user_callback) user_callback(c, s);
-    done_.push(c, s);
+  system_config.on_frame_done = [this, user_callback](const FrameDone& d) {
+    if (user_callback) user_callback(d);
+    done_.push(d);
   };
   system_ = std::make_unique<CollaborativeSystem>(system_config);
   receiver_ = std::make_unique<server::Receiver>(context_, config, *system_, done_, stop_pipe_);

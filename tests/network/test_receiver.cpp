@@ -135,7 +135,7 @@ TEST(Receiver, CreditWindowIsEnforcedWhileTheWorkerIsBusy) {
   SystemConfig sc;
   sc.run_slam = false;
   sc.client_queue_capacity = 3;
-  sc.on_frame_done = [open](ClientId, std::uint64_t) { open.wait(); };  // a stalled SLAM worker
+  sc.on_frame_done = [open](const FrameDone&) { open.wait(); };  // a stalled SLAM worker
   test::InProcessServer srv(rc, sc);
   zmq::context_t ctx(1);
   const PinholeCamera cam = small_camera();

@@ -33,12 +33,15 @@ std::string safe_name(std::string s) {
 
 }  // namespace
 
-const char* to_string(RunMode mode) { return mode == RunMode::kOffline ? "offline" : "network"; }
+const char* to_string(RunMode mode) {
+  return mode == RunMode::kOffline ? "offline" : mode == RunMode::kLive ? "live" : "network";
+}
 
 RunMode parse_mode(const std::string& text) {
   if (text == "offline") return RunMode::kOffline;
   if (text == "network") return RunMode::kNetwork;
-  throw ConfigError("cslam-experiment: --mode must be 'offline' or 'network', got '" + text + "'");
+  if (text == "live") return RunMode::kLive;
+  throw ConfigError("cslam-experiment: --mode must be 'offline', 'network' or 'live', got '" + text + "'");
 }
 
 std::vector<double> parse_overlaps(const std::string& text) {

@@ -6,9 +6,11 @@
 
 namespace cslam::experiment {
 
-enum class RunMode { kOffline, kNetwork };
+// kLive: network mode with the clients streaming live (cslam-client --live: the dataset's own
+// clock, newest frame only when out of credit; the server skips stale frames).
+enum class RunMode { kOffline, kNetwork, kLive };
 const char* to_string(RunMode mode);
-RunMode parse_mode(const std::string& text);  // "offline" | "network"; throws ConfigError
+RunMode parse_mode(const std::string& text);  // "offline" | "network" | "live"; throws ConfigError
 
 struct ReconOptions {
   bool enabled = true;

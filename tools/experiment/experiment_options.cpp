@@ -28,7 +28,8 @@ void declare_options(CliArgs& args) {
       .option("out", "report folder (report.md, results.csv, results.json, figures/, runs/)")
       .option("clients", "client counts, e.g. 1,2,3 (1 = the single-client baseline); --quick: 1,2", "")
       .option("overlaps", "overlap rates eta in percent, e.g. 0.5,2.5,5,10 (split mode); --quick: 5", "")
-      .option("mode", "network (cslam-server + cslam-client processes over loopback) | offline (cslam-slam)", "network")
+      .option("mode", "network (cslam-server + cslam-client processes over loopback) | live (network, clients streaming live at\n"
+                     "      the dataset's own clock, --rate ignored) | offline (cslam-slam)", "network")
       .option("repeat", "runs per configuration (medians and min-max are reported); --quick: 1", "")
       .flag("quick", "reduced matrix for CI: K = 1 and 2 at one eta, 1 repeat, coarse reconstruction; without data options "
                      "it generates and uses the small synthetic scene (cslam-synth --preset test-small) in OUT")

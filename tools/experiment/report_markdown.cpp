@@ -208,7 +208,9 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
   for (const auto& l : meta.data_lines) md << "- " << l << "\n";
   md << "\n**Reproduce** (revision " << meta.revision << "):\n\n```sh\n" << meta.reproduce << "\n```\n\n";
   md << "- Mode: **" << to_string(o.mode) << "**"
-     << (o.mode == RunMode::kNetwork ? " — cslam-server and one cslam-client process per client over loopback, --rate " + o.rate
+     << (o.mode == RunMode::kLive      ? std::string(" — cslam-server and one cslam-client process per client over loopback, "
+                                                           "streaming live (--live --preload: the dataset's clock, stale frames skipped)")
+         : o.mode == RunMode::kNetwork ? " — cslam-server and one cslam-client process per client over loopback, --rate " + o.rate
                                      : " — cslam-slam in-process (one feeder thread per client)")
      << "; " << o.repeat << " repeat(s), run in rounds (every configuration once, then again) so that load changes spread "
      << "over all configurations" << (o.quick ? "; **--quick** (reduced matrix and reconstruction)" : "") << ".\n";
@@ -230,7 +232,7 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
   md << "- Reconstruction for Table III: voxel " << format_number(o.recon.voxel, 3) << " m, pixel stride " << o.recon.stride
      << " (every " << o.recon.stride << "th pixel in u and v), depth ≤ " << format_number(o.recon.max_depth, 1) << " m" << (o.recon.enabled ? "" : " (**off**)") << ".\n\n";
   md << "Definitions (details: `docs/experiments.md`): **SLAM time** = "
-     << (o.mode == RunMode::kNetwork ? "the server's wall time from listening (clients start right after) until every received "
+     << (o.mode != RunMode::kOffline ? "the server's wall time from listening (clients start right after) until every received "
                                        "frame is processed (`network_stats.json` `wall_s`)"
                                      : "cslam-slam's wall time from the first frame submitted until every frame is processed "
                                        "(`wall_time_s` / `slam_time_s`)")

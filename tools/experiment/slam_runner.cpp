@@ -149,8 +149,9 @@ RunOutcome run_network(const RunConfig& cfg, const ExperimentOptions& opt, const
       for (const auto& s : cfg.specs) {
         std::vector<std::string> argv{opt.bin_dir + "/cslam-client", "--server", endpoint, "--id", std::to_string(s.id), "--name",
                                       "client" + std::to_string(s.id), "--dataset", s.dataset, "--range",
-                                      std::to_string(s.first) + ":" + std::to_string(s.last), "--rate", opt.rate,
-                                      "--progress-interval", "10"};
+                                      std::to_string(s.first) + ":" + std::to_string(s.last), "--progress-interval", "10"};
+        if (opt.mode == RunMode::kLive) argv.insert(argv.end(), {"--live", "--preload"});
+        else argv.insert(argv.end(), {"--rate", opt.rate});
         if (!opt.camera.empty()) argv.insert(argv.end(), {"--camera", opt.camera});
         owned.push_back(std::make_unique<ChildProcess>(argv, dir + "/client_" + std::to_string(s.id) + ".log"));
         children.push_back(owned.back().get());
