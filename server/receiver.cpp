@@ -436,7 +436,9 @@ void Receiver::reclaim_idle() {
           } catch (const std::exception& e) {
             logger("server")->error("reclaiming client {}: {}", info.id, e.what());
           }
-          done->push(info.id, 0);
+          FrameDone reclaimed;
+          reclaimed.client = info.id;
+          done->push(reclaimed);
         }))
       return;  // the reclaimer is busy: try again on the next tick
     reclaiming_.insert(id);
@@ -447,9 +449,9 @@ void Receiver::reclaim_idle() {
 }
 
 void Receiver::on_reclaimed() {
-  for (const auto& [client, seq] : reclaimed_.drain()) {
-    reclaiming_.erase(client);
-    log()->info("client {} reclaimed", client);
+  for (const FrameDone& r : reclaimed_.drain()) {
+    reclaiming_.erase(r.client);
+    log()->info("client {} reclaimed", r.client);
   }
 }
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "server/http/map_routes.h"
+#include "server/session_table.h"
 #include "system/collaborative_system.h"
 
 namespace cslam::server {
@@ -21,11 +22,6 @@ struct StateStoreConfig {
   double interval_s = 10.0;     // <= 0: only on demand and at shutdown
   bool reset = false;           // start empty even if the folder holds a snapshot
   std::uint32_t vocabulary_words = 0;
-};
-
-struct RestoredSession {
-  ClientInfo info;
-  std::uint64_t last_seq = 0;
 };
 
 struct StateStoreStats {
