@@ -36,7 +36,7 @@ std::vector<RestoredSession> StateStore::load() {
   Stopwatch sw;
   SystemState state = snapshot::read_file(*path);
   system_.restore_state(state, *path);
-  for (const auto& c : state.clients) sessions.push_back({c.info, c.last_seq});
+  for (const auto& c : state.clients) sessions.push_back({c.info, c.last_seq, ""});
   log()->info("loaded {} ({} clients) in {:.0f} ms", *path, state.clients.size(), sw.ms());
   return sessions;
 }

@@ -38,8 +38,8 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
   counters_.name = info_.name;
   counters_.group = info_.id;
   latency_ms_.reserve(kLatencyWindow);
-  // Stepped SLAM (config.slam.threaded off): frames are processed inside submit(), in order.
-  if (config_.slam.threaded) thread_ = std::thread([this] { run(); });
+  // Stepped (config.stepped): frames are processed inside submit(), in order.
+  if (!config_.stepped) thread_ = std::thread([this] { run(); });
 }
 
 ClientPipeline::~ClientPipeline() { finish(); }
@@ -50,7 +50,7 @@ bool ClientPipeline::submit(RgbdFrame frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counters_.frames_submitted;
   }
-  if (!config_.slam.threaded) {
+  if (config_.stepped) {
     if (queue_.closed()) return false;
     report(process(frame), frame);
     return true;

@@ -24,7 +24,7 @@ class ClientPipeline {
                  KeyFrameListener listener, std::function<int(const Map*)> group_of = {});
   ~ClientPipeline();
 
-  // With stepped SLAM (SlamConfig::threaded off) the frame is processed before submit returns.
+  // Stepped (SystemConfig::stepped): the frame is processed before submit returns.
   // Blocks while the queue is full. False once finishing.
   bool submit(RgbdFrame frame);
   // Drains the queue, stops the worker and the SLAM threads. Idempotent.

@@ -39,6 +39,10 @@ struct SystemConfig {
   FusionConfig fusion;
   // Run the SLAM stages (false: only count frames and record timestamps, for network tests).
   bool run_slam = true;
+  // No worker threads: submit() processes the frame on the caller's thread before it returns
+  // (deterministic offline runs, cslam-slam --sync; combine with slam.threaded and
+  // fusion.threaded off).
+  bool stepped = false;
   // Per-client SLAM settings (every client gets the same).
   SlamConfig slam;
   // Called from a client's worker thread after each frame has been consumed (processed, skipped

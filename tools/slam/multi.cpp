@@ -74,6 +74,7 @@ int run_multi_client(const CliArgs& args) {
   // once) with local mapping, loop closing and fusion run inline: the same input gives the same
   // output. Otherwise each client has its worker threads and fusion its own thread.
   const bool stepped = args.flag_set("sync");
+  config.stepped = stepped;
   config.slam.threaded = !stepped;
   config.fusion.threaded = !stepped;
   config.slam.mapper.local_ba = !args.flag_set("no-local-ba");
