@@ -4,22 +4,13 @@
 
 #include <ceres/ceres.h>
 
+#include "optimize/ceres_ba_common.h"
+
 #include "optimize/pose_param.h"
 
 namespace cslam {
 
 namespace {
-
-class AbortCallback : public ceres::IterationCallback {
- public:
-  explicit AbortCallback(const std::atomic<bool>* flag) : flag_(flag) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    return flag_ && flag_->load() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  const std::atomic<bool>* flag_;
-};
 
 ceres::CostFunction* make_cost(const BaCamera& cam, const BaObservation& o) {
   const double w = std::sqrt(o.inv_sigma2);
@@ -94,7 +85,7 @@ BaResult bundle_adjust_ceres(const BaProblem& prob, const BaConfig& cfg, const s
   for (const auto& p : prob.points) pts.push_back({p.x(), p.y(), p.z()});
   res.inlier.assign(prob.observations.size(), 1);
 
-  AbortCallback callback(abort);
+  ceres_ba::AbortCallback callback(abort);
   auto run_stage = [&](int iterations, bool robust) {
     ceres::Problem::Options popts;
     popts.loss_function_ownership = ceres::TAKE_OWNERSHIP;
@@ -120,11 +111,7 @@ BaResult bundle_adjust_ceres(const BaProblem& prob, const BaConfig& cfg, const s
     if (abort) opts.callbacks.push_back(&callback);
     ceres::Solver::Summary summary;
     ceres::Solve(opts, &problem, &summary);
-    if (res.iterations == 0) res.initial_cost = summary.initial_cost;
-    res.final_cost = summary.final_cost;
-    res.iterations += int(summary.iterations.size());
-    res.converged = summary.termination_type == ceres::CONVERGENCE || summary.termination_type == ceres::NO_CONVERGENCE;
-    if (summary.termination_type == ceres::USER_FAILURE) res.aborted = true;
+    ceres_ba::accumulate(summary, res);
   };
   auto classify = [&] {
     for (size_t i = 0; i < prob.observations.size(); ++i) {

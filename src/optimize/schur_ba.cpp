@@ -179,18 +179,11 @@ class SchurBaProblem {
       for (int e = point_start_[p]; e < point_start_[p + 1]; ++e) {
         const BaObservation& o = prob_.observations[entries_[e].obs];
         project_with_jacobians(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jc, Jp);
-        const bool stereo = o.u_right >= 0;
-        const Eigen::Vector3d r(uvr.x() - o.uv.x(), uvr.y() - o.uv.y(), stereo ? uvr.z() - o.u_right : 0.0);
-        const double s = r.squaredNorm() * o.inv_sigma2;
-        double w = o.inv_sigma2;
-        if (robust_) {
-          const double d = stereo ? delta_stereo_ : delta_mono_;
-          const HuberValue h = huber(s, d, d * d);
-          cost += h.rho;
-          w *= h.weight;
-        } else {
-          cost += s;
-        }
+        const WeightedResidual wr = weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
+        const bool stereo = wr.stereo;
+        const Eigen::Vector3d& r = wr.r;
+        const double w = wr.weight;
+        cost += wr.cost;
         if (!stereo) {
           Jc.row(2).setZero();
           Jp.row(2).setZero();

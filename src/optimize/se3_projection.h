@@ -82,4 +82,28 @@ inline HuberValue huber(double s, double delta, double delta2) {
   return {2.0 * delta * r - delta2, delta / r};
 }
 
+// One observation's residual (u, v[, u_r] predicted minus measured; the third entry 0 for a
+// monocular one), its cost contribution and its information weight inv_sigma2 * rho'(s).
+struct WeightedResidual {
+  Eigen::Vector3d r;
+  double cost, weight;
+  bool stereo;
+};
+inline WeightedResidual weighted_residual(const Eigen::Vector3d& uvr, const Eigen::Vector2d& uv, double u_right,
+                                          double inv_sigma2, bool robust, double delta_mono, double delta_stereo) {
+  WeightedResidual out;
+  out.stereo = u_right >= 0;
+  out.r = Eigen::Vector3d(uvr.x() - uv.x(), uvr.y() - uv.y(), out.stereo ? uvr.z() - u_right : 0.0);
+  const double s = out.r.squaredNorm() * inv_sigma2;
+  out.weight = inv_sigma2;
+  out.cost = s;
+  if (robust) {
+    const double d = out.stereo ? delta_stereo : delta_mono;
+    const HuberValue h = huber(s, d, d * d);
+    out.cost = h.rho;
+    out.weight *= h.weight;
+  }
+  return out;
+}
+
 }  // namespace cslam

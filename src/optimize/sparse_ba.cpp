@@ -6,6 +6,8 @@
 
 #include <ceres/ceres.h>
 
+#include "optimize/ceres_ba_common.h"
+
 #include "optimize/pose_param.h"
 #include "optimize/se3_projection.h"
 
@@ -63,17 +65,6 @@ class AnalyticReprojectionCost : public ceres::SizedCostFunction<kResiduals, 6, 
   const double w_;
 };
 
-class AbortCallback : public ceres::IterationCallback {
- public:
-  explicit AbortCallback(const std::atomic<bool>* flag) : flag_(flag) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    return flag_ && flag_->load() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  const std::atomic<bool>* flag_;
-};
-
 ceres::LinearSolverType to_ceres(SparseBaLinearSolver s) {
   switch (s) {
     case SparseBaLinearSolver::kDenseSchur: return ceres::DENSE_SCHUR;
@@ -124,7 +115,7 @@ BaResult bundle_adjust_sparse(const BaProblem& prob, const BaConfig& cfg, const 
     ordering->AddElementToGroup(poses[c].data(), 1);
   }
 
-  AbortCallback callback(abort);
+  ceres_ba::AbortCallback callback(abort);
   auto run_stage = [&](int iterations) {
     if (problem.NumResidualBlocks() == 0) return;
     ceres::Solver::Options opts;
@@ -137,11 +128,7 @@ BaResult bundle_adjust_sparse(const BaProblem& prob, const BaConfig& cfg, const 
     if (abort) opts.callbacks.push_back(&callback);
     ceres::Solver::Summary summary;
     ceres::Solve(opts, &problem, &summary);
-    if (res.iterations == 0) res.initial_cost = summary.initial_cost;
-    res.final_cost = summary.final_cost;
-    res.iterations += int(summary.iterations.size());
-    res.converged = summary.termination_type == ceres::CONVERGENCE || summary.termination_type == ceres::NO_CONVERGENCE;
-    if (summary.termination_type == ceres::USER_FAILURE) res.aborted = true;
+    ceres_ba::accumulate(summary, res);
   };
   auto classify = [&] {
     std::vector<BaCamera> cams = prob.cameras;
