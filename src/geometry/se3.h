@@ -41,6 +41,14 @@ class SE3 {
     return SE3(q, xi.head<3>());
   }
 
+  // The motion `factor` times as long at the same twist, to first order in the translation:
+  // rotation angle and translation scaled by `factor` (factor 1 returns *this exactly).
+  SE3 scaled(double factor) const {
+    if (factor == 1.0) return *this;
+    const Eigen::AngleAxisd aa(q_);
+    return SE3(Eigen::Quaterniond(Eigen::AngleAxisd(aa.angle() * factor, aa.axis())), t_ * factor);
+  }
+
   double rotation_angle() const { return 2.0 * std::atan2(q_.vec().norm(), std::abs(q_.w())); }
   bool is_finite() const { return q_.coeffs().allFinite() && t_.allFinite(); }
 

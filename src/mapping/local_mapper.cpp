@@ -94,6 +94,10 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);
     insert_into_map(kf.get());
     cull_map_points(kf.get());
+    const auto created = create_new_map_points(*map_, kf.get(), config_.triangulation);
+    recent_points_.insert(recent_points_.end(), created.begin(), created.end());
+    std::lock_guard<std::mutex> stats_lock(stats_mutex_);
+    stats_.points_triangulated += int(created.size());
   }
   {
     std::unique_lock<std::shared_mutex> lock(map_->mutex);

@@ -11,6 +11,7 @@
 
 #include "eval/stats.h"
 #include "map/map.h"
+#include "mapping/triangulation.h"
 #include "optimize/bundle_adjustment.h"
 #include "tracking/tracker.h"
 
@@ -21,6 +22,7 @@ struct LocalMapperConfig {
   double min_found_ratio = 0.25;
   int fuse_neighbours = 10, fuse_second_neighbours = 5;
   double redundant_ratio = 0.9;    // keyframe culling: share of its close points seen by >= 3 others
+  TriangulationConfig triangulation;  // new points from keyframe pairs
   bool local_ba = true;
   int local_ba_max_keyframes = 20;   // free keyframes: the new one and its strongest covisible neighbours
   BaConfig ba;
@@ -29,7 +31,7 @@ struct LocalMapperConfig {
 };
 
 struct LocalMapperStats {
-  int keyframes_processed = 0, keyframes_culled = 0, points_culled = 0, points_fused = 0;
+  int keyframes_processed = 0, keyframes_culled = 0, points_culled = 0, points_fused = 0, points_triangulated = 0;
   std::vector<double> ba_ms, step_ms;
 };
 

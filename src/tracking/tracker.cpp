@@ -60,6 +60,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
     if (ok) {
       if (last_ && last_->has_pose) {
         velocity_ = frame.T_cam_world * last_->T_cam_world.inverse();
+        velocity_dt_ = frame.data->timestamp - last_->data->timestamp;
         has_velocity_ = true;
       }
       // Drop outliers and visual-odometry-only matches before deciding on a keyframe.
@@ -201,7 +202,10 @@ int drop_outliers_count_map_points(Frame& frame) {
 }  // namespace
 
 bool Tracker::track_with_motion_model(Frame& frame) {
-  frame.T_cam_world = velocity_ * last_->T_cam_world;
+  // Constant velocity in time, not per frame: a dropped or skipped frame doubles the motion.
+  const double dt = frame.data->timestamp - last_->data->timestamp;
+  const double factor = velocity_dt_ > 0 && dt > 0 ? std::clamp(dt / velocity_dt_, 0.25, 4.0) : 1.0;
+  frame.T_cam_world = velocity_.scaled(factor) * last_->T_cam_world;
   frame.has_pose = true;
   int n = search_by_projection(frame, *last_, config_.motion_radius, true);
   if (n < config_.min_motion_matches) {
@@ -210,7 +214,9 @@ bool Tracker::track_with_motion_model(Frame& frame) {
   }
   if (n < config_.min_motion_matches) return false;
   optimize_frame_pose(frame);
-  return drop_outliers_count_map_points(frame) >= config_.min_pose_inliers;
+  const int good = drop_outliers_count_map_points(frame);
+  logger("tracking")->debug("frame {}: motion model {} matches, {} map-point inliers", frame.data->id.seq, n, good);
+  return good >= config_.min_pose_inliers;
 }
 
 bool Tracker::track_reference_keyframe(Frame& frame) {
@@ -285,6 +291,8 @@ bool Tracker::track_local_map(Frame& frame) {
     }
   }
   last_inliers_ = inliers;
+  logger("tracking")->debug("frame {}: local map {} points, {} inliers, reference keyframe {}", frame.data->id.seq, local_points.size(), inliers,
+                            reference_kf_ ? int(reference_kf_->id.seq) : -1);
   const int needed = frames_since_reloc_ < std::uint32_t(config_.max_frames_between_keyframes)
                          ? config_.min_local_map_inliers_after_reloc
                          : config_.min_local_map_inliers;

@@ -96,7 +96,8 @@ class Tracker {
   std::unique_ptr<Frame> last_;
   bool last_is_keyframe_ = false;
   bool has_velocity_ = false;
-  SE3 velocity_;  // T_cam_last = velocity * ... : T_cur_world = velocity * T_last_world
+  SE3 velocity_;  // T_cur_world = velocity * T_last_world, over velocity_dt_ seconds
+  double velocity_dt_ = 0;
   KeyFramePtr reference_kf_;
   KeyFramePtr last_keyframe_;
   std::uint32_t frames_since_keyframe_ = 0, frames_since_reloc_ = 1000000;

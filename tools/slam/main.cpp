@@ -50,6 +50,7 @@ int run(int argc, char** argv) {
       .option("client", "client id", "1")
       .flag("sync", "step every stage on one thread (local mapping, loop closing, fusion): the same input gives the same output")
       .flag("no-local-ba", "disable local bundle adjustment (ablation)")
+      .flag("no-triangulation", "local mapping creates no points from keyframe pairs (ablation)")
       .flag("no-fusion", "multi-client mode: disable map fusion (ablation)")
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
@@ -84,6 +85,7 @@ int run(int argc, char** argv) {
   config.threaded = !args.flag_set("sync");
   config.loop.enabled = !args.flag_set("no-loop");
   config.mapper.local_ba = !args.flag_set("no-local-ba");
+  config.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   ClientSlam slam(info, config, vocabulary);
 
   // Images are decoded on a second thread, ahead of tracking.
@@ -162,6 +164,9 @@ int run(int argc, char** argv) {
       {"local_mapping_step_ms", summary_json(t.mapper.step_ms)},
       {"keyframes_processed", t.mapper.keyframes_processed},
       {"keyframes_culled", t.mapper.keyframes_culled},
+      {"points_triangulated", t.mapper.points_triangulated},
+      {"points_fused", t.mapper.points_fused},
+      {"points_culled", t.mapper.points_culled},
   };
   add_loop_stats(stats, t.loop);
   for (const auto& l : t.loop.loops)

@@ -78,6 +78,7 @@ int run_multi_client(const CliArgs& args) {
   config.slam.threaded = !stepped;
   config.fusion.threaded = !stepped;
   config.slam.mapper.local_ba = !args.flag_set("no-local-ba");
+  config.slam.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   config.slam.loop.enabled = !args.flag_set("no-loop");
   config.fusion.enabled = !args.flag_set("no-fusion");
   config.fusion.group_ba = !args.flag_set("no-group-ba");
