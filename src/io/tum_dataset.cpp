@@ -58,7 +58,31 @@ std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>&
   return out;
 }
 
-TumDataset open_tum_dataset(const std::string& root, double max_dt) {
+std::vector<std::pair<int, int>> associate_nearest(const std::vector<double>& a, const std::vector<double>& b,
+                                                   double max_dt) {
+  std::vector<std::pair<int, int>> out;
+  std::size_t j = 0;  // first b not before a[i] (both lists sorted)
+  for (int i = 0; i < int(a.size()); ++i) {
+    while (j < b.size() && b[j] < a[i]) ++j;
+    int best = -1;
+    double best_dt = max_dt;
+    if (j < b.size() && b[j] - a[i] <= best_dt) {
+      best = int(j);
+      best_dt = b[j] - a[i];
+    }
+    if (j > 0 && a[i] - b[j - 1] <= best_dt && (best < 0 || a[i] - b[j - 1] < best_dt)) best = int(j - 1);
+    if (best >= 0) out.emplace_back(i, best);
+  }
+  return out;
+}
+
+Association parse_association(const std::string& text) {
+  if (text == "nearest") return Association::kNearest;
+  if (text == "unique") return Association::kUnique;
+  throw ConfigError("association '" + text + "' must be nearest or unique");
+}
+
+TumDataset open_tum_dataset(const std::string& root, double max_dt, Association association) {
   if (!fs::is_directory(root)) throw InputError(root, "dataset folder not found");
   TumDataset ds;
   ds.root = root;
@@ -67,7 +91,8 @@ TumDataset open_tum_dataset(const std::string& root, double max_dt) {
   std::vector<double> ta, tb;
   for (const auto& f : ds.rgb) ta.push_back(f.timestamp);
   for (const auto& f : ds.depth) tb.push_back(f.timestamp);
-  for (const auto& [i, j] : associate_timestamps(ta, tb, max_dt)) {
+  const auto pairs = association == Association::kNearest ? associate_nearest(ta, tb, max_dt) : associate_timestamps(ta, tb, max_dt);
+  for (const auto& [i, j] : pairs) {
     RgbdPair p;
     p.rgb_time = ds.rgb[i].timestamp;
     p.depth_time = ds.depth[j].timestamp;

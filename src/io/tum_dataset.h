@@ -30,14 +30,29 @@ struct TumDataset {
   std::optional<Trajectory> groundtruth;  // if groundtruth.txt exists
 };
 
-// Reads the lists and associates RGB and depth by nearest timestamp (|dt| <= max_dt, each image
-// used once, greedy by smallest difference as TUM's associate.py). Throws InputError on a missing
-// folder/file or a malformed line.
-TumDataset open_tum_dataset(const std::string& root, double max_dt = 0.02);
+// How colour and depth images are paired.
+enum class Association {
+  // Every colour image takes the depth image nearest in time (|dt| <= max_dt); a depth image may
+  // serve two colour images. The camera delivered every colour frame: when the sensor dropped a
+  // depth frame, the colour frame is still there, and leaving it out would double the motion
+  // between two frames exactly where the camera moves fastest.
+  kNearest,
+  // Each image used at most once, greedy by smallest difference (TUM's associate.py).
+  kUnique,
+};
+// Parses "nearest" / "unique"; throws ConfigError otherwise.
+Association parse_association(const std::string& text);
 
-// Associates two timestamp lists; returns index pairs (i in a, j in b), sorted by a's time.
+// Reads the lists and associates RGB and depth by timestamp. Throws InputError on a missing
+// folder/file or a malformed line.
+TumDataset open_tum_dataset(const std::string& root, double max_dt = 0.02, Association association = Association::kNearest);
+
+// Associates two timestamp lists one to one; returns index pairs (i in a, j in b), sorted by a's time.
 std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>& a, const std::vector<double>& b,
                                                       double max_dt);
+// Every a takes the nearest b within max_dt (a b may be taken more than once); sorted by a's time.
+std::vector<std::pair<int, int>> associate_nearest(const std::vector<double>& a, const std::vector<double>& b,
+                                                   double max_dt);
 
 // Frames [first, last], 1-based inclusive as in the paper; throws std::out_of_range if empty or
 // outside [1, pairs.size()].

@@ -31,6 +31,25 @@ TEST(Association, NearestUniqueWithinThreshold) {
   EXPECT_EQ(pairs[2], std::make_pair(2, 3));
 }
 
+TEST(Association, NearestMayShareADepthImage) {
+  const std::vector<double> a{1.00, 1.033, 1.066, 1.10, 2.0};
+  const std::vector<double> b{1.005, 1.030, 1.031, 1.075, 1.5};
+  const auto pairs = associate_nearest(a, b, 0.02);
+  // 1.00-1.005, 1.033-1.031, 1.066-1.075, 1.10 has no depth within 0.02 s, 2.0 neither.
+  ASSERT_EQ(pairs.size(), 3u);
+  EXPECT_EQ(pairs[0], std::make_pair(0, 0));
+  EXPECT_EQ(pairs[1], std::make_pair(1, 2));
+  EXPECT_EQ(pairs[2], std::make_pair(2, 3));
+  // A dropped depth frame: two colour frames share the one between them.
+  const auto shared = associate_nearest({1.000, 1.033, 1.066}, {1.005, 1.050}, 0.02);
+  ASSERT_EQ(shared.size(), 3u);
+  EXPECT_EQ(shared[1], std::make_pair(1, 1));
+  EXPECT_EQ(shared[2], std::make_pair(2, 1));
+  EXPECT_EQ(associate_timestamps({1.000, 1.033, 1.066}, {1.005, 1.050}, 0.02).size(), 2u);
+  EXPECT_EQ(parse_association("unique"), Association::kUnique);
+  EXPECT_THROW(parse_association("closest"), ConfigError);
+}
+
 TEST(Range, OneBasedInclusive) {
   std::vector<RgbdPair> pairs(10);
   for (int i = 0; i < 10; ++i) pairs[i].index = i;
@@ -91,9 +110,9 @@ TEST(TumDataset, RealSequence) {
   const auto ds = open_tum_dataset(test::tum_rpy_dir());
   EXPECT_EQ(ds.rgb.size(), 723u);
   EXPECT_EQ(ds.depth.size(), 722u);
-  // The sequence's README: about 694 associated pairs.
-  EXPECT_GE(ds.pairs.size(), 680u);
-  EXPECT_LE(ds.pairs.size(), 722u);
+  // Every colour frame has a depth image within 0.02 s; 694 pairs one to one (the README).
+  EXPECT_EQ(ds.pairs.size(), 723u);
+  EXPECT_EQ(open_tum_dataset(test::tum_rpy_dir(), 0.02, Association::kUnique).pairs.size(), 694u);
   ASSERT_TRUE(ds.groundtruth.has_value());
   EXPECT_GT(ds.groundtruth->size(), 2000u);
   for (const auto& p : ds.pairs) EXPECT_LE(std::abs(p.rgb_time - p.depth_time), 0.02);

@@ -43,6 +43,7 @@ int run(int argc, char** argv) {
       .option("out-dir", "multi-client mode: output folder (client_K.txt, fused_G.txt, stats.json)", "")
       .option("camera", "camera preset (tum1, tum2, tum3, synthetic) or file; default DATASET/camera.yaml or tum1", "")
       .option("range", "frames a:b (1-based, inclusive, of the associated RGB-D pairs)", "")
+      .option("association", "colour-depth pairing: nearest (every colour frame, a depth image may serve two) | unique (TUM associate.py)", "nearest")
       .option("vocab", "vocabulary file", "")
       .option("out", "frame trajectory output (TUM format), single-client mode", "")
       .option("keyframes", "keyframe trajectory output (TUM format)", "")
@@ -64,7 +65,7 @@ int run(int argc, char** argv) {
   }
   if (!args.has("dataset") || !args.has("out")) throw ConfigError("single-client mode needs --dataset and --out");
   const std::string dir = args.get("dataset");
-  const TumDataset ds = open_tum_dataset(dir);
+  const TumDataset ds = open_tum_dataset(dir, 0.02, parse_association(args.get("association")));
   std::string cam_name = args.get("camera");
   if (cam_name.empty()) cam_name = std::filesystem::exists(dir + "/camera.yaml") ? dir + "/camera.yaml" : "tum1";
   ClientInfo info;

@@ -42,7 +42,7 @@ int run_multi_client(const CliArgs& args) {
   auto datasets = args.get_multi("datasets");
   if (!datasets.empty()) {
     for (size_t k = 0; k < datasets.size(); ++k) {
-      const TumDataset ds = open_tum_dataset(datasets[k]);
+      const TumDataset ds = open_tum_dataset(datasets[k], 0.02, parse_association(args.get("association")));
       ClientJob j;
       j.info.id = ClientId(k + 1);
       j.info.name = std::filesystem::path(datasets[k]).filename().string();
@@ -53,7 +53,7 @@ int run_multi_client(const CliArgs& args) {
     }
   } else {
     const std::string dir = args.get("dataset");
-    const TumDataset ds = open_tum_dataset(dir);
+    const TumDataset ds = open_tum_dataset(dir, 0.02, parse_association(args.get("association")));
     const int k = args.get_int("clients");
     const SplitResult split = split_sequence(int(ds.pairs.size()), k, parse_overlap_rate(args.get("overlap")));
     for (int c = 0; c < k; ++c) {
