@@ -322,6 +322,8 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
   const bool c1b = frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes);
   const bool c1c = last_inliers_ < ref_matches * 0.25 || need_close;
   const bool c2 = (last_inliers_ < ref_matches * ratio || need_close) && last_inliers_ > 15;
+  logger("tracking")->debug("frame {}: keyframe rule: {} inliers, reference {} points, close tracked {} untracked {}",
+                            frame.data->id.seq, last_inliers_, ref_matches, tracked_close, untracked_close);
   const bool due = config_.keyframe_every_frames > 0 && frames_since_keyframe_ >= std::uint32_t(config_.keyframe_every_frames);
   return (due && last_inliers_ > 15) || ((c1a || c1b || c1c) && c2);
 }
