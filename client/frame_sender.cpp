@@ -80,7 +80,12 @@ std::size_t FrameSender::send_frame(const RgbdFrame& frame) {
 std::size_t FrameSender::send_encoded(wire::RgbdFrame& frame) {
   if (!socket_) throw std::logic_error("FrameSender: send before connect()");
   const auto captured = Clock::now();
-  wait_for_credit();
+  // Frames the server lacks go first (a reconnect while waiting for a credit may queue some).
+  for (;;) {
+    send_resends(true);
+    wait_for_credit();
+    if (resend_.empty()) break;
+  }
   frame.set_live(false);
   return send_now(frame, captured);
 }
@@ -92,14 +97,59 @@ std::size_t FrameSender::send_now(wire::RgbdFrame& frame, Clock::time_point capt
   message.mutable_frame()->Swap(&frame);
   const std::string body = message.SerializeAsString();
   message.mutable_frame()->Swap(&frame);  // hand the caller's buffers back
+  send_body(body);
+  ++stats_.frames_sent;
+  stats_.bytes_sent += body.size();
+  captured_at_[seq_] = captured;
+  if (!frame.live() && config_.resend_buffer_bytes > 0) {
+    kept_bytes_ += body.size();
+    kept_.emplace_back(seq_, body);
+    while (kept_bytes_ > config_.resend_buffer_bytes && !kept_.empty()) {
+      kept_bytes_ -= kept_.front().second.size();
+      kept_.pop_front();
+    }
+  }
+  return body.size();
+}
+
+void FrameSender::send_body(const std::string& body) {
   if (!socket_->send(zmq::buffer(body), zmq::send_flags::none))
     throw ConnectionError("client " + std::to_string(config_.info.id) + ": send timed out");
   --credits_;
   ++in_flight_;
-  ++stats_.frames_sent;
-  stats_.bytes_sent += body.size();
-  captured_at_[seq_] = captured;
-  return body.size();
+}
+
+void FrameSender::plan_resend(std::uint64_t server_last_seq) {
+  resend_.clear();
+  if (server_last_seq >= seq_) return;
+  for (const auto& [seq, body] : kept_)
+    if (seq > server_last_seq) resend_.emplace_back(seq, body);
+  const std::uint64_t missing = seq_ - server_last_seq;
+  const std::uint64_t lost = missing - resend_.size();
+  if (lost > 0) {
+    stats_.frames_lost += lost;
+    log()->warn("client {}: the server lacks frames {}..{}; {} of them are no longer kept (live, or beyond the {} MB "
+                "re-send buffer) and are lost",
+                config_.info.id, server_last_seq + 1, seq_, lost, config_.resend_buffer_bytes >> 20);
+  }
+  if (!resend_.empty())
+    log()->warn("client {}: the server lacks frames {}..{}: sending {} kept frame(s) again", config_.info.id,
+                server_last_seq + 1, seq_, resend_.size());
+}
+
+void FrameSender::send_resends(bool wait) {
+  while (!resend_.empty()) {
+    if (credits_ == 0) {
+      if (!wait) return;
+      wait_for_credit();  // may reconnect, which plans the re-sends again
+      continue;
+    }
+    const auto [seq, body] = resend_.front();
+    resend_.pop_front();
+    send_body(body);
+    ++stats_.frames_resent;
+    captured_at_.emplace(seq, Clock::now());
+  }
 }
 
 void FrameSender::offer_frame(const RgbdFrame& frame) { offer_encoded(encode(frame), Clock::now()); }
@@ -197,11 +247,12 @@ void FrameSender::keep_alive(double timeout_s) {
 bool FrameSender::goodbye(double timeout_s) {
   if (!socket_) return false;
   const auto deadline = Clock::now() + to_ms(timeout_s);
-  while ((in_flight_ > 0 || waiting_) && Clock::now() < deadline) {
+  while ((in_flight_ > 0 || waiting_ || !resend_.empty()) && Clock::now() < deadline) {
+    send_resends(false);
     send_waiting_if_credit();  // live: the last frame still goes out when its credit comes
     handle_reply(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
   }
-  const bool all_acked = in_flight_ == 0 && !waiting_;
+  const bool all_acked = in_flight_ == 0 && !waiting_ && resend_.empty();
   if (!all_acked)
     log()->warn("client {}: {} frame(s) not acknowledged before goodbye", config_.info.id, in_flight_);
   wire::ClientMessage bye;
@@ -233,6 +284,7 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       window_ = w.window();
       credits_ = w.credits();
       in_flight_ = w.window() >= w.credits() ? w.window() - w.credits() : 0;
+      if (w.resumed()) plan_resend(w.last_seq());
       seq_ = std::max(seq_, w.last_seq());
       if (w.version() != wire::kProtocolVersion)
         throw ConnectionError("client " + std::to_string(config_.info.id) + ": server " + config_.server +
@@ -256,7 +308,10 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       ++stats_.errors[code];
       credits_ += e.credits();
       if (e.seq() != 0 && in_flight_ > 0) --in_flight_;
-      if (e.seq() != 0) ++stats_.frames_refused;
+      // A frame that reached a server which no longer knows this session is not refused: the
+      // reconnect below resumes, and the frame goes again if the server lacks it.
+      const bool unregistered = e.code() == wire::ERROR_NOT_REGISTERED && welcomed_;
+      if (e.seq() != 0 && !unregistered) ++stats_.frames_refused;
       if (e.seq() != 0) captured_at_.erase(e.seq());
       log()->warn("client {}: server error {} for seq {}: {}", config_.info.id, code, e.seq(), e.message());
       if (e.code() == wire::ERROR_SESSION_BUSY && !welcomed_) hello_busy_ = true;

@@ -43,6 +43,10 @@ struct SenderConfig {
   // server_public_key: plain TCP (only against a loopback server or one run with --insecure-bind).
   std::string server_public_key, public_key, secret_key;
   bool new_session = false;            // first hello asks for a new recording session (new map)
+  // Lossless frames already sent are kept (newest first, up to this many bytes of wire messages)
+  // so that a server which restarted from an older snapshot, or lost frames in flight, gets
+  // them again: a resumed Welcome's last_seq says where the server stands. 0: keep none.
+  std::size_t resend_buffer_bytes = std::size_t(128) << 20;
 };
 
 struct SenderStats {
@@ -52,6 +56,8 @@ struct SenderStats {
   std::uint64_t poses_dropped = 0;         // feedback not taken before the poll queue was full
   std::map<std::string, std::uint64_t> errors;  // server error code name -> count
   std::uint64_t frames_refused = 0;  // errors about a sent frame (seq != 0): frames not delivered
+  std::uint64_t frames_resent = 0;   // sent again after a resumed session said the server lacked them
+  std::uint64_t frames_lost = 0;     // the server lacked them and they were no longer kept (or live)
 };
 
 // The server refused us or stopped answering.
@@ -118,6 +124,11 @@ class FrameSender {
   void wait_for_credit();
   void send_heartbeat_if_due();
   void send_waiting_if_credit();
+  // After a resumed welcome: queue the kept frames the server lacks (seq > its last_seq).
+  void plan_resend(std::uint64_t server_last_seq);
+  // Sends queued re-sends while credits last; with `wait`, waits for credits until none is left.
+  void send_resends(bool wait);
+  void send_body(const std::string& body);
   std::size_t send_now(wire::RgbdFrame& frame, Clock::time_point captured);
   void on_ack(const wire::Ack& ack);
 
@@ -138,6 +149,9 @@ class FrameSender {
   std::map<std::uint64_t, Clock::time_point> captured_at_;  // seq -> capture time, until acked
   std::function<void(const wire::PoseFeedback&)> pose_callback_;
   std::deque<wire::PoseFeedback> poses_;
+  std::deque<std::pair<std::uint64_t, std::string>> kept_;    // seq -> wire message, lossless frames
+  std::size_t kept_bytes_ = 0;
+  std::deque<std::pair<std::uint64_t, std::string>> resend_;  // queued by plan_resend, oldest first
   std::optional<wire::PoseFeedback> latest_pose_;
 };
 

@@ -50,6 +50,7 @@ int run(int argc, char** argv) {
       .flag("new-session", "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload", "load and encode every frame before sending (measures the network path only)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")
+      .option("resend-buffer", "MB of sent frames kept for a server that resumes behind (restarted from a snapshot); 0: none", "128")
       .option("progress-interval", "seconds between progress lines", "2")
       .option("log-level", "trace, debug, info, warn, error, off", "info")
       .option("server-key", "the server's CURVE public key file (cslam-keygen); needs --curve-secret", "")
@@ -79,6 +80,11 @@ int run(int argc, char** argv) {
   config.codecs.jpeg_quality = cli.get_int("jpeg-quality");
   config.codecs.depth = cslam::parse_depth_codec(cli.get("depth-codec"));
   config.reply_timeout_s = cli.get_double("reply-timeout");
+  {
+    const double mb = cli.get_double("resend-buffer");
+    if (!(mb >= 0) || mb > 65536) throw cslam::ConfigError("--resend-buffer must be 0..65536 MB");
+    config.resend_buffer_bytes = std::size_t(mb * 1024 * 1024);
+  }
   if (cli.get("server-key").empty() != cli.get("curve-secret").empty())
     throw cslam::ConfigError("cslam-client: --server-key and --curve-secret go together");
   if (!cli.get("server-key").empty()) {
@@ -153,9 +159,11 @@ int run(int argc, char** argv) {
             summary["latency_ms"]["p99"].get<double>());
   if (!cli.get("poses-out").empty()) pose_log.write(cli.get("poses-out"));
   if (!cli.get("summary-out").empty()) std::ofstream(cli.get("summary-out")) << summary.dump(2) << "\n";
-    // Session-level errors the sender recovered from (e.g. a heartbeat to a restarted server) do
-  // not fail the run; a frame the server refused or never acknowledged does.
-  return all_acked && s.frames_refused == 0 ? 0 : 1;
+  // Session-level errors the sender recovered from (e.g. a frame that reached a restarted server
+  // before the resumed hello; it is sent again) do not fail the run; a frame the server refused,
+  // never acknowledged, or lost beyond the re-send buffer does (live mode drops frames by design).
+  if (s.frames_resent > 0) log->info("client {}: {} frame(s) sent again after the server resumed behind", id, s.frames_resent);
+  return all_acked && s.frames_refused == 0 && (live || s.frames_lost == 0) ? 0 : 1;
 }
 
 }  // namespace

@@ -10,7 +10,10 @@ blocks, sending heartbeats, until the server hands a credit back. With ``live=Tr
 never blocks: without a credit it keeps only the newest frame (older ones are dropped and
 counted in stats.dropped_no_credit) and sends it as soon as a credit comes; call poll() from an
 idle loop. A silent server triggers a reconnect that resumes the session (same client id,
-sequence numbers continue after the welcome's last_seq).
+sequence numbers continue). Lossless frames already sent are kept (``resend_buffer_bytes``,
+default 128 MB): when a resumed welcome's last_seq is behind (the server restarted from an older
+snapshot, or frames were in flight), the kept frames it lacks are sent again first, with their
+own sequence numbers; those no longer kept are counted in stats.frames_lost.
 
 Every Ack is passed to ``on_ack(AckInfo)`` (callback style), kept as ``last_ack`` and queued for
 ``take_acks()`` (poll style, the newest 1024). With pose feedback (protocol version 2) an AckInfo
@@ -137,13 +140,16 @@ class SenderStats:
     reconnects: int = 0
     dropped_no_credit: int = 0   # live mode: frames replaced by a newer one before a credit came
     frames_refused: int = 0      # errors about a sent frame (seq != 0): frames the server did not take
+    frames_resent: int = 0       # sent again after a resumed session said the server lacked them
+    frames_lost: int = 0         # the server lacked them and they were no longer kept (or live)
     errors: Dict[str, int] = field(default_factory=dict)  # server error code name -> count
 
 
 class FrameSender:
     def __init__(self, server, client_id, camera, name="", codecs=None, reply_timeout=10.0, heartbeat_interval=1.0,
                  max_reconnects=3, live=False, strict=False, curve: Optional[CurveKeys] = None,
-                 on_ack: Optional[Callable[[AckInfo], None]] = None, context=None, protocol_version=None):
+                 on_ack: Optional[Callable[[AckInfo], None]] = None, context=None, protocol_version=None,
+                 resend_buffer_bytes=128 << 20):
         if not 0 <= int(client_id) <= 65535:
             raise ValueError("client id must be in 0..65535")
         self.server = server
@@ -162,6 +168,12 @@ class FrameSender:
         self.on_ack = on_ack
         # The newest version the generated schema knows, unless a test asks for another.
         self.protocol_version = protocol_version or max(pb.ProtocolVersion.values())
+        # Lossless frames already sent, kept (newest, up to this many bytes) for a server that
+        # resumes behind them (restarted from an older snapshot, or frames lost in flight).
+        self.resend_buffer_bytes = int(resend_buffer_bytes)
+        self._kept = collections.deque()    # (seq, wire message)
+        self._kept_bytes = 0
+        self._resend = collections.deque()  # queued after a resumed welcome, oldest first
         self.last_ack: Optional[AckInfo] = None
         self._acks = collections.deque(maxlen=1024)
         self._sent_at = collections.OrderedDict()  # seq -> send time, for the pose latency
@@ -274,7 +286,12 @@ class FrameSender:
                 return 0
             self._pending = None
         else:
-            self._wait_for_credit()
+            # Frames the server lacks go first (a reconnect while waiting may queue some).
+            while True:
+                self._send_resends(wait=True)
+                self._wait_for_credit()
+                if not self._resend:
+                    break
         return self._send_frame(frame)
 
     def poll(self, timeout=0.0):
@@ -311,6 +328,11 @@ class FrameSender:
         message.frame.CopyFrom(frame)
         body = message.SerializeToString()
         self._send_bytes(body)
+        if not (self.live and self._live_field) and self.resend_buffer_bytes > 0:
+            self._kept.append((frame.seq, body))
+            self._kept_bytes += len(body)
+            while self._kept_bytes > self.resend_buffer_bytes and self._kept:
+                self._kept_bytes -= len(self._kept.popleft()[1])
         self._sent_at[frame.seq] = time.monotonic()
         while len(self._sent_at) > 4096:
             self._sent_at.popitem(last=False)
@@ -319,6 +341,34 @@ class FrameSender:
         self.stats.frames_sent += 1
         self.stats.bytes_sent += len(body)
         return len(body)
+
+    def _plan_resend(self, server_last_seq):
+        self._resend.clear()
+        if server_last_seq >= self.last_seq:
+            return
+        self._resend.extend((seq, body) for seq, body in self._kept if seq > server_last_seq)
+        lost = self.last_seq - server_last_seq - len(self._resend)
+        if lost > 0:
+            self.stats.frames_lost += lost
+            log.warning("client %d: the server lacks frames %d..%d; %d of them are no longer kept and are lost",
+                        self.client_id, server_last_seq + 1, self.last_seq, lost)
+        if self._resend:
+            log.warning("client %d: the server lacks frames %d..%d: sending %d kept frame(s) again", self.client_id,
+                        server_last_seq + 1, self.last_seq, len(self._resend))
+
+    def _send_resends(self, wait):
+        while self._resend:
+            if self.credits == 0:
+                if not wait:
+                    return
+                self._wait_for_credit()  # may reconnect, which plans the re-sends again
+                continue
+            seq, body = self._resend.popleft()
+            self._send_bytes(body)
+            self._sent_at[seq] = time.monotonic()
+            self.credits -= 1
+            self.in_flight += 1
+            self.stats.frames_resent += 1
 
     def _wait_for_credit(self):
         while self.credits == 0:
@@ -338,9 +388,10 @@ class FrameSender:
         if self._socket is None:
             return False
         deadline = time.monotonic() + timeout
-        while (self.in_flight > 0 or self._pending is not None) and time.monotonic() < deadline:
+        while (self.in_flight > 0 or self._pending is not None or self._resend) and time.monotonic() < deadline:
+            self._send_resends(wait=False)
             self.poll(min(self.heartbeat_interval, max(0.0, deadline - time.monotonic())))
-        all_acked = self.in_flight == 0 and self._pending is None
+        all_acked = self.in_flight == 0 and self._pending is None and not self._resend
         if not all_acked:
             log.warning("client %d: %d frame(s) not acknowledged before goodbye", self.client_id, self.in_flight)
         bye = pb.ClientMessage()
@@ -390,6 +441,8 @@ class FrameSender:
             self.window = w.window
             self.credits = w.credits
             self.in_flight = w.window - w.credits if w.window >= w.credits else 0
+            if w.resumed:
+                self._plan_resend(w.last_seq)
             self.last_seq = max(self.last_seq, w.last_seq)
             self._welcomed = True
             log.info("client %d: %s session at %s, window %d, %d credits, last seq %d", self.client_id,
@@ -410,8 +463,12 @@ class FrameSender:
             err = errors.from_wire(e, pb)
             self.stats.errors[err.code_name] = self.stats.errors.get(err.code_name, 0) + 1
             self.credits += e.credits
+            # A frame that reached a server which no longer knows this session is not refused: the
+            # reconnect below resumes, and the frame goes again if the server lacks it.
+            unregistered = err.code_name == "ERROR_NOT_REGISTERED" and self._welcomed
             if e.seq != 0:
-                self.stats.frames_refused += 1
+                if not unregistered:
+                    self.stats.frames_refused += 1
                 if self.in_flight > 0:
                     self.in_flight -= 1
             log.warning("client %d: server error %s for seq %d: %s", self.client_id, err.code_name, e.seq, e.message)
