@@ -259,6 +259,7 @@ void Receiver::on_hello(const std::string& routing_id, const std::string& key, c
   // A known client starting a new recording session (client --new-session): a new map, seqs from 1.
   const bool new_session = hello.new_session() && admission == Admission::kResume;
   auto [session, resumed] = sessions_.open(info, routing_id, Clock::now(), key);
+  reclaimed_ids_.erase(info.id);
   if (new_session) {
     system_.start_new_session(info.id);
     session->last_seq = 0;
@@ -451,6 +452,7 @@ void Receiver::reclaim_idle() {
 void Receiver::on_reclaimed() {
   for (const FrameDone& r : reclaimed_.drain()) {
     reclaiming_.erase(r.client);
+    reclaimed_ids_.insert(r.client);
     log()->info("client {} reclaimed", r.client);
   }
 }
@@ -467,6 +469,8 @@ void Receiver::publish_status() {
   if (!board_) return;
   auto status = std::make_shared<http::NetStatus>(stats_.net_status(sessions_));
   status->totals["sessions_reclaiming"] = reclaiming_.size();
+  status->reclaimed = reclaimed_ids_;
+  status->reclaimed.insert(reclaiming_.begin(), reclaiming_.end());
   status->totals["process_threads"] = process_threads();
   status->totals["decode_queue"] = pool_.queued();
   if (zap_) {

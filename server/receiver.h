@@ -126,6 +126,7 @@ class Receiver {
   DecodePool pool_;
   DoneChannel reclaimed_;          // (client, 0) when a reclaim finished
   std::set<ClientId> reclaiming_;  // ids whose pipeline is being reclaimed (hellos wait)
+  std::set<ClientId> reclaimed_ids_;  // ids whose pipeline was reclaimed (until they say hello again)
   ReclaimHook reclaim_hook_;
   std::unique_ptr<BackgroundWorker> reclaimer_;  // last member: joined first
   http::NetStatusBoard* board_ = nullptr;

@@ -5,6 +5,7 @@
 // A published state is immutable; publish/get swap a shared_ptr under a mutex.
 #include <cstdint>
 #include <map>
+#include <set>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -27,6 +28,9 @@ struct NetStatus {
   std::map<std::string, std::uint64_t> transport;     // accepted / disconnected / auth_failed
   std::map<std::string, double> gauges;               // receive_stall_max_ms, decode_ms_max, ...
   std::map<ClientId, NetClientStatus> clients;        // live sessions only
+  // Sessions reclaimed (pipeline freed) or being reclaimed. A client the SLAM side knows but that
+  // is in neither `clients` nor here has just said hello (this status predates it).
+  std::set<ClientId> reclaimed;
 };
 
 class NetStatusBoard {

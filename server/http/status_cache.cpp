@@ -237,7 +237,8 @@ void StatusCache::refresh() {
     if (net) {  // the network layer knows better: a vanished peer is "disconnected", not "idle"
       const auto it = net->clients.find(c.id);
       if (it == net->clients.end()) {
-        connection = "reclaimed";
+        // Not a live session in this status: reclaimed, or registered after it was published.
+        if (net->reclaimed.count(c.id)) connection = "reclaimed";
       } else if (it->second.connection != "active") {
         connection = it->second.connection;
       }

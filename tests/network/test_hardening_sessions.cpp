@@ -228,6 +228,15 @@ TEST(Hardening, VanishedClientIsDisconnectedThenReclaimed) {
     auto s = wait_status(srv, [](const http::NetStatus& s) { return s.clients.count(6) > 0; });
     ASSERT_TRUE(s && s->clients.count(6));
     EXPECT_EQ(s->clients.at(6).connection, "active");
+    // A network status published before the hello (it is refreshed every 0.2 s) does not make
+    // a client that is streaming look reclaimed.
+    http::StatusCache early(srv.system(), http::CacheConfig());
+    http::NetStatusBoard before_hello;
+    before_hello.publish(std::make_shared<http::NetStatus>());
+    early.set_network(&before_hello);
+    early.refresh();
+    ASSERT_EQ(early.get()->status["clients"].size(), 1u);
+    EXPECT_NE(early.get()->status["clients"][0]["connection"], "reclaimed");
   }  // vanishes without goodbye
   auto s = wait_status(srv, [](const http::NetStatus& s) {
     return s.clients.count(6) && s.clients.at(6).connection == "disconnected";

@@ -148,6 +148,9 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   RecordProperty("ate_uninterrupted_m", std::to_string(ate_ref));
   RecordProperty("ate_killed_m", std::to_string(ate));
   std::printf("joint ATE: uninterrupted %.4f m, killed and restarted %.4f m (ratio %.2f)\n", ate_ref, ate, ate / ate_ref);
+  // The bound. Measured over 8 repeats on a loaded 2-core machine (5b794e9): the
+  // uninterrupted runs give 0.0408 or 0.0460 m (two outcomes of the threaded fusion), the killed
+  // ones 0.0403-0.0456 m; the worst pairing, 0.0456 against 0.0408, is a ratio of 1.12.
   EXPECT_LE(ate, 1.15 * ate_ref + 0.002) << "uninterrupted " << ate_ref;
 }
 
