@@ -59,6 +59,9 @@ int run(int argc, char** argv) {
       .flag("exit-when-done", "exit once --clients clients said goodbye and no other client is still active")
       .option("out-dir", "folder for client_K.txt trajectories, stats.json and network_stats.json", "cslam-out")
       .flag("no-slam", "do not run SLAM (count frames only; for throughput benchmarks)")
+      .flag("deterministic", "each client's local mapping, loop closing and fusion checks run inline on its worker "
+            "(no mapping threads): a lossless client's result depends only on its frames and on how the clients' "
+            "frames interleave (tests, experiments)")
       .option("window", "flow-control window: frames in flight per client", "4")
       .option("queue-capacity", "frames queued per client before the SLAM worker (>= window)", "8")
       .option("max-msg-bytes", "largest accepted message (ZMQ_MAXMSGSIZE); larger ones drop the connection", "16777216")
@@ -131,6 +134,10 @@ int run(int argc, char** argv) {
   cslam::SystemConfig sc;
   sc.client_queue_capacity = std::size_t(capacity);
   sc.run_slam = !cli.flag_set("no-slam");
+  if (cli.flag_set("deterministic")) {
+    sc.slam.threaded = false;
+    sc.fusion.threaded = false;
+  }
   sc.on_frame_done = [&done](const cslam::FrameDone& d) { done.push(d); };
   cslam::CollaborativeSystem system(sc);
   // Loads the newest snapshot (refuses to start on a bad one unless --state-reset).

@@ -43,6 +43,8 @@ void FusionManager::notify(ClientId client, const std::shared_ptr<Map>& map, con
   }
   if (!config_.enabled) return;
   if (!config_.threaded) {
+    // Several clients' workers may notify at once: one check at a time, in arrival order.
+    std::lock_guard<std::mutex> step(inline_mutex_);
     process({client, map, kf});
     return;
   }

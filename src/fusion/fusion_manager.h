@@ -97,6 +97,7 @@ class FusionManager {
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 
   std::mutex queue_mutex_;
+  std::mutex inline_mutex_;  // threaded = false: serialises notify() across client workers
   std::condition_variable queue_cv_;
   std::deque<Pending> queue_;
   bool stop_ = false;
