@@ -8,6 +8,8 @@
 #include <optional>
 #include <fstream>
 #include <shared_mutex>
+#include <thread>
+#include <condition_variable>
 
 #include <nlohmann/json.hpp>
 
@@ -35,6 +37,69 @@ double thread_cpu_ms() {
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
 }
 
+// Tracking stall: per-frame ClientSlam::process() time (threaded SLAM, as the server runs it;
+// images preloaded) over the sequence, without and with a background thread that takes a
+// snapshot copy (export_state) every `period_s`. Prints median, p99 and max of both.
+int stall_test(const ClientInfo& info, const std::shared_ptr<const Vocabulary>& vocabulary,
+               const std::vector<RgbdPair>& pairs, double period_s) {
+  std::vector<RgbdFrame> frames;
+  frames.reserve(pairs.size());
+  for (const auto& p : pairs) {
+    const auto im = load_rgbd(p);
+    RgbdFrame f;
+    f.client = info.id;
+    f.timestamp = p.rgb_time;
+    f.bgr = im.bgr;
+    f.depth = im.depth;
+    frames.push_back(std::move(f));
+  }
+  SlamConfig config;  // threaded
+  for (const bool with_snapshots : {false, true}) {
+    ClientSlam slam(info, config, vocabulary);
+    std::mutex m;
+    std::condition_variable cv;
+    bool stop = false;
+    std::vector<double> copy_ms;
+    std::thread snapshotter;
+    if (with_snapshots)
+      snapshotter = std::thread([&] {
+        std::unique_lock<std::mutex> lock(m);
+        while (!cv.wait_for(lock, std::chrono::duration<double>(period_s), [&] { return stop; })) {
+          lock.unlock();
+          Stopwatch sw;
+          const ClientSlamState state = slam.export_state();
+          const double ms = sw.ms();
+          lock.lock();
+          copy_ms.push_back(ms);
+        }
+      });
+    std::vector<double> frame_ms;
+    for (const auto& f : frames) {
+      Stopwatch sw;
+      slam.process(f);
+      frame_ms.push_back(sw.ms());
+    }
+    {
+      std::lock_guard<std::mutex> lock(m);
+      stop = true;
+    }
+    cv.notify_all();
+    if (snapshotter.joinable()) snapshotter.join();
+    slam.finish();
+    std::sort(frame_ms.begin(), frame_ms.end());
+    const Summary s = summarize(frame_ms);
+    const double p99 = frame_ms[std::min(frame_ms.size() - 1, std::size_t(0.99 * double(frame_ms.size())))];
+    std::printf("%-26s frames %zu: process() median %.2f ms, p99 %.2f ms, max %.2f ms", with_snapshots ? "with snapshots" : "without snapshots",
+                frame_ms.size(), s.median, p99, s.max);
+    if (with_snapshots) {
+      const Summary c = summarize(copy_ms);
+      std::printf(" | %zu snapshot copies every %.2f s, copy median %.1f ms, max %.1f ms", copy_ms.size(), period_s, c.median, c.max);
+    }
+    std::printf("\n");
+  }
+  return 0;
+}
+
 int run(int argc, char** argv) {
   CliArgs args("cslam-bench-snapshot", "Measures snapshot copy, encode, write, load and restore times on a real map.");
   args.option("dataset", "TUM-layout folder", "")
@@ -44,6 +109,8 @@ int run(int argc, char** argv) {
       .option("repeats", "measurements of each step", "10")
       .option("state-dir", "folder for the snapshot files", "/tmp/cslam-bench-snapshot")
       .option("json", "also write the figures to this JSON file", "")
+      .option("stall-test", "instead: per-frame tracking time of threaded SLAM over --dataset without and with a "
+              "snapshot copy every this many seconds", "0")
       .option("log-level", "trace, debug, info, warn, error, off", "warn");
   if (!args.parse(argc, argv)) return 0;
   set_log_level(args.get("log-level"));
@@ -64,6 +131,10 @@ int run(int argc, char** argv) {
     const TumDataset ds = open_tum_dataset(args.get("dataset"));
     const auto [a, b] = parse_range(args.get("range"), int(ds.pairs.size()));
     pairs = select_range(ds.pairs, a, b);
+  }
+  if (args.get_double("stall-test") > 0) {
+    if (pairs.empty()) throw ConfigError("--stall-test needs --dataset");
+    return stall_test(info, vocabulary, pairs, args.get_double("stall-test"));
   }
   ClientSlam slam(info, config, vocabulary);
   Stopwatch mapping;
