@@ -6,6 +6,13 @@
 
 namespace cslam {
 
+// Cross-product matrix: skew(v) * w == v.cross(w).
+inline Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
 class SE3 {
  public:
   SE3() : q_(Eigen::Quaterniond::Identity()), t_(Eigen::Vector3d::Zero()) {}

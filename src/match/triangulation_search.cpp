@@ -7,11 +7,6 @@
 namespace cslam {
 
 namespace {
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
 Eigen::Matrix3d intrinsics(const PinholeCamera& c) {
   Eigen::Matrix3d K;
   K << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1;
@@ -69,8 +64,8 @@ std::vector<std::pair<int, int>> search_for_triangulation(const KeyFrame& kf1, c
         if (d >= best) continue;
         const Eigen::Vector2d& p2 = f2.features.undistorted[i2];
         const int level2 = f2.features.keypoints[i2].octave;
-        if (!depth1 && f2.u_right[i2] < 0 && epipole_valid &&
-            (p2 - epipole).squaredNorm() < std::pow(params.epipole_radius * scale[level2], 2))
+        const double near_epipole = params.epipole_radius * scale[level2];
+        if (!depth1 && f2.u_right[i2] < 0 && epipole_valid && (p2 - epipole).squaredNorm() < near_epipole * near_epipole)
           continue;
         const double num = line.x() * p2.x() + line.y() * p2.y() + line.z();
         if (num * num / line_norm2 >= params.epipolar_chi2 * sigma2[level2]) continue;

@@ -20,12 +20,6 @@ using Matrix63d = Eigen::Matrix<double, 6, 3>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
-inline Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
 // Right Jacobian of SO3 at the angle-axis vector w.
 inline Eigen::Matrix3d so3_right_jacobian(const Eigen::Vector3d& w) {
   const double theta2 = w.squaredNorm();

@@ -44,15 +44,7 @@ int stall_test(const ClientInfo& info, const std::shared_ptr<const Vocabulary>& 
                const std::vector<RgbdPair>& pairs, double period_s) {
   std::vector<RgbdFrame> frames;
   frames.reserve(pairs.size());
-  for (const auto& p : pairs) {
-    const auto im = load_rgbd(p);
-    RgbdFrame f;
-    f.client = info.id;
-    f.timestamp = p.rgb_time;
-    f.bgr = im.bgr;
-    f.depth = im.depth;
-    frames.push_back(std::move(f));
-  }
+  for (const auto& p : pairs) frames.push_back(load_rgbd_frame(p, info.id));
   SlamConfig config;  // threaded
   for (const bool with_snapshots : {false, true}) {
     ClientSlam slam(info, config, vocabulary);
