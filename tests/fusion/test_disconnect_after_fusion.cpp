@@ -18,7 +18,7 @@ using namespace cslam;
 
 TEST(FusionDisconnect, ClientStoppingAfterFusionKeepsItsPartOfTheFusedMap) {
   test::TempDir dir("cslam_fusion_disconnect");
-  const auto r = test::run_program("cslam-synth", "--preset test-small --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::run_program("cslam-synth", "--preset test-small --frames 120 --seed 5 --out " + (dir / "scene") + " --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset d1 = open_tum_dataset(dir / "scene/robot_1"), d2 = open_tum_dataset(dir / "scene/robot_2");
 
@@ -84,7 +84,9 @@ TEST(FusionDisconnect, ClientStoppingAfterFusionKeepsItsPartOfTheFusedMap) {
   // Both trajectories in one frame: one alignment to ground truth fits them together.
   const auto ate = compute_ate_joint({{*d1.groundtruth, trajs.at(1)}, {*d2.groundtruth, trajs.at(2)}}, Alignment::kSE3);
   std::printf("joint ATE %.4f m\n", ate.stats.rmse);
-  // Threaded run: measured 0.0076 m in 10 of 10 repeats on a loaded 2-core machine (68dba60).
+  // Threaded run, 120 frames: fused at frame 70-79 and joint ATE 0.0084-0.0098 m over 17 repeats
+  // beside other tests and a busy loop (with 60 frames the fusion came at frame 47-57 and, under
+  // load, too late for client 1 to go on alone).
   EXPECT_LT(ate.stats.rmse, 0.03);
   EXPECT_GE(snap.group_ba.started, 1);
 }
