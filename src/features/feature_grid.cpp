@@ -39,7 +39,13 @@ int FeatureGrid::row_of(double v) const {
 
 std::vector<int> FeatureGrid::features_in_area(double u, double v, double r, int min_level, int max_level) const {
   std::vector<int> out;
-  if (cells_.empty() || !(r >= 0) || !std::isfinite(u) || !std::isfinite(v)) return out;
+  features_in_area(u, v, r, min_level, max_level, out);
+  return out;
+}
+
+void FeatureGrid::features_in_area(double u, double v, double r, int min_level, int max_level, std::vector<int>& out) const {
+  out.clear();
+  if (cells_.empty() || !(r >= 0) || !std::isfinite(u) || !std::isfinite(v)) return;
   // Features clamped into border cells may lie outside the bounds, so border cells are always
   // included when the square touches them; the exact test below decides.
   const int c0 = col_of(u - r), c1 = col_of(u + r), r0 = row_of(v - r), r1 = row_of(v + r);
@@ -54,7 +60,6 @@ std::vector<int> FeatureGrid::features_in_area(double u, double v, double r, int
     }
   }
   std::sort(out.begin(), out.end());
-  return out;
 }
 
 }  // namespace cslam

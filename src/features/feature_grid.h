@@ -18,6 +18,8 @@ class FeatureGrid {
   // Indices of features whose undistorted position lies within the square of half-size r around
   // (u,v) and (if min_level >= 0 / max_level >= 0) whose octave is within [min_level, max_level].
   std::vector<int> features_in_area(double u, double v, double r, int min_level = -1, int max_level = -1) const;
+  // The same into `out` (cleared first), so that a search over many points reuses one buffer.
+  void features_in_area(double u, double v, double r, int min_level, int max_level, std::vector<int>& out) const;
 
   std::size_t size() const { return u_.size(); }
 

@@ -28,6 +28,11 @@ class MapPoint {
   double min_distance = 0, max_distance = 0;
   std::map<KeyFrame*, int, ById> observations;  // keyframe -> keypoint index
   int num_obs = 0;                         // stereo/RGB-D observations count twice (ORB-SLAM2)
+  // Bumped on every change of `observations` (Map::add/erase_observation, bad, replaced): the
+  // distinctive descriptor depends on that set alone, so Map::update_map_point recomputes it only
+  // when the set changed since `descriptor_version`.
+  std::uint32_t observations_version = 0;
+  std::uint32_t descriptor_version = ~std::uint32_t(0);
   KeyFrame* reference = nullptr;
   int visible = 1, found = 1;
   bool bad = false;

@@ -41,6 +41,7 @@ KeyFramePtr Map::shared(KeyFrame* kf) const {
 void Map::add_observation(KeyFrame* kf, int index, const MapPointPtr& mp) {
   if (mp->observations.count(kf)) return;
   mp->observations[kf] = index;
+  ++mp->observations_version;
   mp->num_obs += kf->data->u_right[index] >= 0 ? 2 : 1;
   kf->map_points[index] = mp;
 }
@@ -51,6 +52,7 @@ void Map::erase_observation(KeyFrame* kf, const MapPointPtr& mp) {
   const int idx = it->second;
   mp->num_obs -= kf->data->u_right[idx] >= 0 ? 2 : 1;
   mp->observations.erase(it);
+  ++mp->observations_version;
   if (kf->map_points[idx] == mp) kf->map_points[idx].reset();
   if (mp->reference == kf) mp->reference = mp->observations.empty() ? nullptr : mp->observations.begin()->first;
   if (mp->num_obs <= 2) set_map_point_bad(mp);
@@ -62,6 +64,7 @@ void Map::set_map_point_bad(const MapPointPtr& mp) {
   for (const auto& [kf, idx] : mp->observations)
     if (kf->map_points[idx] == mp) kf->map_points[idx].reset();
   mp->observations.clear();
+  ++mp->observations_version;
   map_points_.erase(mp->id);
 }
 
@@ -79,6 +82,7 @@ void Map::replace_map_point(const MapPointPtr& from, const MapPointPtr& into) {
   into->found += from->found;
   into->visible += from->visible;
   from->observations.clear();
+  ++from->observations_version;
   from->bad = true;
   from->replaced = into;
   map_points_.erase(from->id);
@@ -196,22 +200,26 @@ void Map::update_map_point(MapPoint* mp) const {
   mp->max_distance = dist * pyr.scale[level];
   mp->min_distance = mp->max_distance / pyr.scale[pyr.num_levels - 1];
 
-  // Distinctive descriptor: the one with the least median distance to the others.
+  // Distinctive descriptor: the one with the least median distance to the others. It depends on
+  // the set of observations alone (keyframe descriptors never change).
+  if (mp->descriptor_version == mp->observations_version) return;
+  mp->descriptor_version = mp->observations_version;
   std::vector<const Descriptor*> descs;
+  descs.reserve(mp->observations.size());
   for (const auto& [kf, idx] : mp->observations) descs.push_back(&kf->data->features.descriptors[idx]);
   const size_t n = descs.size();
   if (n == 1) {
     mp->descriptor = *descs[0];
     return;
   }
-  std::vector<std::vector<int>> d(n, std::vector<int>(n, 0));
+  std::vector<int> d(n * n, 0), row(n);
   for (size_t i = 0; i < n; ++i)
-    for (size_t j = i + 1; j < n; ++j) d[i][j] = d[j][i] = hamming_distance(*descs[i], *descs[j]);
+    for (size_t j = i + 1; j < n; ++j) d[i * n + j] = d[j * n + i] = hamming_distance(*descs[i], *descs[j]);
   int best_median = std::numeric_limits<int>::max();
   size_t best = 0;
   for (size_t i = 0; i < n; ++i) {
-    std::vector<int> row = d[i];
-    std::nth_element(row.begin(), row.begin() + (n - 1) / 2, row.end());
+    std::copy(d.begin() + std::ptrdiff_t(i * n), d.begin() + std::ptrdiff_t((i + 1) * n), row.begin());
+    std::nth_element(row.begin(), row.begin() + std::ptrdiff_t((n - 1) / 2), row.end());
     if (row[(n - 1) / 2] < best_median) {
       best_median = row[(n - 1) / 2];
       best = i;

@@ -1,6 +1,7 @@
 #include "match/projection_search.h"
 
 #include <cmath>
+#include <unordered_set>
 
 #include "features/matching.h"
 
@@ -39,7 +40,7 @@ int search_by_projection(Frame& cur, const Frame& last, double th, bool check_or
   const bool forward = t_last_cur.z() > bf_over_fx;
   const bool backward = -t_last_cur.z() > bf_over_fx;
   RotationHistogram hist;
-  std::vector<int> matched_idx;
+  std::vector<int> cands;
   int n = 0;
   for (size_t i = 0; i < last.map_points.size(); ++i) {
     const auto& mp = last.map_points[i];
@@ -50,10 +51,9 @@ int search_by_projection(Frame& cur, const Frame& last, double th, bool check_or
     if (!f.in_bounds(uv.x(), uv.y())) continue;
     const int last_octave = last.data->features.keypoints[i].octave;
     const double radius = th * f.pyramid->scale[last_octave];
-    std::vector<int> cands;
-    if (forward) cands = f.grid.features_in_area(uv.x(), uv.y(), radius, last_octave, -1);
-    else if (backward) cands = f.grid.features_in_area(uv.x(), uv.y(), radius, 0, last_octave);
-    else cands = f.grid.features_in_area(uv.x(), uv.y(), radius, std::max(0, last_octave - 1), last_octave + 1);
+    if (forward) f.grid.features_in_area(uv.x(), uv.y(), radius, last_octave, -1, cands);
+    else if (backward) f.grid.features_in_area(uv.x(), uv.y(), radius, 0, last_octave, cands);
+    else f.grid.features_in_area(uv.x(), uv.y(), radius, std::max(0, last_octave - 1), last_octave + 1, cands);
     if (cands.empty()) continue;
     const double ur_pred = uv.x() - f.rgbd.bf / pc.z();
     int best = 256, best_idx = -1;
@@ -86,9 +86,11 @@ int search_by_projection(Frame& cur, const Frame& last, double th, bool check_or
 
 int search_local_points(Frame& cur, const std::vector<MapPointPtr>& points, double th) {
   const FrameData& f = *cur.data;
-  std::set<MapPoint*> in_frame;
+  std::unordered_set<const MapPoint*> in_frame;
+  in_frame.reserve(cur.map_points.size());
   for (const auto& mp : cur.map_points)
     if (mp) in_frame.insert(mp.get());
+  std::vector<int> cands;
   int n = 0;
   for (const auto& mp : points) {
     if (!mp || mp->bad || in_frame.count(mp.get())) continue;
@@ -96,7 +98,7 @@ int search_local_points(Frame& cur, const std::vector<MapPointPtr>& points, doub
     if (!p.visible) continue;
     ++mp->visible;
     const double r = th * (p.view_cos > 0.998 ? 2.5 : 4.0) * f.pyramid->scale[p.predicted_level];
-    const auto cands = f.grid.features_in_area(p.uv.x(), p.uv.y(), r, p.predicted_level - 1, p.predicted_level);
+    f.grid.features_in_area(p.uv.x(), p.uv.y(), r, p.predicted_level - 1, p.predicted_level, cands);
     if (cands.empty()) continue;
     int best = 256, best2 = 256, best_level = -1, best_level2 = -1, best_idx = -1;
     for (int idx : cands) {
