@@ -6,6 +6,7 @@
 #include <mutex>
 #include <shared_mutex>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "core/log.h"
 #include "match/projection_search.h"
@@ -263,7 +264,10 @@ void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& loc
   for (KeyFrame* kf : chosen)
     if (auto p = map_->shared(kf)) local_kfs.push_back(p);
   if (best_kf) reference = map_->shared(best_kf);
-  std::set<MapPoint*> seen;
+  std::size_t total = 0;
+  for (const auto& kf : local_kfs) total += kf->map_points.size();
+  std::unordered_set<const MapPoint*> seen;
+  seen.reserve(total);
   local_points.clear();
   for (const auto& kf : local_kfs)
     for (const auto& mp : kf->map_points)
@@ -309,6 +313,7 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
     std::shared_lock<std::shared_mutex> lock(map_->mutex);
     if (reference_kf_) ref_matches = reference_kf_->tracked_map_points(nkfs <= 2 ? 2 : config_.ref_min_observations);
   }
+
   const FrameData& f = *frame.data;
   int tracked_close = 0, untracked_close = 0;
   for (size_t i = 0; i < f.size(); ++i) {
@@ -319,11 +324,15 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
   const bool need_close = tracked_close < config_.close_tracked_threshold && untracked_close > config_.close_untracked_threshold;
   const double ratio = nkfs < 2 ? 0.4 : config_.ref_ratio;
   const bool c1a = frames_since_keyframe_ >= std::uint32_t(config_.max_frames_between_keyframes);
-  const bool c1b = frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes);
+  // ORB-SLAM2 takes the ratio rule alone only while local mapping is idle; here the deterministic
+  // stand-in is a minimum interval of sensor time since the last keyframe (c1a and c1c still
+  // apply at once), so that stepped and threaded runs decide alike.
+  const bool c1b = frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes) &&
+                   (!last_keyframe_ || f.timestamp - last_keyframe_->data->timestamp >= config_.min_keyframe_interval_s);
   const bool c1c = last_inliers_ < ref_matches * 0.25 || need_close;
   const bool c2 = (last_inliers_ < ref_matches * ratio || need_close) && last_inliers_ > 15;
-  logger("tracking")->debug("frame {}: keyframe rule: {} inliers, reference {} points, close tracked {} untracked {}",
-                            frame.data->id.seq, last_inliers_, ref_matches, tracked_close, untracked_close);
+  logger("tracking")->debug("frame {}: keyframe rule: {} inliers, reference {} points, close tracked {} untracked {} c1a {} c1b {} c1c {} c2 {}",
+                            frame.data->id.seq, last_inliers_, ref_matches, tracked_close, untracked_close, c1a, c1b, c1c, c2);
   const bool due = config_.keyframe_every_frames > 0 && frames_since_keyframe_ >= std::uint32_t(config_.keyframe_every_frames);
   return (due && last_inliers_ > 15) || ((c1a || c1b || c1c) && c2);
 }
