@@ -1,5 +1,7 @@
 #include "globalba/global_ba.h"
 
+#include <shared_mutex>
+
 #include <map>
 #include <stdexcept>
 #include <unordered_map>
@@ -108,6 +110,18 @@ bool GlobalBa::apply(const BaResult& r) {
     map->note_big_change();  // tracking re-derives its last pose from its reference keyframe
   }
   return true;
+}
+
+bool run_global_ba_once(Map& map, int iterations) {
+  GlobalBa gba;
+  {
+    std::shared_lock<std::shared_mutex> lock(map.mutex);
+    if (map.num_keyframes() < 3) return false;
+    gba.snapshot({&map});
+  }
+  const BaResult r = gba.solve(iterations, nullptr);
+  std::unique_lock<std::shared_mutex> lock(map.mutex);
+  return gba.apply(r);
 }
 
 }  // namespace cslam

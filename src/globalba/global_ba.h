@@ -42,4 +42,9 @@ class GlobalBa {
   std::vector<std::vector<MapPointPtr>> points_;  // per variable: every map point it stands for
 };
 
+// One global BA over `map` on the calling thread (snapshot under the shared lock, solve without
+// it, apply under the unique lock): the refinement at the end of a session. False if the map has
+// fewer than 3 keyframes or moved meanwhile.
+bool run_global_ba_once(Map& map, int iterations);
+
 }  // namespace cslam

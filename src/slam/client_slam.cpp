@@ -5,6 +5,7 @@
 
 #include "core/log.h"
 #include "core/stopwatch.h"
+#include "globalba/global_ba.h"
 
 namespace cslam {
 
@@ -221,6 +222,21 @@ void ClientSlam::finish() {
   finished_ = true;
   if (mapper_) mapper_->finish();
   if (loop_closer_) loop_closer_->finish();
+}
+
+int ClientSlam::final_global_ba(const std::function<bool(const Map&)>& skip) {
+  if (!finished_) throw std::logic_error("ClientSlam::final_global_ba before finish()");
+  if (config_.final_global_ba_iterations <= 0) return 0;
+  int n = 0;
+  for (const auto& m : maps()) {
+    if (skip && skip(*m)) continue;
+    Stopwatch sw;
+    if (!run_global_ba_once(*m, config_.final_global_ba_iterations)) continue;
+    ++n;
+    logger("slam")->info("client {}: final global BA over map {} ({} keyframes), {:.0f} ms", info_.id, m->index(),
+                         m->num_keyframes(), sw.ms());
+  }
+  return n;
 }
 
 }  // namespace cslam

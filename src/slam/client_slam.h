@@ -2,6 +2,7 @@
 // One client's SLAM worker: ORB extraction, tracking (on the caller's thread), local mapping (its
 // own thread, or stepped inline), several maps if tracking is lost for long, and the frame
 // trajectory kept relative to reference keyframes so map corrections reach every frame.
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -75,6 +76,10 @@ class ClientSlam {
   std::vector<std::shared_ptr<Map>> maps() const;
   // Stops local mapping after processing what is queued. Idempotent.
   void finish();
+  // After finish(): one global BA over each map (config final_global_ba_iterations; 0: none),
+  // except those `skip` names (e.g. maps fused with other clients' maps, which are refined
+  // together instead). Returns how many maps were refined.
+  int final_global_ba(const std::function<bool(const Map&)>& skip = {});
   const ClientInfo& info() const { return info_; }
 
   // Persistence (slam/client_slam_state.cpp). export_state: one consistent copy (maps read under

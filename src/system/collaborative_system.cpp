@@ -167,6 +167,31 @@ void CollaborativeSystem::finish() {
   for (auto& [id, p] : impl_->clients) p->finish();
   // Every keyframe is mapped now; let fusion look at the last ones, then stop it.
   if (impl_->fusion) impl_->fusion->finish();
+  final_global_ba_locked();
+}
+
+void CollaborativeSystem::final_global_ba_locked() {
+  if (impl_->config.slam.final_global_ba_iterations <= 0) return;
+  // Maps fused with others are refined as one group (with their seams); the rest one by one.
+  std::map<int, int> maps_in_group;
+  std::map<int, const Map*> group_member;
+  auto group_of = [this](const Map& m) { return impl_->fusion ? impl_->fusion->group_of(&m) : -1; };
+  for (const auto& [id, p] : impl_->clients)
+    if (p->slam())
+      for (const auto& m : p->slam()->maps())
+        if (const int g = group_of(*m); g >= 0) {
+          ++maps_in_group[g];
+          group_member[g] = m.get();
+        }
+  auto fused = [&](const Map& m) {
+    const int g = group_of(m);
+    return g >= 0 && maps_in_group[g] > 1;
+  };
+  for (const auto& [id, p] : impl_->clients)
+    if (p->slam()) p->slam()->final_global_ba(fused);
+  if (!impl_->fusion || !impl_->config.fusion.group_ba) return;
+  for (const auto& [g, n] : maps_in_group)
+    if (n > 1) impl_->fusion->run_group_ba(group_member[g]);
 }
 
 std::map<int, std::vector<ClientId>> CollaborativeSystem::groups() const {

@@ -106,6 +106,10 @@ class CollaborativeSystem {
   void offer_keyframes_to_fusion();
 
  private:
+  // finish(), with the system mutex held: the session-end global BA of every map (fused groups
+  // as one problem).
+  void final_global_ba_locked();
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

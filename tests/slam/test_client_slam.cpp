@@ -1,5 +1,8 @@
 // The per-client worker on bad input: it reports and skips, or loses tracking and recovers;
 // it never crashes or blocks.
+#include <cmath>
+#include <shared_mutex>
+
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -8,6 +11,7 @@
 #include "eval/trajectory_eval.h"
 #include "io/tum_dataset.h"
 #include "geometry/camera_io.h"
+#include "optimize/bundle_adjustment.h"
 #include "slam/client_slam.h"
 
 using namespace cslam;
@@ -109,4 +113,60 @@ TEST_F(ClientSlamTest, NoDepthAtAllNeverInitialises) {
     EXPECT_EQ(slam_->process(f).outcome, FrameOutcome::kNotInitialized);
   }
   EXPECT_EQ(slam_->process(frame(5)).outcome, FrameOutcome::kTracked);  // first frame with depth initialises
+}
+
+namespace {
+// Sum of the Huber-robustified whitened reprojection errors of every observation in `map`.
+double map_reprojection_cost(Map& map) {
+  std::shared_lock<std::shared_mutex> lock(map.mutex);
+  const double delta2 = 7.815;
+  double cost = 0;
+  for (const auto& mp : map.map_points())
+    for (const auto& [kf, idx] : mp->observations) {
+      const FrameData& f = *kf->data;
+      BaObservation o;
+      o.uv = f.features.undistorted[idx];
+      o.u_right = f.u_right[idx];
+      o.inv_sigma2 = f.pyramid->inv_sigma2[f.features.keypoints[idx].octave];
+      const BaCamera cam{kf->T_cam_world, {f.camera.fx, f.camera.fy, f.camera.cx, f.camera.cy, f.rgbd.bf}, false};
+      const double e2 = ba_observation_chi2(cam, mp->position, o);
+      cost += e2 <= delta2 ? e2 : 2 * std::sqrt(delta2 * e2) - delta2;
+    }
+  return cost;
+}
+}  // namespace
+
+TEST_F(ClientSlamTest, FinalGlobalBaRefinesEachMapAfterFinish) {
+  for (int i = 0; i < 60; ++i) ASSERT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  EXPECT_THROW(slam_->final_global_ba(), std::logic_error);  // local mapping may still be working
+  slam_->finish();
+  auto map = slam_->main_map();
+  ASSERT_GE(map->num_keyframes(), 3u);
+  const double before = map_reprojection_cost(*map);
+  const Trajectory kf_before = slam_->keyframe_trajectory();
+  // A map the caller refines otherwise (fused with others) is left as it is.
+  EXPECT_EQ(slam_->final_global_ba([](const Map&) { return true; }), 0);
+  EXPECT_EQ(map_reprojection_cost(*map), before);
+  EXPECT_EQ(slam_->final_global_ba(), 1);
+  const double after = map_reprojection_cost(*map);
+  EXPECT_LT(after, before);
+  const Trajectory kf_after = slam_->keyframe_trajectory();
+  ASSERT_EQ(kf_after.size(), kf_before.size());
+  double moved = 0;
+  for (std::size_t i = 0; i < kf_after.size(); ++i)
+    moved = std::max(moved, (kf_after[i].T_world_cam.translation() - kf_before[i].T_world_cam.translation()).norm());
+  EXPECT_GT(moved, 0.0);
+  EXPECT_LT(moved, 0.02);  // a refinement, not a jump
+  // The frame trajectory follows its keyframes and stays on the ground truth.
+  EXPECT_LT(compute_ate(*dataset_.groundtruth, slam_->trajectory(), Alignment::kSE3).stats.rmse, 0.015);
+}
+
+TEST_F(ClientSlamTest, FinalGlobalBaOffByConfig) {
+  SlamConfig cfg;
+  cfg.threaded = false;
+  cfg.final_global_ba_iterations = 0;
+  ClientSlam slam(info_, cfg, *vocabulary_);
+  for (int i = 0; i < 20; ++i) ASSERT_EQ(slam.process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  slam.finish();
+  EXPECT_EQ(slam.final_global_ba(), 0);
 }

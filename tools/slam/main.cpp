@@ -55,6 +55,7 @@ int run(int argc, char** argv) {
       .flag("no-fusion", "multi-client mode: disable map fusion (ablation)")
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
+      .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -85,6 +86,7 @@ int run(int argc, char** argv) {
   SlamConfig config;
   config.threaded = !args.flag_set("sync");
   config.loop.enabled = !args.flag_set("no-loop");
+  if (args.flag_set("no-final-ba")) config.final_global_ba_iterations = 0;
   config.mapper.local_ba = !args.flag_set("no-local-ba");
   config.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   ClientSlam slam(info, config, vocabulary);
@@ -133,6 +135,7 @@ int run(int argc, char** argv) {
   }
   loader.join();
   slam.finish();
+  slam.final_global_ba();
   const double wall_s = wall.ms() / 1000.0;
   if (!quiet) std::fprintf(stderr, "\n");
 
