@@ -106,8 +106,8 @@ class CollaborativeSystem {
   void offer_keyframes_to_fusion();
 
  private:
-  // finish(), with the system mutex held: the session-end global BA of every map (fused groups
-  // as one problem).
+  // finish(), with the system mutex held: the session-end global BA of every map that is not
+  // fused with another client's map.
   void final_global_ba_locked();
 
   struct Impl;
