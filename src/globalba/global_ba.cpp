@@ -1,8 +1,7 @@
 #include "globalba/global_ba.h"
 
-#include <shared_mutex>
-
 #include <map>
+#include <shared_mutex>
 #include <stdexcept>
 #include <unordered_map>
 #include <unordered_set>

@@ -77,8 +77,8 @@ class ClientSlam {
   // Stops local mapping after processing what is queued. Idempotent.
   void finish();
   // After finish(): one global BA over each map (config final_global_ba_iterations; 0: none),
-  // except those `skip` names (e.g. maps fused with other clients' maps, which are refined
-  // together instead). Returns how many maps were refined.
+  // except those `skip` names (e.g. maps fused with other clients' maps, which the group BA after
+  // each fusion refines). Returns how many maps were refined.
   int final_global_ba(const std::function<bool(const Map&)>& skip = {});
   const ClientInfo& info() const { return info_; }
 

@@ -313,7 +313,6 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
     std::shared_lock<std::shared_mutex> lock(map_->mutex);
     if (reference_kf_) ref_matches = reference_kf_->tracked_map_points(nkfs <= 2 ? 2 : config_.ref_min_observations);
   }
-
   const FrameData& f = *frame.data;
   int tracked_close = 0, untracked_close = 0;
   for (size_t i = 0; i < f.size(); ++i) {
