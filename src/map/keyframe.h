@@ -8,6 +8,8 @@
 #include <set>
 #include <vector>
 
+#include <boost/container/flat_map.hpp>
+
 #include "core/ids.h"
 #include "geometry/se3.h"
 #include "map/frame_data.h"
@@ -26,7 +28,10 @@ class MapPoint {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   Descriptor descriptor{};
   double min_distance = 0, max_distance = 0;
-  std::map<KeyFrame*, int, ById> observations;  // keyframe -> keypoint index
+  // keyframe -> keypoint index, sorted by keyframe id (the order std::map had). A flat sorted
+  // vector: a point has a handful of observations, and every hot loop (local map, BA set-up,
+  // descriptor, snapshot copy) walks them; a tree spread them over the heap.
+  boost::container::flat_map<KeyFrame*, int, ById> observations;
   int num_obs = 0;                         // stereo/RGB-D observations count twice (ORB-SLAM2)
   // Bumped on every change of `observations` (Map::add/erase_observation, bad, replaced): the
   // distinctive descriptor depends on that set alone, so Map::update_map_point recomputes it only

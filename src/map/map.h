@@ -54,6 +54,12 @@ class Map {
   // [shared]
   std::vector<KeyFramePtr> keyframes() const;
   std::vector<MapPointPtr> map_points() const;
+  // Visits every point without copying owning pointers (no reference-count traffic): for
+  // readers that walk the whole map under the lock, such as the snapshot copy.
+  template <class F>
+  void for_each_map_point(F&& f) const {
+    for (const auto& entry : map_points_) f(*entry.second);
+  }
   KeyFramePtr keyframe(KeyFrameId id) const;
   std::size_t num_keyframes() const { return keyframes_.size(); }
   std::size_t num_map_points() const { return map_points_.size(); }

@@ -41,30 +41,29 @@ MapState export_map_state(const Map& map) {
   }
   // Points: one flat array of observations for all of them (no allocation per point under the
   // lock); split into per-point vectors in tidy_map_state.
-  const auto points = map.map_points();
-  s.points.resize(points.size());
+  s.points.resize(map.num_map_points());
   s.flat_observations.clear();
-  s.flat_observations.reserve(points.size() * 8);
+  s.flat_observations.reserve(map.num_map_points() * 8);
   std::size_t n = 0;
-  for (const auto& mp : points) {
-    if (mp->bad) continue;
+  map.for_each_map_point([&](const MapPoint& mp) {
+    if (mp.bad) return;
     MapPointState& p = s.points[n++];
-    p.id = mp->id;
-    p.position = mp->position;
-    p.normal = mp->normal;
-    p.descriptor = mp->descriptor;
-    p.min_distance = mp->min_distance;
-    p.max_distance = mp->max_distance;
+    p.id = mp.id;
+    p.position = mp.position;
+    p.normal = mp.normal;
+    p.descriptor = mp.descriptor;
+    p.min_distance = mp.min_distance;
+    p.max_distance = mp.max_distance;
     p.flat_begin = s.flat_observations.size();
-    for (const auto& [kf, idx] : mp->observations)
+    for (const auto& [kf, idx] : mp.observations)
       if (!kf->bad) s.flat_observations.emplace_back(kf->id, idx);
     p.flat_end = s.flat_observations.size();
-    if (mp->reference && !mp->reference->bad) p.reference = mp->reference->id;
-    p.visible = mp->visible;
-    p.found = mp->found;
-    p.color = mp->color;
-    p.first_keyframe_seq = mp->first_keyframe_seq;
-  }
+    if (mp.reference && !mp.reference->bad) p.reference = mp.reference->id;
+    p.visible = mp.visible;
+    p.found = mp.found;
+    p.color = mp.color;
+    p.first_keyframe_seq = mp.first_keyframe_seq;
+  });
   s.points.resize(n);
   return s;
 }
