@@ -2,7 +2,8 @@
 # Live capacity benchmark: N synthetic robots (cslam-synth, shared places) stream live at the
 # camera's 30 Hz from preloaded frames to one cslam-server; per N it reports processed fps per
 # robot, frames skipped (server) and dropped without credit (client), ATE per robot and of the
-# fused group, pose latency p50/p99 (frame capture to Ack), server CPU seconds and peak RSS.
+# fused group, pose latency p50/p99 (frame capture to Ack), server CPU seconds, peak RSS and the
+# longest receive-loop iteration (network_stats.json: wall clock, and the thread's own CPU time).
 # Capacity = the largest N at which every robot gets >= 90 % of its frames processed and an ATE
 # <= 1.25x its value streaming alone (solo runs of each robot, same live setup).
 # Usage: scripts/bench-capacity.sh [RUNS=3] [OUT=bench_out/capacity] [NS="1 2 3 4 6 8"] [FRAMES=600]
@@ -113,7 +114,9 @@ def case(dirname):
                      "ate": ate, "latency": lat, "tracked": c.get("trajectory_poses", 0)}
     fused = open(d + "/fused_ate.txt").read().split() if os.path.exists(d + "/fused_ate.txt") else ["0", "nan"]
     load_b = open(d + "/load_before.txt").read().split()[0] if os.path.exists(d + "/load_before.txt") else "?"
-    return {"robots": robots, "cpu_s": float(u) + float(s), "rss_mb": float(rss_kb) / 1024, "wall": float(wall),
+    net = load(d + "/out/network_stats.json", {})
+    return {"loop_ms": net.get("receive_loop_max_ms", float("nan")), "loop_cpu_ms": net.get("receive_loop_max_cpu_ms", float("nan")),
+            "robots": robots, "cpu_s": float(u) + float(s), "rss_mb": float(rss_kb) / 1024, "wall": float(wall),
             "fused_n": int(fused[0]), "fused_ate": float(fused[1]), "load": load_b}
 
 def pct(v, p):
@@ -135,8 +138,8 @@ for k in range(2, max(ns) + 1):
     ref[k] = case(f"solo{k}")["robots"].get(k, {}).get("ate", float("nan")) if solo else ref[1]
 
 print(f"Live capacity, {frames} frames per robot at 30 Hz, {runs} run(s) per N; median (min–max over runs).\n")
-print("| N | processed % (worst robot) | processed fps per robot | skipped (server) per robot | dropped (client) per robot | ATE cm (worst robot / ref) | fused ATE cm | pose latency p50 ms | p99 ms | server CPU s | peak RSS MB | load (1 min) before | verdict |")
-print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+print("| N | processed % (worst robot) | processed fps per robot | skipped (server) per robot | dropped (client) per robot | ATE cm (worst robot / ref) | fused ATE cm | pose latency p50 ms | p99 ms | server CPU s | peak RSS MB | longest receive loop ms (thread CPU ms) | load (1 min) before | verdict |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 capacity = 0
 for n in ns:
     rows = cases[n]
@@ -159,6 +162,7 @@ for n in ns:
     print(f"| {n} | {fmt(med(worst_pct))} | {fmt(med(fps))} | {fmt(med(skipped), '{:.0f}')} | {fmt(med(dropped), '{:.0f}')} | "
           f"{fmt(med(worst_ate), '{:.2f}')} / x{med(ate_ratio)[0]:.2f} | {fmt(med(fused), '{:.2f}') if fused else '–'} | "
           f"{fmt(med(p50))} | {fmt(med(p99))} | {fmt(med([c['cpu_s'] for c in rows]))} | {fmt(med([c['rss_mb'] for c in rows]), '{:.0f}')} | "
+          f"{fmt(med([c['loop_ms'] for c in rows]))} ({fmt(med([c['loop_cpu_ms'] for c in rows]))}) | "
           f"{', '.join(c['load'] for c in rows)} | {'ok' if ok else 'below target'} |")
     cases[n] = (rows, ok)
 # Capacity: the largest N such that it and every smaller measured N meet the criteria.
