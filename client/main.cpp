@@ -18,18 +18,9 @@
 #include "server/auth/curve_keys.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
+#include "system/dataset_frame.h"
 
 namespace {
-
-cslam::RgbdFrame load_frame(const cslam::RgbdPair& pair, cslam::ClientId id) {
-  cslam::RgbdImages images = cslam::load_rgbd(pair);
-  cslam::RgbdFrame frame;
-  frame.client = id;
-  frame.timestamp = pair.rgb_time;
-  frame.bgr = std::move(images.bgr);
-  frame.depth = std::move(images.depth);
-  return frame;
-}
 
 int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-client", "Replays a TUM-layout RGB-D dataset to cslam-server as one client robot.");
@@ -99,7 +90,7 @@ int run(int argc, char** argv) {
   cslam::client::FrameSender sender(config);
   std::vector<cslam::wire::RgbdFrame> preloaded;
   if (cli.flag_set("preload")) {
-    for (const auto& pair : pairs) preloaded.push_back(sender.encode(load_frame(pair, config.info.id)));
+    for (const auto& pair : pairs) preloaded.push_back(sender.encode(cslam::load_dataset_frame(pair, config.info.id)));
     log->info("client {}: preloaded {} encoded frames", id, preloaded.size());
   }
   sender.connect();
@@ -125,13 +116,13 @@ int run(int argc, char** argv) {
       // The camera's clock: frame i is captured at its dataset time after the first frame's.
       const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                    std::chrono::duration<double>(pairs[i].rgb_time - pairs[0].rgb_time));
-      cslam::wire::RgbdFrame frame = preloaded.empty() ? sender.encode(load_frame(pairs[i], config.info.id)) : preloaded[i];
+      cslam::wire::RgbdFrame frame = preloaded.empty() ? sender.encode(cslam::load_dataset_frame(pairs[i], config.info.id)) : preloaded[i];
       sender.service_until(due);
       sender.offer_encoded(std::move(frame), due);
     } else {
       if (rate > 0) std::this_thread::sleep_until(start + std::chrono::duration<double>(double(i) / rate));
       if (preloaded.empty()) {
-        sender.send_frame(load_frame(pairs[i], config.info.id));
+        sender.send_frame(cslam::load_dataset_frame(pairs[i], config.info.id));
       } else {
         sender.send_encoded(preloaded[i]);
       }

@@ -132,6 +132,7 @@ void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, R
   out->set_client_id(frame.client);
   out->set_seq(frame.seq);
   out->set_timestamp(frame.timestamp);
+  out->set_depth_time_offset(frame.depth_time_offset);
   out->set_live(frame.live);
   const Bytes rgb = encode_rgb(frame.bgr, options);
   const Bytes depth = encode_depth(frame.depth, options);
@@ -160,25 +161,23 @@ void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std:
   check_size(frame.rgb(), camera, "RGB", source);
   check_size(frame.depth(), camera, "depth", source);
   if (!std::isfinite(frame.timestamp())) throw WireError(ERROR_MALFORMED, source, "non-finite timestamp");
+  if (!std::isfinite(frame.depth_time_offset()) || std::abs(frame.depth_time_offset()) > kMaxDepthTimeOffset)
+    throw WireError(ERROR_MALFORMED, source,
+                    "depth_time_offset " + std::to_string(frame.depth_time_offset()) + " s is not within +-" +
+                        std::to_string(kMaxDepthTimeOffset) + " s");
 }
 
 cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source) {
+  check_frame(frame, camera, source);
   RgbCodec rgb_codec;
   DepthCodec depth_codec;
-  if (!frame.has_rgb() || !frame.has_depth()) throw WireError(ERROR_MALFORMED, source, "frame without rgb or depth image");
-  if (!rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec))
-    throw WireError(ERROR_UNKNOWN_ENCODING, source,
-                    "unknown RGB encoding " + std::to_string(int(frame.rgb().encoding())));
-  if (!depth_codec_from_wire(frame.depth().encoding(), &depth_codec))
-    throw WireError(ERROR_UNKNOWN_ENCODING, source,
-                    "unknown depth encoding " + std::to_string(int(frame.depth().encoding())));
-  check_size(frame.rgb(), camera, "RGB", source);
-  check_size(frame.depth(), camera, "depth", source);
-  if (!std::isfinite(frame.timestamp())) throw WireError(ERROR_MALFORMED, source, "non-finite timestamp");
+  rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec);
+  depth_codec_from_wire(frame.depth().encoding(), &depth_codec);
   cslam::RgbdFrame out;
   out.client = ClientId(frame.client_id());
   out.seq = frame.seq();
   out.timestamp = frame.timestamp();
+  out.depth_time_offset = frame.depth_time_offset();
   out.live = frame.live();
   const std::string& rgb = frame.rgb().data();
   const std::string& depth = frame.depth().data();

@@ -13,6 +13,7 @@
 #include "io/tum_dataset.h"
 #include "proto/adapter.h"
 #include "system/collaborative_system.h"
+#include "system/dataset_frame.h"
 
 namespace {
 
@@ -39,13 +40,7 @@ int run(int argc, char** argv) {
   std::vector<std::string> messages;
   std::size_t bytes = 0;
   for (int i = 0; i < n; ++i) {
-    const cslam::RgbdImages im = cslam::load_rgbd(ds.pairs[std::size_t(i)]);
-    cslam::RgbdFrame f;
-    f.client = 1;
-    f.seq = std::uint64_t(i + 1);
-    f.timestamp = ds.pairs[std::size_t(i)].rgb_time;
-    f.bgr = im.bgr;
-    f.depth = im.depth;
+    const cslam::RgbdFrame f = cslam::load_dataset_frame(ds.pairs[std::size_t(i)], 1, std::uint64_t(i + 1));
     cslam::wire::ClientMessage m;
     cslam::wire::to_wire_frame(f, codecs, m.mutable_frame());
     messages.push_back(m.SerializeAsString());

@@ -50,11 +50,47 @@ bool depth_is_smooth(const cv::Mat& depth_raw, int x, int y, double d, const Pin
 }
 }  // namespace
 
+double depth_at_keypoint(const cv::Mat& depth_raw, const Eigen::Vector2d& distorted, const Eigen::Vector2d& undistorted,
+                         const PinholeCamera& camera, const RgbdParams& rgbd, const std::optional<SE3>& T_depthcam_cam) {
+  // Raw depth at a distorted pixel, 0 if outside, missing, out of range or not smooth around it.
+  auto read = [&](const Eigen::Vector2d& px) {
+    const int x = int(std::lround(px.x())), y = int(std::lround(px.y()));
+    if (x < 0 || y < 0 || x >= depth_raw.cols || y >= depth_raw.rows) return 0.0;
+    const double d = camera.depth_from_raw(depth_raw.at<std::uint16_t>(y, x));
+    if (!(d > rgbd.min_depth && d < rgbd.max_depth)) return 0.0;
+    return depth_is_smooth(depth_raw, x, y, d, camera, rgbd) ? d : 0.0;
+  };
+  if (!T_depthcam_cam || !rgbd.depth_time_compensation) return read(distorted);
+  // The point at depth z on the keypoint's ray lies at X_d(z) = R ray z + t in the depth camera,
+  // which measures X_d.z at the pixel X_d projects to. Solve for z by fixed-point iteration,
+  // starting from the point at infinity (the rotation alone moves the pixel); the translation
+  // over one inter-frame gap shifts the pixel by a few pixels at most, so two steps settle it.
+  const Eigen::Matrix3d R = T_depthcam_cam->R();
+  const Eigen::Vector3d& t = T_depthcam_cam->translation();
+  const Eigen::Vector3d ray((undistorted.x() - camera.cx) / camera.fx, (undistorted.y() - camera.cy) / camera.fy, 1.0);
+  const Eigen::Vector3d r = R * ray;
+  if (r.z() <= 1e-6) return 0.0;
+  auto to_pixel = [&](const Eigen::Vector3d& X_d) { return camera.distort_pixel(camera.project(X_d)); };
+  double z_d = read(to_pixel(r));
+  double z = 0;
+  for (int iter = 0; iter < 2 && z_d > 0; ++iter) {
+    z = (z_d - t.z()) / r.z();
+    if (z <= 0) return 0.0;
+    const Eigen::Vector3d X_d = r * z + t;
+    if (X_d.z() <= 1e-6) return 0.0;
+    z_d = read(to_pixel(X_d));
+  }
+  if (z_d <= 0) return 0.0;
+  z = (z_d - t.z()) / r.z();
+  return z > rgbd.min_depth && z < rgbd.max_depth ? z : 0.0;
+}
+
 std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
                                                  const PinholeCamera& camera, const RgbdParams& rgbd,
                                                  const OrbExtractor& extractor,
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
-                                                 const Vocabulary& vocabulary, int bow_levels_up) {
+                                                 const Vocabulary& vocabulary, int bow_levels_up,
+                                                 const std::optional<SE3>& T_depthcam_cam) {
   auto f = std::make_shared<FrameData>();
   f->id = id;
   f->timestamp = timestamp;
@@ -72,13 +108,13 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
   for (size_t i = 0; i < n; ++i) {
     const cv::Point2f& pt = f->features.keypoints[i].pt;
     const int x = int(std::lround(pt.x)), y = int(std::lround(pt.y));
-    if (x < 0 || y < 0 || x >= depth_raw.cols || y >= depth_raw.rows) continue;
+    if (x < 0 || y < 0 || x >= bgr.cols || y >= bgr.rows) continue;
     if (bgr.channels() == 3) f->colors[i] = bgr.at<cv::Vec3b>(y, x);
-    const double d = camera.depth_from_raw(depth_raw.at<std::uint16_t>(y, x));
-    if (!depth_is_smooth(depth_raw, x, y, d, camera, rgbd)) continue;  // occlusion boundary: monocular keypoint
-    if (d > rgbd.min_depth && d < rgbd.max_depth) {
+    const Eigen::Vector2d& und = f->features.undistorted[i];
+    const double d = depth_at_keypoint(depth_raw, Eigen::Vector2d(pt.x, pt.y), und, camera, rgbd, T_depthcam_cam);
+    if (d > 0) {  // else: missing, or an occlusion boundary: a monocular keypoint
       f->depth[i] = float(d);
-      f->u_right[i] = float(f->features.undistorted[i].x() - rgbd.bf / d);
+      f->u_right[i] = float(und.x() - rgbd.bf / d);
     }
   }
   f->bounds = camera.undistorted_bounds();

@@ -2,6 +2,7 @@
 // The immutable, sensor-derived part of a frame: features, per-keypoint depth, grid, BoW.
 // Built once by the tracker and shared (read-only) by the Frame and, if it becomes one, the KeyFrame.
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -11,6 +12,7 @@
 #include "features/feature_grid.h"
 #include "features/orb_extractor.h"
 #include "geometry/camera.h"
+#include "geometry/se3.h"
 
 namespace cslam {
 
@@ -35,6 +37,11 @@ struct RgbdParams {
   // at most depth_edge_ratio of it (occlusion boundaries, colour/depth misregistration); 0: off.
   int depth_edge_radius = 4;
   double depth_edge_ratio = 0.1;
+  // Colour and depth images of one frame may be captured at different instants (the Kinect v1
+  // streams of the TUM sequences: 12-16 ms apart on most frames). With the camera's predicted
+  // motion over that gap, a keypoint's depth is read where its 3D point lay in the depth image,
+  // not at the keypoint's own pixel (make_frame_data's T_depthcam_cam); false: never (ablation).
+  bool depth_time_compensation = true;
   double close_depth(double fx) const { return th_depth * bf / fx; }
 };
 
@@ -64,12 +71,22 @@ struct FrameData {
   bool in_bounds(double u, double v) const { return u >= bounds[0] && u < bounds[1] && v >= bounds[2] && v < bounds[3]; }
 };
 
-// Builds FrameData from a BGR + raw depth image pair. Depth is looked up at the (distorted)
-// keypoint position, as the depth image is registered to the colour image.
+// Builds FrameData from a BGR + raw depth image pair. The depth image is registered to the colour
+// camera. Without `T_depthcam_cam`, depth is looked up at the (distorted) keypoint position. With
+// it (the colour camera's pose at the colour image's instant, seen from the camera at the depth
+// image's instant), each keypoint's depth is read where the point along its ray lies in the depth
+// image and expressed in the colour camera (depth_at_keypoint).
 std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
                                                  const PinholeCamera& camera, const RgbdParams& rgbd,
                                                  const OrbExtractor& extractor,
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
-                                                 const Vocabulary& vocabulary, int bow_levels_up = 4);
+                                                 const Vocabulary& vocabulary, int bow_levels_up = 4,
+                                                 const std::optional<SE3>& T_depthcam_cam = std::nullopt);
+
+// Metric depth, in the colour camera, of the point seen at undistorted pixel `undistorted` (the
+// keypoint at distorted pixel `distorted`); 0 if missing, out of range or at an occlusion boundary.
+// T_depthcam_cam as above (nullopt: the depth image was taken at the colour image's instant).
+double depth_at_keypoint(const cv::Mat& depth_raw, const Eigen::Vector2d& distorted, const Eigen::Vector2d& undistorted,
+                         const PinholeCamera& camera, const RgbdParams& rgbd, const std::optional<SE3>& T_depthcam_cam);
 
 }  // namespace cslam

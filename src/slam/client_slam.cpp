@@ -1,6 +1,8 @@
 #include "slam/client_slam.h"
 
 #include <algorithm>
+#include <cmath>
+#include <optional>
 #include <shared_mutex>
 
 #include "core/log.h"
@@ -78,12 +80,18 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
     return reject("depth image is not " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " 16-bit");
   if (!std::isfinite(frame.timestamp) || frame.timestamp <= last_timestamp_)
     return reject("timestamp " + std::to_string(frame.timestamp) + " does not increase");
+  if (!std::isfinite(frame.depth_time_offset) || std::abs(frame.depth_time_offset) > kMaxDepthTimeOffset)
+    return reject("depth image " + std::to_string(frame.depth_time_offset) + " s from the colour image (at most " +
+                  std::to_string(kMaxDepthTimeOffset) + " s)");
   last_timestamp_ = frame.timestamp;
 
   Stopwatch sw;
+  // Where the camera moved between the colour and the depth image (none known: read in place).
+  const std::optional<SE3> T_depthcam_cam =
+      frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset) : std::nullopt;
   auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
                               pyramid_, *vocabulary_,
-                              std::max(0, vocabulary_->depth() - config_.bow_direct_level));
+                              std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam);
   r.extract_ms = sw.ms();
   r.features = int(data->size());
   sw.reset();

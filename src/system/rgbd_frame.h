@@ -17,10 +17,16 @@ struct ClientInfo {
   PinholeCamera camera;
 };
 
+// A depth image further than this from its colour image (seconds) is not one frame's pair.
+inline constexpr double kMaxDepthTimeOffset = 0.1;
+
 struct RgbdFrame {
   ClientId client = 0;
   std::uint64_t seq = 0;   // sender's sequence number
-  double timestamp = 0;    // seconds
+  double timestamp = 0;    // seconds, when the colour image was captured
+  // When the depth image was captured, relative to the colour image (seconds; 0: together).
+  // Tracking reads each keypoint's depth where the camera's motion over this gap carried it.
+  double depth_time_offset = 0;  // |offset| <= kMaxDepthTimeOffset, else the frame is rejected
   cv::Mat bgr;             // CV_8UC3
   cv::Mat depth;           // CV_16UC1, raw units (camera.depth_factor per metre)
   // Live stream: the worker may skip this frame when a newer one of the client is already queued.

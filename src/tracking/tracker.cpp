@@ -1,6 +1,7 @@
 #include "tracking/tracker.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <mutex>
@@ -201,6 +202,11 @@ int drop_outliers_count_map_points(Frame& frame) {
   return good;
 }
 }  // namespace
+
+std::optional<SE3> Tracker::predicted_motion(double seconds) const {
+  if (state_ != TrackState::kOk || !has_velocity_ || !(velocity_dt_ > 0) || !std::isfinite(seconds)) return std::nullopt;
+  return velocity_.scaled(seconds / velocity_dt_);
+}
 
 bool Tracker::track_with_motion_model(Frame& frame) {
   // Constant velocity in time, not per frame: a dropped or skipped frame doubles the motion.

@@ -4,6 +4,7 @@
 // tracking, pose-only optimisation, keyframe decision and relocalisation.
 #include <functional>
 #include <memory>
+#include <optional>
 
 #include "map/frame.h"
 #include "map/map.h"
@@ -71,6 +72,10 @@ class Tracker {
 
   TrackResult track(std::shared_ptr<const FrameData> data);
   TrackState state() const { return state_; }
+  // The camera's motion over `seconds` at the current constant-velocity estimate, as the pose of
+  // the camera at the start seen from the camera at the end (T_later_earlier for seconds > 0);
+  // nullopt while tracking has no velocity (before the second tracked frame, after a loss).
+  std::optional<SE3> predicted_motion(double seconds) const;
   const std::shared_ptr<Map>& map() const { return map_; }
   // Starts over on a new, empty map (after a long loss); the previous map is kept by the caller.
   void reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink);

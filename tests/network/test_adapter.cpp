@@ -1,4 +1,5 @@
 // The protobuf <-> library adapter: round trips and every kind of bad packet it must classify.
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -105,6 +106,24 @@ TEST(Adapter, SizeContradictingTheHelloIsClassified) {
   other.width = 80;
   m = test::make_frame(1, 1, 0, other);  // consistent header, other size than the hello
   EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_SIZE_MISMATCH);
+}
+
+TEST(Adapter, DepthTimeOffsetRoundTripsAndImplausibleOffsetsAreMalformed) {
+  const PinholeCamera cam = small_camera();
+  wire::ClientMessage m = test::make_frame(1, 1, 0, cam);
+  m.mutable_frame()->set_depth_time_offset(-0.0125);
+  EXPECT_EQ(wire::from_wire_frame(m.frame(), cam, "t").depth_time_offset, -0.0125);
+  // The C++ sender puts it on the wire.
+  RgbdFrame f = wire::from_wire_frame(m.frame(), cam, "t");
+  f.depth_time_offset = 0.016;
+  wire::RgbdFrame out;
+  wire::to_wire_frame(f, CodecOptions(), &out);
+  EXPECT_EQ(out.depth_time_offset(), 0.016);
+  for (double bad : {0.5, -0.11, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    m.mutable_frame()->set_depth_time_offset(bad);
+    EXPECT_EQ(code_of([&] { wire::check_frame(m.frame(), cam, "t"); }), wire::ERROR_MALFORMED) << bad;
+    EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_MALFORMED) << bad;
+  }
 }
 
 TEST(Adapter, CorruptImagesAreClassified) {

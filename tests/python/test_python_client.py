@@ -50,7 +50,7 @@ class PythonClientEndToEnd(unittest.TestCase):
         pairs = dataset.open_tum(self.robot)
         for pair in pairs:
             bgr, depth = dataset.load_pair(pair)
-            sender.send(bgr, depth, pair.rgb_time)
+            sender.send(bgr, depth, pair.rgb_time, pair.depth_time - pair.rgb_time)
         self.assertTrue(sender.goodbye())
         self.assertEqual(sender.stats.frames_sent, len(pairs))
         self.assertEqual(sender.stats.acks, len(pairs))
@@ -119,12 +119,12 @@ class PythonClientSession(unittest.TestCase):
         sender = FrameSender(self.server.endpoint, 1, self.cam)
         sender.connect()
         for pair in self.pairs[:10]:
-            sender.send(*dataset.load_pair(pair), pair.rgb_time)
+            sender.send(*dataset.load_pair(pair), pair.rgb_time, pair.depth_time - pair.rgb_time)
         sender.reconnect()  # a new connection, same client id
         self.assertTrue(sender.welcome.resumed)
         self.assertGreaterEqual(sender.welcome.last_seq, 1)
         for pair in self.pairs[10:]:
-            sender.send(*dataset.load_pair(pair), pair.rgb_time)
+            sender.send(*dataset.load_pair(pair), pair.rgb_time, pair.depth_time - pair.rgb_time)
         self.assertTrue(sender.goodbye())
         self.assertEqual(self.server.wait(), 0)
         self.assertEqual(len(self.server.trajectory(1)), len(self.pairs))

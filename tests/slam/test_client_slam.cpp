@@ -13,6 +13,7 @@
 #include "geometry/camera_io.h"
 #include "optimize/bundle_adjustment.h"
 #include "slam/client_slam.h"
+#include "system/dataset_frame.h"
 
 using namespace cslam;
 
@@ -40,16 +41,7 @@ class ClientSlamTest : public ::testing::Test {
     cfg.threaded = false;
     slam_ = std::make_unique<ClientSlam>(info_, cfg, *vocabulary_);
   }
-  RgbdFrame frame(int i) const {
-    const auto im = load_rgbd(dataset_.pairs.at(i));
-    RgbdFrame f;
-    f.client = info_.id;
-    f.seq = std::uint64_t(i);
-    f.timestamp = dataset_.pairs[i].rgb_time;
-    f.bgr = im.bgr;
-    f.depth = im.depth;
-    return f;
-  }
+  RgbdFrame frame(int i) const { return load_dataset_frame(dataset_.pairs.at(i), info_.id, std::uint64_t(i)); }
 
   static test::TempDir* dir_;
   static std::shared_ptr<const Vocabulary>* vocabulary_;
@@ -78,9 +70,17 @@ TEST_F(ClientSlamTest, RejectsMalformedFramesAndKeepsTracking) {
   RgbdFrame old_time = frame(5);  // timestamp goes back
   EXPECT_EQ(slam_->process(old_time).outcome, FrameOutcome::kRejected);
 
+  for (double offset : {0.5, -0.2, std::nan("")}) {  // a depth image that cannot be this frame's
+    RgbdFrame far_depth = frame(10);
+    far_depth.depth_time_offset = offset;
+    r = slam_->process(far_depth);
+    EXPECT_EQ(r.outcome, FrameOutcome::kRejected) << offset;
+    EXPECT_NE(r.reject_reason.find("depth image"), std::string::npos) << r.reject_reason;
+  }
+
   for (int i = 10; i < 20; ++i) EXPECT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
   const auto s = slam_->snapshot();
-  EXPECT_EQ(s.frames_rejected, 3u);
+  EXPECT_EQ(s.frames_rejected, 6u);
   EXPECT_EQ(s.frames_tracked, 20u);
   EXPECT_EQ(slam_->trajectory().size(), 20u);
 }

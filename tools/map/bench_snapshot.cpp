@@ -44,7 +44,7 @@ int stall_test(const ClientInfo& info, const std::shared_ptr<const Vocabulary>& 
                const std::vector<RgbdPair>& pairs, double period_s) {
   std::vector<RgbdFrame> frames;
   frames.reserve(pairs.size());
-  for (const auto& p : pairs) frames.push_back(load_rgbd_frame(p, info.id));
+  for (const auto& p : pairs) frames.push_back(load_dataset_frame(p, info.id));
   SlamConfig config;  // threaded
   for (const bool with_snapshots : {false, true}) {
     ClientSlam slam(info, config, vocabulary);

@@ -22,6 +22,7 @@
 #include "io/tum_dataset.h"
 #include "multi.h"
 #include "slam/client_slam.h"
+#include "system/dataset_frame.h"
 
 using namespace cslam;
 
@@ -56,6 +57,7 @@ int run(int argc, char** argv) {
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
+      .flag("no-depth-time", "read keypoint depth in place, ignoring the depth image's time offset (ablation)")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -87,6 +89,7 @@ int run(int argc, char** argv) {
   config.threaded = !args.flag_set("sync");
   config.loop.enabled = !args.flag_set("no-loop");
   if (args.flag_set("no-final-ba")) config.final_global_ba_iterations = 0;
+  config.rgbd.depth_time_compensation = !args.flag_set("no-depth-time");
   config.mapper.local_ba = !args.flag_set("no-local-ba");
   config.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   ClientSlam slam(info, config, vocabulary);
@@ -111,13 +114,7 @@ int run(int argc, char** argv) {
   std::vector<double> inliers, features;
   const bool quiet = args.flag_set("quiet");
   while (auto item = loaded.pop()) {
-    RgbdFrame f;
-    f.client = info.id;
-    f.seq = std::uint64_t(n);
-    f.timestamp = item->first.rgb_time;
-    f.bgr = item->second.bgr;
-    f.depth = item->second.depth;
-    const ProcessResult r = slam.process(f);
+    const ProcessResult r = slam.process(dataset_frame(item->first, std::move(item->second), info.id, std::uint64_t(n)));
     inliers.push_back(r.inliers);
     features.push_back(r.features);
     if (std::getenv("CSLAM_TRACE")) std::fprintf(stderr, "frame %d feats %d inliers %d kf %d\n", n, r.features, r.inliers, int(r.new_keyframe));

@@ -18,6 +18,7 @@
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 #include "system/collaborative_system.h"
+#include "system/dataset_frame.h"
 
 namespace cslam {
 
@@ -81,6 +82,7 @@ int run_multi_client(const CliArgs& args) {
   config.slam.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   config.slam.loop.enabled = !args.flag_set("no-loop");
   if (args.flag_set("no-final-ba")) config.slam.final_global_ba_iterations = 0;
+  config.slam.rgbd.depth_time_compensation = !args.flag_set("no-depth-time");
   config.fusion.enabled = !args.flag_set("no-fusion");
   config.fusion.group_ba = !args.flag_set("no-group-ba");
   CollaborativeSystem system(config);
@@ -89,15 +91,8 @@ int run_multi_client(const CliArgs& args) {
   // Submits frame i of a client; false once the system stops taking frames.
   auto feed = [&system](const ClientJob& j, std::size_t i) {
     const RgbdPair& p = j.pairs[i];
-    RgbdFrame f;
-    f.client = j.info.id;
-    f.seq = std::uint64_t(i);
-    f.timestamp = p.rgb_time;
     try {
-      const RgbdImages im = load_rgbd(p);
-      f.bgr = im.bgr;
-      f.depth = im.depth;
-      return system.submit(std::move(f));
+      return system.submit(load_dataset_frame(p, j.info.id, std::uint64_t(i)));
     } catch (const InputError& e) {
       logger("slam")->error("client {}: {}", j.info.id, e.what());
       return true;

@@ -34,6 +34,9 @@ from . import errors
 from .codecs import Codecs, encode_depth, encode_rgb
 from .wire import pb
 
+# A depth image further than this from its colour image (s) is not one frame's pair (as the server).
+MAX_DEPTH_TIME_OFFSET = 0.1
+
 log = logging.getLogger("cslam_client")
 
 
@@ -256,22 +259,26 @@ class FrameSender:
                     raise
 
     # -- frames ----------------------------------------------------------------------------
-    def encode(self, bgr, depth, timestamp):
-        """An encoded cslam.wire.RgbdFrame (id and seq are stamped when it is sent)."""
+    def encode(self, bgr, depth, timestamp, depth_time_offset=0.0):
+        """An encoded cslam.wire.RgbdFrame (id and seq are stamped when it is sent). `timestamp` is
+        the colour image's capture time; `depth_time_offset` the depth image's, relative to it (s)."""
         h, w = depth.shape[:2]
         if bgr.shape[:2] != (h, w) or (w, h) != (self.camera.width, self.camera.height):
             raise ValueError(f"images are {bgr.shape[1]}x{bgr.shape[0]} / {w}x{h}, "
                              f"camera is {self.camera.width}x{self.camera.height}")
-        frame = pb.RgbdFrame(timestamp=float(timestamp))
+        if not abs(depth_time_offset) <= MAX_DEPTH_TIME_OFFSET:
+            raise ValueError(f"depth image {depth_time_offset} s from the colour image "
+                             f"(at most {MAX_DEPTH_TIME_OFFSET} s)")
+        frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
         enc, data = encode_rgb(bgr, self.codecs)
         frame.rgb.width, frame.rgb.height, frame.rgb.encoding, frame.rgb.data = w, h, pb.Encoding.Value(enc), data
         enc, data = encode_depth(depth, self.codecs)
         frame.depth.width, frame.depth.height, frame.depth.encoding, frame.depth.data = w, h, pb.Encoding.Value(enc), data
         return frame
 
-    def send(self, bgr, depth, timestamp):
+    def send(self, bgr, depth, timestamp, depth_time_offset=0.0):
         """Encodes and sends one frame; returns the message size (0 when live mode kept it pending)."""
-        return self.send_encoded(self.encode(bgr, depth, timestamp))
+        return self.send_encoded(self.encode(bgr, depth, timestamp, depth_time_offset))
 
     def send_encoded(self, frame):
         if self._socket is None:
