@@ -22,6 +22,16 @@ RayTable::RayTable(const PinholeCamera& camera) : camera_(camera) {
   }
 }
 
+PixelProjector::PixelProjector(const RayTable& rays) {
+  const PinholeCamera& c = rays.camera();
+  fx_ = float(c.fx), fy_ = float(c.fy), cx_ = float(c.cx), cy_ = float(c.cy);
+  k1_ = float(c.dist[0]), k2_ = float(c.dist[1]), p1_ = float(c.dist[2]), p2_ = float(c.dist[3]), k3_ = float(c.dist[4]);
+  max_r2_ = rays.max_radius2() * 1.0001f;
+  distorted_ = c.has_distortion();
+  width_ = c.width;
+  height_ = c.height;
+}
+
 bool RayTable::matches(const PinholeCamera& o) const {
   const auto& c = camera_;
   return c.fx == o.fx && c.fy == o.fy && c.cx == o.cx && c.cy == o.cy && c.dist == o.dist && c.width == o.width &&
@@ -29,8 +39,10 @@ bool RayTable::matches(const PinholeCamera& o) const {
 }
 
 std::size_t backproject(const cv::Mat& bgr, const cv::Mat& depth, const RayTable& rays, const SE3& T_world_cam,
-                        const BackprojectParams& params, ColoredCloud& out) {
+                        const BackprojectParams& params, ColoredCloud& out, const SE3* T_colourcam_depthcam) {
   const PinholeCamera& cam = rays.camera();
+  const PixelProjector project(rays);
+  const RigidF colour_from_depth(T_colourcam_depthcam);
   const Eigen::Matrix3f R = T_world_cam.R().cast<float>();
   const Eigen::Vector3f t = T_world_cam.translation().cast<float>();
   const float scale = float(cam.depth_scale_correction / cam.depth_factor);
@@ -48,8 +60,11 @@ std::size_t backproject(const cv::Mat& bgr, const cv::Mat& depth, const RayTable
       const float z = raw * scale;
       if (z < zmin || z > zmax) continue;
       const float* r = rays.ray(u, v);
-      out.points.push_back(R * Eigen::Vector3f(r[0] * z, r[1] * z, z) + t);
-      const cv::Vec3b& c = crow[u];
+      const Eigen::Vector3f p(r[0] * z, r[1] * z, z);
+      out.points.push_back(R * p + t);
+      int uc = u, vc = v;
+      if (T_colourcam_depthcam && !project(colour_from_depth * p, uc, vc)) uc = u, vc = v;
+      const cv::Vec3b& c = vc == v ? crow[uc] : bgr.at<cv::Vec3b>(vc, uc);
       out.colors.push_back({c[2], c[1], c[0]});
     }
   }

@@ -23,6 +23,10 @@ struct DenseConfig {
   OutlierConfig outliers;
   int threads = 2;                          // >= 2: filtering (and image loading) run beside back-projection
   double max_time_gap = 0.02;               // pose <-> image association (s)
+  // A depth image taken at another instant than its colour image (TUM: depth.txt's stamps) is
+  // placed with the trajectory interpolated at its own time (neighbour poses <= 0.1 s apart;
+  // else at the colour image's pose); false: every depth image at its colour image's pose.
+  bool depth_time_compensation = true;
   bool build_mesh = false;                  // TSDF fusion + marching cubes
   TsdfConfig tsdf;
 

@@ -135,7 +135,7 @@ void DenseReconstructor::count_skipped(SkipReason reason) { impl_->skip(reason);
 void DenseReconstructor::add_load_time(double ms) { impl_->timing.load += ms; }
 
 FrameOutcome DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16,
-                                           const PinholeCamera& camera) {
+                                           const PinholeCamera& camera, const std::optional<SE3>& T_world_depthcam) {
   Impl& m = *impl_;
   if (m.finished) throw std::logic_error("DenseReconstructor::integrate after finish()");
   FrameOutcome out;
@@ -144,7 +144,11 @@ FrameOutcome DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat
     out.reason = r;
     return out;
   };
-  if (!T_world_cam.is_finite()) return reject(SkipReason::kBadPose);
+  if (!T_world_cam.is_finite() || (T_world_depthcam && !T_world_depthcam->is_finite())) return reject(SkipReason::kBadPose);
+  const SE3& T_world_depth = T_world_depthcam ? *T_world_depthcam : T_world_cam;
+  std::optional<SE3> T_colourcam_depthcam;
+  if (T_world_depthcam) T_colourcam_depthcam = T_world_cam.inverse() * *T_world_depthcam;
+  const SE3* colour_from_depth = T_colourcam_depthcam ? &*T_colourcam_depthcam : nullptr;
   if (bgr.empty() || depth16.empty() || bgr.type() != CV_8UC3 || depth16.type() != CV_16UC1) return reject(SkipReason::kBadImage);
   if (bgr.cols != camera.width || bgr.rows != camera.height || depth16.cols != camera.width || depth16.rows != camera.height)
     return reject(SkipReason::kWrongImageSize);
@@ -156,7 +160,7 @@ FrameOutcome DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat
   params.max_depth = m.config.max_depth;
   params.stride = m.config.stride;
   m.reserve_chunk(camera);
-  out.points = backproject(bgr, depth16, rays, T_world_cam, params, m.chunk);
+  out.points = backproject(bgr, depth16, rays, T_world_depth, params, m.chunk, colour_from_depth);
   m.timing.backproject += sw.ms();
   if (out.points == 0) return reject(SkipReason::kNoValidDepth);
   out.used = true;
@@ -165,7 +169,7 @@ FrameOutcome DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat
 
   if (m.tsdf && (m.counts.used - 1) % m.config.tsdf.every == 0) {
     Stopwatch st;
-    m.tsdf->integrate(bgr, depth16, rays, T_world_cam, m.config.min_depth, m.config.max_depth);
+    m.tsdf->integrate(bgr, depth16, rays, T_world_depth, m.config.min_depth, m.config.max_depth, colour_from_depth);
     ++m.counts.tsdf_frames;
     m.timing.tsdf += st.ms();
   }

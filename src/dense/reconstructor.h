@@ -4,6 +4,7 @@
 // Frames are given one by one; finish() returns the result.
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -60,9 +61,13 @@ class DenseReconstructor {
   DenseReconstructor(const DenseReconstructor&) = delete;
   DenseReconstructor& operator=(const DenseReconstructor&) = delete;
 
-  // Adds one frame (BGR CV_8UC3 and raw CV_16UC1 depth registered to it). Bad frames are
-  // skipped and counted, never thrown. Throws std::logic_error after finish().
-  FrameOutcome integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16, const PinholeCamera& camera);
+  // Adds one frame (BGR CV_8UC3 and raw CV_16UC1 depth registered to it), the camera at
+  // T_world_cam when the colour image was taken. If the depth image was taken elsewhere on the
+  // camera's path (another instant), T_world_depthcam places it and colours are looked up where
+  // its points project in the colour image. Bad frames are skipped and counted, never thrown.
+  // Throws std::logic_error after finish().
+  FrameOutcome integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16, const PinholeCamera& camera,
+                         const std::optional<SE3>& T_world_depthcam = std::nullopt);
   // Records a frame skipped by the caller (e.g. a pose without image, an unreadable file).
   void count_skipped(SkipReason reason);
   void add_load_time(double ms);

@@ -17,7 +17,8 @@ namespace {
 
 // One frame to integrate: where its images come from and its pose.
 struct Job {
-  SE3 T_world_cam;
+  SE3 T_world_cam;                      // when the colour image was taken
+  std::optional<SE3> T_world_depthcam;  // when the depth image was, if known and elsewhere
   const PinholeCamera* camera = nullptr;
   const RgbdPair* pair = nullptr;    // from disk, or
   const TimedRgbd* frame = nullptr;  // in memory
@@ -56,7 +57,7 @@ DenseResult run_jobs(const std::vector<Job>& jobs, int unmatched, const DenseCon
   auto consume = [&](const Loaded& l) {
     if (!l.ok)
       recon.count_skipped(SkipReason::kBadImage);
-    else if (recon.integrate(l.job->T_world_cam, l.bgr, l.depth, *l.job->camera).used)
+    else if (recon.integrate(l.job->T_world_cam, l.bgr, l.depth, *l.job->camera, l.job->T_world_depthcam).used)
       ++p.used;
     ++p.done;
     if (progress) progress(p);
@@ -107,6 +108,17 @@ PoseFrameMatch match_poses_to_frames(Trajectory poses, const std::vector<double>
   return out;
 }
 
+namespace {
+
+// The camera when a depth image `offset` seconds after the colour image of `pose` was taken:
+// `poses` (sorted) interpolated there; nullopt if not asked for, no offset, or no poses around it.
+std::optional<SE3> depth_pose(const Trajectory& poses, const StampedPose& pose, double offset, const DenseConfig& config) {
+  if (!config.depth_time_compensation || offset == 0) return std::nullopt;
+  return interpolate_pose(poses, pose.timestamp + offset);
+}
+
+}  // namespace
+
 PinholeCamera dataset_camera(const std::string& dataset_dir, const std::string& fallback) {
   const auto file = std::filesystem::path(dataset_dir) / "camera.yaml";
   if (std::filesystem::exists(file)) return load_camera_file(file.string());
@@ -126,13 +138,16 @@ DenseResult reconstruct_from_trajectories(const std::vector<DatasetPoses>& sourc
     const TumDataset& ds = datasets.back();
     std::vector<double> times;
     for (const auto& pr : ds.pairs) times.push_back(pr.rgb_time);
-    const PoseFrameMatch m = match_poses_to_frames(src.poses, times, config.max_time_gap);
+    Trajectory sorted = src.poses;
+    sort_by_time(sorted);
+    const PoseFrameMatch m = match_poses_to_frames(sorted, times, config.max_time_gap);
     unmatched += m.unmatched_poses;
     for (const auto& [pose, idx] : m.matches) {
       Job j;
-      j.T_world_cam = pose.T_world_cam;
-      j.camera = &src.camera;
       j.pair = &ds.pairs[size_t(idx)];
+      j.T_world_cam = pose.T_world_cam;
+      j.T_world_depthcam = depth_pose(sorted, pose, j.pair->depth_time - j.pair->rgb_time, config);
+      j.camera = &src.camera;
       jobs.push_back(j);
     }
   }
@@ -153,13 +168,16 @@ DenseResult reconstruct_from_frames(const std::vector<FramePoses>& sources, cons
     std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return (*src.frames)[size_t(a)].timestamp < (*src.frames)[size_t(b)].timestamp; });
     std::vector<double> times;
     for (int i : order) times.push_back((*src.frames)[size_t(i)].timestamp);
-    const PoseFrameMatch m = match_poses_to_frames(src.poses, times, config.max_time_gap);
+    Trajectory sorted = src.poses;
+    sort_by_time(sorted);
+    const PoseFrameMatch m = match_poses_to_frames(sorted, times, config.max_time_gap);
     unmatched += m.unmatched_poses;
     for (const auto& [pose, idx] : m.matches) {
       Job j;
-      j.T_world_cam = pose.T_world_cam;
-      j.camera = &src.camera;
       j.frame = &(*src.frames)[size_t(order[size_t(idx)])];
+      j.T_world_cam = pose.T_world_cam;
+      j.T_world_depthcam = depth_pose(sorted, pose, j.frame->depth_time_offset, config);
+      j.camera = &src.camera;
       jobs.push_back(j);
     }
   }

@@ -31,14 +31,16 @@ struct DatasetPoses {
 PinholeCamera dataset_camera(const std::string& dataset_dir, const std::string& fallback);
 
 // Associates each source's poses one-to-one with its RGB-D pairs (nearest RGB timestamp within
-// config.max_time_gap, greedily by smallest gap); unmatched poses count as no_image. With
+// config.max_time_gap, greedily by smallest gap); unmatched poses count as no_image. Depth
+// images are placed at their own time (DenseConfig::depth_time_compensation). With
 // threads >= 2 images are decoded on a loader thread. Throws InputError on a missing dataset.
 DenseResult reconstruct_from_trajectories(const std::vector<DatasetPoses>& sources, const DenseConfig& config,
                                           const DenseProgressCallback& progress = {});
 
 // In-memory frames (e.g. the frames a server received from one client).
 struct TimedRgbd {
-  double timestamp = 0;
+  double timestamp = 0;          // the colour image's
+  double depth_time_offset = 0;  // the depth image's time minus the colour image's (s)
   cv::Mat bgr, depth;  // CV_8UC3, CV_16UC1
 };
 struct FramePoses {

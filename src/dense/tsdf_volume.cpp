@@ -46,7 +46,8 @@ const TsdfVoxel* TsdfVolume::voxel(const Eigen::Vector3i& v) const {
 }
 
 TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& depth, const RayTable& rays,
-                                         const SE3& T_world_cam, double min_depth, double max_depth) {
+                                         const SE3& T_world_cam, double min_depth, double max_depth,
+                                         const SE3* T_colourcam_depthcam) {
   const PinholeCamera& cam = rays.camera();
   const float voxel = config_.voxel_size, trunc = config_.truncation;
   const float block_size = voxel * kB, inv_block = 1.0f / block_size;
@@ -84,11 +85,8 @@ TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& dept
 
   // 2. Project every voxel of those blocks into the depth image and update it.
   const Eigen::Matrix3f Rt = R.transpose();
-  const float fx = float(cam.fx), fy = float(cam.fy), cx = float(cam.cx), cy = float(cam.cy);
-  const float k1 = float(cam.dist[0]), k2 = float(cam.dist[1]), p1 = float(cam.dist[2]), p2 = float(cam.dist[3]),
-              k3 = float(cam.dist[4]);
-  const bool distorted = cam.has_distortion();
-  const float max_r2 = rays.max_radius2() * 1.0001f;
+  const PixelProjector project(rays);
+  const RigidF colour_from_depth(T_colourcam_depthcam);
   const float max_w = config_.max_weight, inv_trunc = 1.0f / trunc;
   auto update = [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
@@ -103,21 +101,8 @@ TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& dept
           const Eigen::Vector3f row = base + float(y) * ay + float(z) * az;
           for (int x = 0; x < kB; ++x) {
             const Eigen::Vector3f pc = row + float(x) * ax;
-            if (pc.z() <= 1e-3f) continue;
-            const float iz = 1.0f / pc.z();
-            float xn = pc.x() * iz, yn = pc.y() * iz;
-            const float r2 = xn * xn + yn * yn;
-            if (r2 > max_r2) continue;
-            if (distorted) {
-              const float radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3));
-              const float xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn);
-              const float yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn;
-              xn = xd;
-              yn = yd;
-            }
-            const float uf = fx * xn + cx + 0.5f, vf = fy * yn + cy + 0.5f;  // round to nearest
-            if (!(uf >= 0.0f && vf >= 0.0f && uf < float(cam.width) && vf < float(cam.height))) continue;
-            const int u = int(uf), v = int(vf);
+            int u, v;
+            if (!project(pc, u, v)) continue;
             const std::uint16_t raw = depth.at<std::uint16_t>(v, u);
             const float d = raw * scale;
             if (raw == 0 || d < zmin || d > zmax) continue;
@@ -127,7 +112,9 @@ TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& dept
             TsdfVoxel& vx = block.voxels[size_t(local_index(x, y, z))];
             const float w = vx.weight, nw = w + 1.0f, inv = 1.0f / nw;
             vx.sdf = (vx.sdf * w + tsdf) * inv;
-            const cv::Vec3b& c = bgr.at<cv::Vec3b>(v, u);
+            int uc = u, vc = v;
+            if (T_colourcam_depthcam && !project(colour_from_depth * pc, uc, vc)) uc = u, vc = v;
+            const cv::Vec3b& c = bgr.at<cv::Vec3b>(vc, uc);
             vx.r = std::uint8_t((vx.r * w + c[2]) * inv + 0.5f);
             vx.g = std::uint8_t((vx.g * w + c[1]) * inv + 0.5f);
             vx.b = std::uint8_t((vx.b * w + c[0]) * inv + 0.5f);

@@ -35,9 +35,11 @@ class TsdfVolume {
 
   explicit TsdfVolume(TsdfConfig config);  // throws ConfigError on impossible values
 
-  // Fuses one registered RGB-D frame (images of the ray table's camera size).
+  // Fuses one registered RGB-D frame (images of the ray table's camera size); T_world_cam places
+  // the depth image, T_colourcam_depthcam (if the camera moved between the two captures) finds
+  // each voxel's pixel in the colour image.
   TsdfIntegrateStats integrate(const cv::Mat& bgr, const cv::Mat& depth, const RayTable& rays, const SE3& T_world_cam,
-                               double min_depth, double max_depth);
+                               double min_depth, double max_depth, const SE3* T_colourcam_depthcam = nullptr);
 
   // Marching cubes at sdf = 0 over observed voxels; vertices shared between cubes; colours
   // interpolated. Cubes straddling an observed/unobserved border or a +1/-1 jump (occlusion

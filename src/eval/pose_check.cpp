@@ -20,22 +20,6 @@ double rotation_deg(const SE3& T) { return T.rotation_angle() * 180.0 / M_PI; }
 
 }  // namespace
 
-std::optional<SE3> interpolate_pose(const Trajectory& trajectory, double t, double max_gap_s) {
-  if (trajectory.size() < 2) return std::nullopt;
-  auto it = std::lower_bound(trajectory.begin(), trajectory.end(), t,
-                             [](const StampedPose& p, double x) { return p.timestamp < x; });
-  if (it == trajectory.end() || (it == trajectory.begin() && it->timestamp > t)) return std::nullopt;
-  if (it->timestamp == t) return it->T_world_cam;
-  const StampedPose& b = *it;
-  const StampedPose& a = *(it - 1);
-  const double gap = b.timestamp - a.timestamp;
-  if (gap <= 0 || gap > max_gap_s) return std::nullopt;
-  const double s = (t - a.timestamp) / gap;
-  const Eigen::Quaterniond q = a.T_world_cam.rotation().slerp(s, b.T_world_cam.rotation());
-  const Eigen::Vector3d p = (1 - s) * a.T_world_cam.translation() + s * b.T_world_cam.translation();
-  return SE3(q, p);
-}
-
 RelativePoseError relative_pose_error(const Trajectory& gt_query, double query_time, const Trajectory& gt_candidate,
                                       double candidate_time, const SE3& T_query_candidate, double offset_s) {
   RelativePoseError e;

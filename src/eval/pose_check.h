@@ -10,10 +10,6 @@
 
 namespace cslam {
 
-// Pose at time t, interpolated between the two samples around it; empty if t lies outside the
-// trajectory or the samples around it are more than max_gap_s apart. `trajectory` sorted by time.
-std::optional<SE3> interpolate_pose(const Trajectory& trajectory, double t, double max_gap_s = 0.1);
-
 struct RelativePoseError {
   bool valid = false;  // both timestamps had ground truth
   double rotation_deg = 0, translation_m = 0;

@@ -58,4 +58,20 @@ void sort_by_time(Trajectory& trajectory) {
                    [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
 }
 
+std::optional<SE3> interpolate_pose(const Trajectory& trajectory, double t, double max_gap_s) {
+  if (trajectory.size() < 2) return std::nullopt;
+  auto it = std::lower_bound(trajectory.begin(), trajectory.end(), t,
+                             [](const StampedPose& p, double x) { return p.timestamp < x; });
+  if (it == trajectory.end() || (it == trajectory.begin() && it->timestamp > t)) return std::nullopt;
+  if (it->timestamp == t) return it->T_world_cam;
+  const StampedPose& b = *it;
+  const StampedPose& a = *(it - 1);
+  const double gap = b.timestamp - a.timestamp;
+  if (gap <= 0 || gap > max_gap_s) return std::nullopt;
+  const double s = (t - a.timestamp) / gap;
+  const Eigen::Quaterniond q = a.T_world_cam.rotation().slerp(s, b.T_world_cam.rotation());
+  const Eigen::Vector3d p = (1 - s) * a.T_world_cam.translation() + s * b.T_world_cam.translation();
+  return SE3(q, p);
+}
+
 }  // namespace cslam

@@ -1,6 +1,7 @@
 #pragma once
 // Trajectories in the TUM format: one line per pose, "timestamp x y z qx qy qz qw",
 // camera-to-world (T_world_cam), '#' comments allowed.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,5 +25,10 @@ std::string format_tum_line(const StampedPose& pose);
 
 // Sorts by timestamp (stable), e.g. to merge pose lists of several clients.
 void sort_by_time(Trajectory& trajectory);
+
+// Pose at time t, interpolated between the two samples around it (linear translation, slerp
+// rotation); empty if t lies outside the trajectory or the samples around it are more than
+// max_gap_s apart. `trajectory` sorted by time.
+std::optional<SE3> interpolate_pose(const Trajectory& trajectory, double t, double max_gap_s = 0.1);
 
 }  // namespace cslam

@@ -40,8 +40,9 @@ struct RgbdParams {
   // Colour and depth images of one frame may be captured at different instants (the Kinect v1
   // streams of the TUM sequences: 12-16 ms apart on most frames). With the camera's predicted
   // motion over that gap, a keypoint's depth is read where its 3D point lay in the depth image,
-  // not at the keypoint's own pixel (make_frame_data's T_depthcam_cam); false: never (ablation).
-  bool depth_time_compensation = true;
+  // not at the keypoint's own pixel (make_frame_data's T_depthcam_cam). Off by default: on fr1/desk
+  // and fr1/rpy it did not lower the trajectory error (docs/slam.md); cslam-slam --depth-time.
+  bool depth_time_compensation = false;
   double close_depth(double fx) const { return th_depth * bf / fx; }
 };
 

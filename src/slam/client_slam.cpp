@@ -88,7 +88,8 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   Stopwatch sw;
   // Where the camera moved between the colour and the depth image (none known: read in place).
   const std::optional<SE3> T_depthcam_cam =
-      frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset) : std::nullopt;
+      config_.rgbd.depth_time_compensation && frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset)
+                                                                             : std::nullopt;
   auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
                               pyramid_, *vocabulary_,
                               std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam);

@@ -2,6 +2,7 @@
 // poses without an image and unreadable images are counted; in-memory frames work the same.
 #include <filesystem>
 #include <fstream>
+#include <tuple>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -94,7 +95,7 @@ TEST(ReconstructFromTrajectories, MissingDatasetIsAnInputError) {
 
 TEST(ReconstructFromFrames, InMemoryFramesMatchedByTimestamp) {
   std::vector<TimedRgbd> frames;
-  for (int i : {2, 0, 1}) frames.push_back({1.0 * i, cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)), cv::Mat(48, 64, CV_16UC1, cv::Scalar(2500))});
+  for (int i : {2, 0, 1}) frames.push_back({1.0 * i, 0.0, cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)), cv::Mat(48, 64, CV_16UC1, cv::Scalar(2500))});
   FramePoses src;
   src.frames = &frames;
   src.camera = tiny_camera();
@@ -103,4 +104,42 @@ TEST(ReconstructFromFrames, InMemoryFramesMatchedByTimestamp) {
   EXPECT_EQ(r.counts.used, 2);
   EXPECT_EQ(r.counts.no_image, 1);
   for (const auto& p : r.cloud.points) EXPECT_NEAR(p.z(), 0.5, 1e-4);
+}
+
+// The depth image taken 50 ms after the colour image while the camera moves 0.8 m/s along x:
+// it is placed 4 cm further on (the trajectory interpolated at its own time), and each point
+// takes its colour where it projects in the colour image, so the colour edge of the scene stays
+// where the colour camera saw it.
+TEST(ReconstructFromFrames, DepthImageTakenLaterIsPlacedAtItsOwnTime) {
+  cv::Mat bgr(48, 64, CV_8UC3, cv::Scalar(0, 0, 255));              // red left half ...
+  bgr(cv::Rect(32, 0, 32, 48)).setTo(cv::Scalar(255, 0, 0));         // ... blue right half
+  std::vector<TimedRgbd> frames{{0.0, 0.05, bgr, cv::Mat(48, 64, CV_16UC1, cv::Scalar(2500))}};  // plane at 0.5 m
+  FramePoses src;
+  src.frames = &frames;
+  src.camera = tiny_camera();
+  src.poses = {{0.0, SE3()}, {0.1, SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.08, 0, 0))}};
+  auto mean_x_and_colour = [&](bool compensate) {
+    DenseConfig cfg;
+    cfg.threads = 1;
+    cfg.depth_time_compensation = compensate;
+    const DenseResult r = reconstruct_from_frames({src}, cfg);
+    EXPECT_EQ(r.counts.used, 1);
+    double x = 0;
+    int blue = 0, red = 0;
+    for (size_t i = 0; i < r.cloud.size(); ++i) {
+      x += r.cloud.points[i].x();
+      // The colour camera sees the edge at x = 0.5 * 0.5 / 40 = 6 mm: right of it is blue.
+      if (r.cloud.points[i].x() > 0.015 && r.cloud.points[i].x() < 0.035) (r.cloud.colors[i][2] > 200 ? blue : red) += 1;
+    }
+    return std::tuple{x / double(r.cloud.size()), blue, red};
+  };
+  const auto [x_on, blue_on, red_on] = mean_x_and_colour(true);
+  const auto [x_off, blue_off, red_off] = mean_x_and_colour(false);
+  EXPECT_NEAR(x_on - x_off, 0.04, 2e-3);
+  // The edge stays at 6 mm (read at the depth pixel itself, it would move with the depth image
+  // to 46 mm and these points would be red).
+  EXPECT_GT(blue_on, 0);
+  EXPECT_EQ(red_on, 0);
+  EXPECT_GT(blue_off, 0);
+  EXPECT_EQ(red_off, 0);
 }

@@ -43,6 +43,7 @@ cv::Mat render_depth(const PinholeCamera& cam, const Plane& plane, const SE3& T_
 TEST(FrameDepth, ReadsDepthWhereTheCameraMotionCarriedThePoint) {
   const PinholeCamera cam = camera_tum_fr1();  // with lens distortion: the lookup must distort
   RgbdParams rgbd;
+  rgbd.depth_time_compensation = true;
   const Plane plane;
   // The depth image is taken 15 ms after the colour image while the camera turns at 90 deg/s and
   // moves at 0.5 m/s: 1.35 deg and 7.5 mm, about 12 px at the image centre.
@@ -73,6 +74,7 @@ TEST(FrameDepth, ReadsDepthWhereTheCameraMotionCarriedThePoint) {
 TEST(FrameDepth, NoMotionOrCompensationOffReadsInPlace) {
   const PinholeCamera cam = camera_tum_fr1();
   RgbdParams rgbd;
+  rgbd.depth_time_compensation = true;
   const cv::Mat depth = render_depth(cam, Plane(), SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY())),
                                                        Eigen::Vector3d::Zero()));
   const SE3 motion(Eigen::Quaterniond(Eigen::AngleAxisd(-0.02, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero());
@@ -91,6 +93,7 @@ TEST(FrameDepth, NoMotionOrCompensationOffReadsInPlace) {
 TEST(FrameDepth, PointCarriedOutOfTheDepthImageHasNoDepth) {
   const PinholeCamera cam = camera_tum_fr1();
   RgbdParams rgbd;
+  rgbd.depth_time_compensation = true;
   const cv::Mat depth = render_depth(cam, Plane(), SE3());
   // A large turn to the side: keypoints near the left edge land outside the depth image.
   const SE3 motion(Eigen::Quaterniond(Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero());

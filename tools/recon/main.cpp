@@ -49,6 +49,7 @@ int run(int argc, char** argv) {
       .option("chunk", "frames per filtering chunk", "30")
       .option("threads", "worker threads (>= 2: loading and filtering beside back-projection)", "2")
       .flag("outliers", "statistical outlier removal on the final cloud")
+      .flag("no-depth-time", "place each depth image at its colour image's pose, not at its own time (ablation)")
       .option("outlier-k", "neighbours for outlier removal", "20")
       .option("outlier-std", "standard-deviation multiplier for outlier removal", "2.0")
       .option("tsdf-voxel", "TSDF voxel size (m)", "0.01")
@@ -76,6 +77,7 @@ int run(int argc, char** argv) {
   cfg.chunk_frames = args.get_int("chunk");
   cfg.threads = args.get_int("threads");
   cfg.remove_outliers = args.flag_set("outliers");
+  cfg.depth_time_compensation = !args.flag_set("no-depth-time");
   cfg.outliers.mean_k = args.get_int("outlier-k");
   cfg.outliers.stddev_mul = args.get_double("outlier-std");
   const std::string mesh_path = args.get("mesh");

@@ -57,7 +57,7 @@ int run(int argc, char** argv) {
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
-      .flag("no-depth-time", "read keypoint depth in place, ignoring the depth image's time offset (ablation)")
+      .flag("depth-time", "read keypoint depth where the predicted motion carried it over the depth image's time offset")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -89,7 +89,7 @@ int run(int argc, char** argv) {
   config.threaded = !args.flag_set("sync");
   config.loop.enabled = !args.flag_set("no-loop");
   if (args.flag_set("no-final-ba")) config.final_global_ba_iterations = 0;
-  config.rgbd.depth_time_compensation = !args.flag_set("no-depth-time");
+  config.rgbd.depth_time_compensation = args.flag_set("depth-time");
   config.mapper.local_ba = !args.flag_set("no-local-ba");
   config.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   ClientSlam slam(info, config, vocabulary);

@@ -82,7 +82,7 @@ int run_multi_client(const CliArgs& args) {
   config.slam.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   config.slam.loop.enabled = !args.flag_set("no-loop");
   if (args.flag_set("no-final-ba")) config.slam.final_global_ba_iterations = 0;
-  config.slam.rgbd.depth_time_compensation = !args.flag_set("no-depth-time");
+  config.slam.rgbd.depth_time_compensation = args.flag_set("depth-time");
   config.fusion.enabled = !args.flag_set("no-fusion");
   config.fusion.group_ba = !args.flag_set("no-group-ba");
   CollaborativeSystem system(config);
