@@ -25,7 +25,8 @@ struct RgbdFrame {
   std::uint64_t seq = 0;   // sender's sequence number
   double timestamp = 0;    // seconds, when the colour image was captured
   // When the depth image was captured, relative to the colour image (seconds; 0: together).
-  // Tracking reads each keypoint's depth where the camera's motion over this gap carried it.
+  // With RgbdParams::depth_time_compensation, tracking reads each keypoint's depth where the
+  // camera's predicted motion over this gap carried it.
   double depth_time_offset = 0;  // |offset| <= kMaxDepthTimeOffset, else the frame is rejected
   cv::Mat bgr;             // CV_8UC3
   cv::Mat depth;           // CV_16UC1, raw units (camera.depth_factor per metre)
