@@ -203,16 +203,12 @@ Trajectory groundtruth_at(const Trajectory& groundtruth, const std::vector<doubl
   sort_by_time(gt);
   Trajectory out;
   for (double t : timestamps) {
-    auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const StampedPose& p, double v) { return p.timestamp < v; });
     StampedPose p;
     p.timestamp = t;
-    if (it != gt.end() && it != gt.begin() && it->timestamp - (it - 1)->timestamp <= 5 * max_dt) {
-      const StampedPose& a = *(it - 1);
-      const StampedPose& b = *it;
-      const double w = b.timestamp > a.timestamp ? (t - a.timestamp) / (b.timestamp - a.timestamp) : 0.0;
-      p.T_world_cam = SE3(a.T_world_cam.rotation().slerp(w, b.T_world_cam.rotation()),
-                          (1 - w) * a.T_world_cam.translation() + w * b.T_world_cam.translation());
-    } else {
+    if (const auto T = interpolate_pose(gt, t, 5 * max_dt)) {
+      p.T_world_cam = *T;
+    } else {  // across a gap in the ground truth: the nearest sample within max_dt, if any
+      auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const StampedPose& q, double v) { return q.timestamp < v; });
       const StampedPose* nearest = nullptr;
       if (it != gt.end() && it->timestamp - t <= max_dt) nearest = &*it;
       if (it != gt.begin() && t - (it - 1)->timestamp <= max_dt &&
