@@ -46,6 +46,7 @@ TEST(VocabCli, TrainInfoAndCorruptFile) {
   EXPECT_NE(rc, 0);
   EXPECT_NE(out.find("no images"), std::string::npos) << out;
   std::remove(voc.c_str());
+  std::remove((::testing::TempDir() + "/cslam_vocab_cli.out").c_str());
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "cloud/pcd_io.h"
+#include "common/run_program.h"
 #include "cloud/ply_io.h"
 #include "core/error.h"
 
@@ -17,9 +18,8 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string temp_path(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("cslam_cloud_io_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return (dir / name).string();
+  static const test::TempDir dir("cslam_cloud_io");  // removed at exit
+  return dir / name;
 }
 
 ColoredCloud sample_cloud() {

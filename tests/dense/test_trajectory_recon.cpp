@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/run_program.h"
 #include "core/error.h"
 #include "dense/trajectory_recon.h"
 
@@ -27,7 +28,8 @@ PinholeCamera tiny_camera() {
 
 // Writes N frames (plane at 1 m) at t = 10 + 0.1 i; frame `broken` gets an unreadable depth file.
 std::string make_dataset(int n, int broken) {
-  const fs::path root = fs::temp_directory_path() / ("cslam_dense_ds_" + std::to_string(::getpid()));
+  static const test::TempDir dir("cslam_dense_ds");  // removed at exit
+  const fs::path root = dir.str();
   fs::remove_all(root);
   fs::create_directories(root / "rgb");
   fs::create_directories(root / "depth");

@@ -1,11 +1,13 @@
 #include "net_test_util.h"
 
 #include <csignal>
+#include <cstdio>
 #include <fcntl.h>
 #include <random>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -54,6 +56,15 @@ std::string scratch_dir(const std::string& name) {
                      std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
   std::filesystem::create_directories(base);
   return base.string();
+}
+
+ScratchDir::~ScratchDir() {
+  if (::testing::Test::HasFailure()) {
+    std::fprintf(stderr, "kept %s for the failed test\n", path_.c_str());
+    return;
+  }
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
 }
 
 std::vector<std::string> read_lines(const std::string& path) {

@@ -25,6 +25,20 @@ PinholeCamera write_tiny_dataset(const std::string& dir, int frames, int width =
 // A unique scratch folder under the system temp dir (removed by the caller if wanted).
 std::string scratch_dir(const std::string& name);
 
+// A unique scratch folder that is removed when the object goes away, unless the running test has
+// failed: then it is kept (and its path printed) so the logs inside can be read.
+class ScratchDir {
+ public:
+  explicit ScratchDir(const std::string& name) : path_(scratch_dir(name)) {}
+  ~ScratchDir();
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
 std::vector<std::string> read_lines(const std::string& path);
 // Data lines of a TUM trajectory file (comments dropped).
 std::vector<std::string> trajectory_lines(const std::string& path);

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <set>
 #include <thread>
 
@@ -51,20 +52,25 @@ double joint_ate(const std::string& scene, const std::string& out) {
 class Persistence : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    scene_ = test::scratch_dir("persist_scene");
+    scene_dir_ = std::make_unique<test::ScratchDir>("persist_scene");
+    scene_ = scene_dir_->path();
     const auto r = test::run_program("cslam-synth", "--preset test-small --frames 300 --seed 5 --overlap 0.3 --out " +
                                                         scene_ + "/scene --force --log-level warn");
     ASSERT_EQ(r.status, 0) << r.output;
     scene_ += "/scene";
   }
+  static void TearDownTestSuite() { scene_dir_.reset(); }
   static std::string scene_;
+  static std::unique_ptr<test::ScratchDir> scene_dir_;
 };
 std::string Persistence::scene_;
+std::unique_ptr<test::ScratchDir> Persistence::scene_dir_;
 
 TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   const std::string rate = "20";  // 300 frames: at least 15 s per robot
   // Reference: the same run uninterrupted.
-  const std::string ref = test::scratch_dir("persist_ref");
+  const test::ScratchDir ref_dir("persist_ref");
+  const std::string& ref = ref_dir.path();
   {
     test::ChildProcess server(server_args("tcp://127.0.0.1:*", ref + "/endpoint", ref + "/out",
                                           {"--clients", "2", "--exit-when-done"}),
@@ -79,7 +85,8 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   }
   const double ate_ref = joint_ate(scene_, ref + "/out");
 
-  const std::string run = test::scratch_dir("persist_kill");
+  const test::ScratchDir run_dir("persist_kill");
+  const std::string& run = run_dir.path();
   const std::string state = run + "/state";
   std::string endpoint;
   auto server = std::make_unique<test::ChildProcess>(
@@ -162,8 +169,8 @@ struct Session {
   std::vector<std::string> extra = {};  // more client options
 };
 
-std::string run_two_sessions(const std::string& name, const Session& s1, const Session& s2) {
-  const std::string run = test::scratch_dir(name);
+// Runs the two sessions in the folder run; returns the second run's output folder.
+std::string run_two_sessions(const std::string& run, const Session& s1, const Session& s2) {
   const std::string state = run + "/state";
   for (int k = 1; k <= 2; ++k) {
     const Session& s = k == 1 ? s1 : s2;
@@ -205,7 +212,8 @@ TEST(MultiSession, Fr1DeskSecondSessionIsFusedIntoTheLoadedMap) {
     if (ci && std::string(ci) == "true") FAIL() << "real sequence missing: " << desk;
     GTEST_SKIP() << "real sequence not found at " << desk;
   }
-  const std::string out = run_two_sessions("multisession_desk", {1, desk, "1:300", "tum1"}, {2, desk, "280:", "tum1"});
+  const test::ScratchDir run_dir("multisession_desk");
+  const std::string out = run_two_sessions(run_dir.path(), {1, desk, "1:300", "tum1"}, {2, desk, "280:", "tum1"});
   const auto stats = read_json(out + "/stats.json");
   const auto groups = groups_of(stats);
   ASSERT_EQ(groups.size(), 2u) << stats.dump();
@@ -233,7 +241,8 @@ TEST(MultiSession, Fr1DeskSecondSessionIsFusedIntoTheLoadedMap) {
 TEST_F(Persistence, TwoDaysSecondRobotStartsAwayAndMeetsTheLoadedMapLater) {
   // Day 1: robot 2's arc. Day 2 (a restarted server): robot 1, whose arc starts away from robot 2's
   // path and reaches it only in its last part.
-  const std::string out = run_two_sessions("multisession_synth", {2, scene_ + "/robot_2", "1:", ""},
+  const test::ScratchDir run_dir("multisession_synth");
+  const std::string out = run_two_sessions(run_dir.path(), {2, scene_ + "/robot_2", "1:", ""},
                                            {1, scene_ + "/robot_1", "1:", ""});
   const auto stats = read_json(out + "/stats.json");
   const auto groups = groups_of(stats);
@@ -254,7 +263,8 @@ TEST_F(Persistence, TwoDaysSecondRobotStartsAwayAndMeetsTheLoadedMapLater) {
 }
 
 TEST_F(Persistence, SameIdWithNewSessionStartsAMapThatFusionJoinsToTheLoadedOne) {
-  const std::string out = run_two_sessions("multisession_sameid", {1, scene_ + "/robot_2", "1:", ""},
+  const test::ScratchDir run_dir("multisession_sameid");
+  const std::string out = run_two_sessions(run_dir.path(), {1, scene_ + "/robot_2", "1:", ""},
                                            {1, scene_ + "/robot_1", "1:", "", {"--new-session"}});
   const auto stats = read_json(out + "/stats.json");
   ASSERT_EQ(stats["clients"].size(), 1u) << stats.dump();
@@ -265,7 +275,8 @@ TEST_F(Persistence, SameIdWithNewSessionStartsAMapThatFusionJoinsToTheLoadedOne)
 }
 
 TEST_F(Persistence, DamagedStateFolderRefusesToStartUnlessReset) {
-  const std::string run = test::scratch_dir("persist_damaged");
+  const test::ScratchDir run_dir("persist_damaged");
+  const std::string& run = run_dir.path();
   const std::string state = run + "/state";
   std::filesystem::create_directories(state);
   std::ofstream(snapshot::current_path(state)) << "CSLAMSNP but not really";
