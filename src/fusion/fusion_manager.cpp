@@ -265,9 +265,11 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     seams_.push_back({kept_map, moved_map, std::move(seam)});
   }
   logger("fusion")->info("fused client {} with client {} into group {} ({} keyframes moved onto {}): {} inliers, {} "
-                         "projection matches, {} seam points, {} cross-map covisibility edges, {:.1f} ms",
+                         "projection matches, window fit {} inliers over {} keyframes, {} seam points, {} cross-map "
+                         "covisibility edges, {:.1f} ms",
                          p.client, other_client, kept, e.keyframes_moved, e.keyframes_kept, v.final_inliers,
-                         v.projection_matches, e.seam_points, e.seam_edges, e.duration_ms);
+                         v.projection_matches, v.window_inliers, v.window_keyframes, e.seam_points, e.seam_edges,
+                         e.duration_ms);
   start_group_ba(kept);
 }
 

@@ -20,13 +20,8 @@ std::vector<char> has_point_mask(const KeyFrame& kf) {
   return mask;
 }
 
-// Projects the candidate group's points into `query` with S (query-camera <- candidate-camera)
-// and matches them to keypoints by descriptor. Matched keypoints with depth give extra 3D-3D
-// correspondences for a second refinement. Returns the number of matches.
-int projection_matches(const KeyFrame& query, const KeyFrame& candidate, const std::vector<KeyFrame*>& neighbours,
-                       const Sim3& S_q_c, double radius, std::vector<Sim3Correspondence>& extra) {
-  const FrameData& f = *query.data;
-  const FrameData& fc = *candidate.data;
+// The candidate keyframe's and its neighbours' map points, each once.
+std::set<MapPoint*, ById> candidate_points(const KeyFrame& candidate, const std::vector<KeyFrame*>& neighbours) {
   std::set<MapPoint*, ById> points;
   auto collect = [&](const KeyFrame& kf) {
     for (const auto& mp : kf.map_points)
@@ -35,6 +30,16 @@ int projection_matches(const KeyFrame& query, const KeyFrame& candidate, const s
   collect(candidate);
   for (KeyFrame* n : neighbours)
     if (n && !n->bad) collect(*n);
+  return points;
+}
+
+// Projects the candidate group's points into `query` with S (query-camera <- candidate-camera)
+// and matches them to keypoints by descriptor. Matched keypoints with depth give extra 3D-3D
+// correspondences for a second refinement. Returns the number of matches.
+int projection_matches(const KeyFrame& query, const KeyFrame& candidate, const std::set<MapPoint*, ById>& points,
+                       const Sim3& S_q_c, double radius, std::vector<Sim3Correspondence>& extra) {
+  const FrameData& f = *query.data;
+  const FrameData& fc = *candidate.data;
   std::vector<char> used(f.size(), 0);
   int matched = 0;
   const SE3 T_c_w = candidate.T_cam_world;
@@ -71,6 +76,45 @@ int projection_matches(const KeyFrame& query, const KeyFrame& candidate, const s
     extra.push_back(c);
   }
   return matched;
+}
+
+// Window refinement: the query's inlier correspondences, plus projection matches of the candidate
+// group's points in each of the query's best covisible keyframes, seen from that keyframe
+// (Sim3Correspondence::T_view_1), all in one fit of S_query_candidate. Kept only when it explains
+// at least as many observations as the query-only fit did.
+void refine_over_window(const KeyFrame& query, const KeyFrame& candidate, const std::set<MapPoint*, ById>& points,
+                        const StereoIntrinsics& kq, const StereoIntrinsics& kc, const OverlapVerifyConfig& cfg,
+                        const std::vector<Sim3Correspondence>& query_matches, const Sim3RefineResult& query_fit,
+                        OverlapVerifyResult& r) {
+  if (cfg.window_keyframes <= 0) return;
+  std::vector<Sim3Correspondence> pooled;
+  for (size_t i = 0; i < query_matches.size(); ++i)
+    if (query_fit.inlier[i]) pooled.push_back(query_matches[i]);
+  int views = 1;
+  for (KeyFrame* view : query.best_covisibles(std::size_t(cfg.window_keyframes))) {
+    if (!view || view->bad || view->data->camera.width != query.data->camera.width) continue;
+    const SE3 T_view_q = view->T_cam_world * query.T_world_cam();
+    std::vector<Sim3Correspondence> seen;
+    projection_matches(*view, candidate, points, Sim3(T_view_q) * query_fit.S_12, cfg.projection_radius, seen);
+    if (seen.empty()) continue;
+    const SE3 T_q_view = T_view_q.inverse();
+    for (auto& c : seen) {
+      c.p1 = T_q_view * c.p1;
+      c.T_view_1 = T_view_q;
+      pooled.push_back(c);
+    }
+    ++views;
+  }
+  if (views == 1) return;
+  const Sim3RefineResult fit = refine_sim3(query_fit.S_12, pooled, kq, kc, cfg.ransac.fix_scale);
+  // The query's own inliers under the window fit: the window must not trade them away.
+  int query_kept = 0;
+  for (size_t i = 0, j = 0; i < query_matches.size(); ++i)
+    if (query_fit.inlier[i]) query_kept += fit.inlier[j++];
+  if (query_kept < cfg.min_final_inliers || fit.num_inliers < query_fit.num_inliers) return;
+  r.S_query_candidate = fit.S_12;
+  r.window_keyframes = views;
+  r.window_inliers = fit.num_inliers;
 }
 
 }  // namespace
@@ -117,8 +161,8 @@ OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candid
     return r;
   }
   std::vector<Sim3Correspondence> extra;
-  r.projection_matches =
-      projection_matches(query, candidate, candidate_neighbours, refined.S_12, cfg.projection_radius, extra);
+  const auto points = candidate_points(candidate, candidate_neighbours);
+  r.projection_matches = projection_matches(query, candidate, points, refined.S_12, cfg.projection_radius, extra);
   if (r.projection_matches < cfg.min_projection_matches) {
     r.reason = "projection check failed";
     return r;
@@ -136,6 +180,7 @@ OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candid
   }
   r.S_query_candidate = final_fit.S_12;
   r.accepted = true;
+  refine_over_window(query, candidate, points, kq, kc, cfg, all, final_fit, r);
   return r;
 }
 

@@ -41,10 +41,12 @@ inline void pinhole(const StereoIntrinsics& k, const T* p, T* uv) {
   uv[1] = T(k.fy) * p[1] * inv_z + T(k.cy);
 }
 
-// Image-1 residual of a Sim3 match: project S_12 * p2 with k1 against uv1, whitened by 1/sigma.
+// Image-1 residual of a Sim3 match: project T_view_1 * S_12 * p2 with k1 against uv1, whitened by
+// 1/sigma. T_view_1 (fixed; identity by default) is the observing camera of uv1 relative to camera 1.
 struct Sim3ReprojectionCost1 {
-  Sim3ReprojectionCost1(const StereoIntrinsics& k1, const Eigen::Vector3d& p2, const Eigen::Vector2d& uv1, double sqrt_info)
-      : k(k1), p(p2), uv(uv1), w(sqrt_info) {}
+  Sim3ReprojectionCost1(const StereoIntrinsics& k1, const Eigen::Vector3d& p2, const Eigen::Vector2d& uv1, double sqrt_info,
+                        const SE3& T_view_1 = SE3())
+      : k(k1), p(p2), uv(uv1), w(sqrt_info), R_view(T_view_1.rotation().toRotationMatrix()), t_view(T_view_1.translation()) {}
   template <typename T>
   bool operator()(const T* pose, const T* log_scale, T* r) const {
     const T src[3] = {T(p.x()), T(p.y()), T(p.z())};
@@ -52,8 +54,10 @@ struct Sim3ReprojectionCost1 {
     ceres::AngleAxisRotatePoint(pose, src, q);
     const T s = exp(log_scale[0]);
     for (int i = 0; i < 3; ++i) q[i] = s * q[i] + pose[3 + i];
+    T v[3];
+    for (int i = 0; i < 3; ++i) v[i] = T(R_view(i, 0)) * q[0] + T(R_view(i, 1)) * q[1] + T(R_view(i, 2)) * q[2] + T(t_view[i]);
     T proj[2];
-    pinhole(k, q, proj);
+    pinhole(k, v, proj);
     r[0] = T(w) * (proj[0] - T(uv.x()));
     r[1] = T(w) * (proj[1] - T(uv.y()));
     return true;
@@ -62,6 +66,8 @@ struct Sim3ReprojectionCost1 {
   Eigen::Vector3d p;
   Eigen::Vector2d uv;
   double w;
+  Eigen::Matrix3d R_view;
+  Eigen::Vector3d t_view;
 };
 
 // Image-2 residual: project S_21 * p1 = (1/s) R^T (p1 - t) with k2 against uv2.

@@ -59,7 +59,7 @@ bool well_conditioned(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const 
 Sim3MatchChi2 sim3_match_chi2(const Sim3& S_12, const Sim3Correspondence& m, const StereoIntrinsics& k1,
                               const StereoIntrinsics& k2) {
   // S_21 * p1 = (1/s) R^T (p1 - t), computed without forming the inverse.
-  const Eigen::Vector3d p2_in_1 = S_12 * m.p2;
+  const Eigen::Vector3d p2_in_1 = m.T_view_1 * (S_12 * m.p2);
   const Eigen::Vector3d p1_in_2 = (S_12.rotation().conjugate() * (m.p1 - S_12.translation())) / S_12.scale();
   return {reprojection_chi2(k1, p2_in_1, m.uv1, m.sigma2_1), reprojection_chi2(k2, p1_in_2, m.uv2, m.sigma2_2)};
 }

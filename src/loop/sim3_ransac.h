@@ -20,6 +20,10 @@ struct Sim3Correspondence {
   Eigen::Vector3d p1, p2;             // the same physical point in camera 1 and camera 2 coordinates (metres)
   Eigen::Vector2d uv1, uv2;           // its undistorted keypoints in image 1 and image 2
   double sigma2_1 = 1, sigma2_2 = 1;  // keypoint level variance (scale^2) in each image
+  // Where uv1 was observed: camera-1 coordinates into the observing camera's. Identity when image 1
+  // is camera 1's own; another keyframe of camera 1's map (known relative pose) when a refinement
+  // pools the observations of a window of keyframes. p1 is always in camera-1 coordinates.
+  SE3 T_view_1;
 };
 
 struct Sim3RansacConfig {
@@ -44,7 +48,7 @@ struct Sim3RansacResult {
 Sim3RansacResult sim3_ransac(const std::vector<Sim3Correspondence>& matches, const StereoIntrinsics& k1,
                              const StereoIntrinsics& k2, const Sim3RansacConfig& cfg = {});
 
-// Squared reprojection errors / sigma2 of one match under S_12 in image 1 (e1) and image 2 (e2);
+// Squared reprojection errors / sigma2 of one match under S_12 in image 1 (e1, seen from T_view_1) and image 2 (e2);
 // +infinity when the point falls behind the camera. The inlier test is e1 < chi2 && e2 < chi2.
 struct Sim3MatchChi2 {
   double e1 = 0, e2 = 0;

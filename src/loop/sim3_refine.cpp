@@ -28,7 +28,7 @@ void add_matches(ceres::Problem& problem, Sim3Param& param, const std::vector<Si
     if (!use[i]) continue;
     const auto& m = matches[i];
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Sim3ReprojectionCost1, 2, 6, 1>(
-                                 new Sim3ReprojectionCost1(k1, m.p2, m.uv1, 1.0 / std::sqrt(m.sigma2_1))),
+                                 new Sim3ReprojectionCost1(k1, m.p2, m.uv1, 1.0 / std::sqrt(m.sigma2_1), m.T_view_1)),
                              loss(), param.pose.data(), &param.log_scale);
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Sim3ReprojectionCost2, 2, 6, 1>(
                                  new Sim3ReprojectionCost2(k2, m.p1, m.uv2, 1.0 / std::sqrt(m.sigma2_2))),

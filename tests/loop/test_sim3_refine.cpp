@@ -1,4 +1,6 @@
 // refine_sim3 and the cost functors of the loop module (checked against numeric differentiation).
+#include <cstdio>
+
 #include <gtest/gtest.h>
 
 #include <ceres/ceres.h>
@@ -52,6 +54,35 @@ TEST(LoopCosts, Sim3ReprojectionJacobiansMatchNumeric) {
   compare_jacobians<Sim3ReprojectionCost1, 2, 6, 1>(c1, {S.pose.data(), &S.log_scale});
   const Sim3ReprojectionCost2 c2(k, {-0.4, 0.1, 2.8}, {300.0, 260.0}, 1.0);
   compare_jacobians<Sim3ReprojectionCost2, 2, 6, 1>(c2, {S.pose.data(), &S.log_scale});
+}
+
+TEST(LoopCosts, Sim3ReprojectionFromAnotherViewMatchesNumericAndGeometry) {
+  const auto k = test::loop_intrinsics();
+  const Sim3 S_true = test::rotation_about(0.4, {0.3, 1, -0.2}, {0.2, -0.1, 0.3}, 1.3);
+  auto S = to_sim3_param(S_true);
+  const SE3 T_view_1(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized())),
+                     Eigen::Vector3d(0.25, -0.05, 0.1));
+  const Eigen::Vector3d p2(0.3, -0.2, 2.2);
+  const Sim3ReprojectionCost1 c1(k, p2, {350.0, 240.0}, 1.0 / 1.2, T_view_1);
+  compare_jacobians<Sim3ReprojectionCost1, 2, 6, 1>(c1, {S.pose.data(), &S.log_scale});
+  // The residual is the projection of T_view_1 * S_12 * p2 in the viewing camera.
+  const Eigen::Vector2d uv = test::project(k, T_view_1 * (S_true * p2));
+  const Sim3ReprojectionCost1 exact(k, p2, uv, 1.0, T_view_1);
+  double r[2];
+  ASSERT_TRUE(exact(S.pose.data(), &S.log_scale, r));
+  EXPECT_NEAR(r[0], 0.0, 1e-9);
+  EXPECT_NEAR(r[1], 0.0, 1e-9);
+  Sim3Correspondence m;
+  m.p1 = S_true * p2;
+  m.p2 = p2;
+  m.uv1 = uv;
+  m.uv2 = test::project(k, p2);
+  m.T_view_1 = T_view_1;
+  const auto e = sim3_match_chi2(S_true, m, k, k);
+  EXPECT_NEAR(e.e1, 0.0, 1e-12);
+  EXPECT_NEAR(e.e2, 0.0, 1e-12);
+  m.T_view_1 = SE3();  // the same keypoint read as camera 1's own is far off
+  EXPECT_GT(sim3_match_chi2(S_true, m, k, k).e1, 100.0);
 }
 
 TEST(LoopCosts, PoseGraphEdgeJacobiansMatchNumeric) {
@@ -141,6 +172,40 @@ TEST(Sim3Refine, ExactDataConvergesToTruth) {
   EXPECT_TRUE(r.converged);
   EXPECT_EQ(r.num_inliers, 60);
   EXPECT_LT(r.final_cost, 1e-10);
+}
+
+// Window refinement: camera 1's own image is distorted (its keypoints read as if the camera had
+// turned 1.5 degrees more: motion blur, rolling shutter), four other views of camera 1's map are
+// not. Pooling their observations (each seen from its T_view_1) pulls the fit back to the truth.
+TEST(Sim3Refine, ObservationsFromOtherViewsAverageOutOneImagesError) {
+  const auto k = test::loop_intrinsics();
+  const Sim3 truth = test::rotation_about(0.3, {0.1, 1, 0}, {0.2, 0.05, -0.1});
+  const SE3 skew(Eigen::Quaterniond(Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero());
+  std::vector<Sim3Correspondence> own;
+  for (auto m : test::make_matches(truth, 80, 0.0, 7, 0.3, 0.0).matches) {
+    m.uv1 = test::project(k, skew * m.p1);  // the distorted image
+    m.p1 = skew * m.p1;                     // and its depth back-projection
+    own.push_back(m);
+  }
+  const auto alone = refine_sim3(truth, own, k, k, true);
+  const double alone_deg = test::rotation_error_deg(alone.S_12, truth);
+  EXPECT_GT(alone_deg, 1.0) << "camera 1's image alone should carry its error";
+  std::vector<Sim3Correspondence> pooled = own;
+  for (int v = 0; v < 4; ++v) {
+    const SE3 T_view_1(Eigen::Quaterniond(Eigen::AngleAxisd(0.08 * (v - 1.5), Eigen::Vector3d(0.3, 1, 0.1).normalized())),
+                       Eigen::Vector3d(0.05 * (v - 1.5), 0.02 * v, 0.01));
+    const Sim3 S_view = Sim3(T_view_1) * truth;
+    for (auto m : test::make_matches(S_view, 80, 0.0, 100 + v, 0.3, 0.0).matches) {
+      m.p1 = T_view_1.inverse() * m.p1;  // camera-1 coordinates
+      m.T_view_1 = T_view_1;
+      pooled.push_back(m);
+    }
+  }
+  const auto window = refine_sim3(alone.S_12, pooled, k, k, true);
+  const double window_deg = test::rotation_error_deg(window.S_12, truth);
+  std::printf("rotation error: camera 1 alone %.3f deg, window of 5 views %.3f deg\n", alone_deg, window_deg);
+  EXPECT_LT(window_deg, 0.5 * alone_deg) << "alone " << alone_deg << " deg, window " << window_deg << " deg";
+  EXPECT_GE(window.num_inliers, 4 * 80 * 9 / 10);
 }
 
 TEST(Sim3Refine, TooFewMatchesAndBadChi2) {
