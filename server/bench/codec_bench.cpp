@@ -1,8 +1,9 @@
 // cslam-bench-codec: encoded size and encode/decode time of every RGB and depth codec on a
-// TUM-layout dataset (default: the shared tum_fr1_rpy), plus the totals per codec pair.
+// TUM-layout dataset (default: the shared tum_fr1_rpy), plus the totals per codec pair; then the
+// time to decode the dataset's own image files by each path (file_decode_bench.h).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <iostream>
 #include <map>
 
@@ -12,26 +13,14 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
+#include "cpu_stopwatch.h"
 #include "eval/stats.h"
+#include "file_decode_bench.h"
 #include "io/tum_dataset.h"
 
 namespace {
 
-// Thread CPU time in ms: other processes on the machine (builds) distort wall time, not this.
-class CpuStopwatch {
- public:
-  CpuStopwatch() { reset(); }
-  void reset() { start_ = now(); }
-  double ms() const { return now() - start_; }
-
- private:
-  static double now() {
-    timespec ts{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
-  }
-  double start_ = 0;
-};
+using cslam::CpuStopwatch;
 
 struct Result {
   std::vector<double> kb, encode_ms, decode_ms, psnr;
@@ -53,9 +42,19 @@ int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-bench-codec", "Sizes and times of the image codecs on a TUM-layout dataset.");
   cli.option("dataset", "TUM-layout folder", std::string(CSLAM_SHARED_DATA_DIR) + "/tum_fr1_rpy")
       .option("frames", "number of frames, evenly spaced over the sequence (0 = all)", "100")
-      .option("jpeg-qualities", "comma-separated JPEG qualities to measure", "75,90,95");
+      .option("jpeg-qualities", "comma-separated JPEG qualities to measure", "75,90,95")
+      .option("decode-files", "decode the first N colour and depth files of the dataset by each path (0 = skip)", "100")
+      .option("decode-repeat", "passes over those files", "3")
+      .flag("decode-only", "only the file-decoding table, not the codec round trips");
   if (!cli.parse(argc, argv)) return 0;
   const cslam::TumDataset ds = cslam::open_tum_dataset(cli.get("dataset"));
+  cslam::FileDecodeBenchOptions decode_options;
+  decode_options.files = cli.get_int("decode-files");
+  decode_options.repeat = std::max(1, cli.get_int("decode-repeat"));
+  if (cli.flag_set("decode-only")) {
+    cslam::run_file_decode_bench(ds, decode_options);
+    return 0;
+  }
   int n = cli.get_int("frames");
   if (n <= 0 || n > int(ds.pairs.size())) n = int(ds.pairs.size());
   std::vector<int> qualities;
@@ -134,6 +133,10 @@ int run(int argc, char** argv) {
                   cslam::summarize(a.encode_ms).median + cslam::summarize(b.encode_ms).median,
                   cslam::summarize(a.decode_ms).median + cslam::summarize(b.decode_ms).median);
     }
+  if (decode_options.files > 0) {
+    std::printf("\n");
+    cslam::run_file_decode_bench(ds, decode_options);
+  }
   return 0;
 }
 
