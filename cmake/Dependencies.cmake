@@ -11,4 +11,6 @@ find_package(PkgConfig REQUIRED)
 pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
 find_package(Boost 1.74 REQUIRED)  # header-only: boost::container::flat_map (map point observations)
 find_package(ZLIB REQUIRED)  # bounded PNG pre-check (src/codec/png_guard.cpp)
+# JPEG straight to BGR (src/codec/jpeg_decode.cpp): OpenCV 4.6 decodes to RGB and swaps bytes.
+pkg_check_modules(TURBOJPEG REQUIRED IMPORTED_TARGET libturbojpeg)
 find_package(GTest REQUIRED)

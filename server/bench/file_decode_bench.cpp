@@ -9,8 +9,10 @@
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
+#include <turbojpeg.h>
 
 #include "codec/image_codec.h"
+#include "codec/jpeg_decode.h"
 #include "core/error.h"
 #include "cpu_stopwatch.h"
 #include "eval/stats.h"
@@ -44,18 +46,41 @@ Bytes read_bytes(const std::string& path) {
   return Bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
+// TurboJPEG with other flags than decode_jpeg_bgr's, to measure what the faster, inexact modes
+// (fast integer DCT, plain instead of "fancy" chroma upsampling) would gain and change.
+cv::Mat turbojpeg_bgr(const Sample& s, int flags) {
+  thread_local tjhandle tj = tjInitDecompress();
+  cv::Mat out(s.height, s.width, CV_8UC3);
+  if (tjDecompress2(tj, s.bytes.data(), static_cast<unsigned long>(s.bytes.size()), out.data, s.width,
+                    int(out.step[0]), s.height, TJPF_BGR, flags) != 0)
+    throw InputError(s.path, tjGetErrorStr2(tj));
+  return out;
+}
+
 bool is_png(const std::string& path) { return path.size() >= 4 && path.compare(path.size() - 4, 4, ".png") == 0; }
 
 std::vector<Method> methods() {
   std::vector<Method> m;
   // Colour. The first one is the reference the others are compared with.
-  m.push_back({"imread (load_rgbd)", true, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_COLOR); }});
+  m.push_back({"imread (load_rgbd before)", true, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_COLOR); }});
+  m.push_back({"load_colour_image (load_rgbd)", true, [](const Sample& s) { return load_colour_image(s.path); }});
+  m.push_back({"imdecode (from memory)", true, [](const Sample& s) {
+                 return cv::imdecode(s.bytes, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+               }});
   m.push_back({"decode_rgb (wire)", true, [](const Sample& s) {
                  const RgbCodec c = is_png(s.path) ? RgbCodec::kPng : RgbCodec::kJpeg;
                  return decode_rgb(c, s.bytes.data(), s.bytes.size(), s.width, s.height, s.path);
                }});
+  m.push_back({"decode_jpeg_bgr (from memory)", true, [](const Sample& s) {
+                 return decode_jpeg_bgr(s.bytes.data(), s.bytes.size(), s.path, s.width, s.height);
+               }});
+  m.push_back({"turbojpeg fast DCT", true, [](const Sample& s) { return turbojpeg_bgr(s, TJFLAG_FASTDCT); }});
+  m.push_back({"turbojpeg fast upsampling", true, [](const Sample& s) { return turbojpeg_bgr(s, TJFLAG_FASTUPSAMPLE); }});
+  m.push_back({"turbojpeg fast DCT + upsampling", true,
+               [](const Sample& s) { return turbojpeg_bgr(s, TJFLAG_FASTDCT | TJFLAG_FASTUPSAMPLE); }});
   // Depth.
-  m.push_back({"imread (load_rgbd)", false, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_ANYDEPTH); }});
+  m.push_back({"imread (load_rgbd before)", false, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_ANYDEPTH); }});
+  m.push_back({"load_depth_image (load_rgbd)", false, [](const Sample& s) { return load_depth_image(s.path); }});
   m.push_back({"decode_depth png (wire)", false, [](const Sample& s) {
                  return decode_depth(DepthCodec::kPng, s.bytes.data(), s.bytes.size(), s.width, s.height, s.path);
                }});

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "codec/depth_codecs.h"
+#include "codec/jpeg_decode.h"
 #include "codec/png_guard.h"
 #include "core/error.h"
 
@@ -196,8 +197,7 @@ cv::Mat decode_rgb(RgbCodec codec, const std::uint8_t* data, std::size_t size, i
     }
     case RgbCodec::kJpeg:
       check_jpeg_header(data, size, width, height, source);
-      return imdecode_checked(data, size, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION, CV_8UC3, width, height,
-                              source);
+      return decode_jpeg_bgr(data, size, source, width, height);
     case RgbCodec::kPng:
       check_png_header(data, size, width, height, false, source);
       check_png_stream(data, size, PngLimits{width, height, false}, source);

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "codec/jpeg_decode.h"
 #include "core/error.h"
 #include "io/text_table.h"
 
@@ -15,6 +17,19 @@ namespace fs = std::filesystem;
 namespace cslam {
 
 namespace {
+
+// One read() of the whole file (an istreambuf_iterator copy costs ~0.15 ms for a 40 KB JPEG).
+std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
+  std::error_code ec;
+  const bool regular = fs::is_regular_file(path, ec);
+  const std::uintmax_t size = regular ? fs::file_size(path, ec) : 0;
+  std::ifstream in(path, std::ios::binary);
+  if (!regular || ec || !in) throw InputError(path, "cannot read RGB image");
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
+  if (!in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size)))
+    throw InputError(path, "cannot read RGB image");
+  return bytes;
+}
 
 std::vector<TimedFile> read_file_list(const std::string& root, const std::string& name) {
   const std::string path = (fs::path(root) / name).string();
@@ -131,13 +146,26 @@ std::pair<int, int> parse_range(const std::string& text, int count) {
   return {parse(text.substr(0, colon), 1), parse(text.substr(colon + 1), count)};
 }
 
+cv::Mat load_colour_image(const std::string& path) {
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  if (looks_like_jpeg(bytes.data(), bytes.size())) return decode_jpeg_bgr(bytes.data(), bytes.size(), path);
+  cv::Mat out;
+  if (!bytes.empty()) out = cv::imdecode(bytes, cv::IMREAD_COLOR);
+  if (out.empty()) throw InputError(path, "cannot read RGB image");
+  return out;
+}
+
+cv::Mat load_depth_image(const std::string& path) {
+  cv::Mat depth = cv::imread(path, cv::IMREAD_ANYDEPTH);
+  if (depth.empty()) throw InputError(path, "cannot read depth image");
+  if (depth.type() != CV_16UC1) throw InputError(path, "depth image must be 16-bit single channel");
+  return depth;
+}
+
 RgbdImages load_rgbd(const RgbdPair& pair) {
   RgbdImages im;
-  im.bgr = cv::imread(pair.rgb_path, cv::IMREAD_COLOR);
-  if (im.bgr.empty()) throw InputError(pair.rgb_path, "cannot read RGB image");
-  im.depth = cv::imread(pair.depth_path, cv::IMREAD_ANYDEPTH);
-  if (im.depth.empty()) throw InputError(pair.depth_path, "cannot read depth image");
-  if (im.depth.type() != CV_16UC1) throw InputError(pair.depth_path, "depth image must be 16-bit single channel");
+  im.bgr = load_colour_image(pair.rgb_path);
+  im.depth = load_depth_image(pair.depth_path);
   return im;
 }
 

@@ -66,5 +66,10 @@ struct RgbdImages {
 };
 // Loads both images; throws InputError naming the file if unreadable or of the wrong type.
 RgbdImages load_rgbd(const RgbdPair& pair);
+// The two halves of load_rgbd. Colour: a JPEG (recognised by its first bytes) is decoded by
+// codec/jpeg_decode.h, straight to BGR and bit-identical to cv::imread; a corrupt or truncated one
+// is an InputError. Anything else (PNG) goes through OpenCV. Depth: cv::imread, 16-bit only.
+cv::Mat load_colour_image(const std::string& path);
+cv::Mat load_depth_image(const std::string& path);
 
 }  // namespace cslam

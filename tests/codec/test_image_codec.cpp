@@ -2,6 +2,7 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "codec/image_codec.h"
@@ -79,6 +80,21 @@ TEST_P(RgbCodecTest, TruncatedOrGarbageIsRejectedOrDecodesToTheRightSize) {
   }
   const Bytes garbage(500, 0xab);
   EXPECT_THROW(decode_rgb(o.rgb, garbage.data(), garbage.size(), 64, 48, "test"), InputError);
+}
+
+// The network decoder's JPEG path (header checks, then codec/jpeg_decode.h): the same pixels as
+// cv::imdecode, and a truncated stream is refused rather than filled with grey.
+TEST(RgbJpeg, DecodesLikeOpenCvAndRefusesTruncation) {
+  const cv::Mat im = random_bgr(160, 120, 4);
+  CodecOptions o;
+  o.rgb = RgbCodec::kJpeg;
+  const Bytes bytes = encode_rgb(im, o);
+  const cv::Mat expected = cv::imdecode(bytes, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+  const cv::Mat back = decode_rgb(o.rgb, bytes.data(), bytes.size(), 160, 120, "test");
+  EXPECT_EQ(cv::norm(back, expected, cv::NORM_INF), 0.0);
+  for (std::size_t keep = 0; keep < bytes.size(); keep += 41)
+    EXPECT_THROW(decode_rgb(o.rgb, bytes.data(), keep, 160, 120, "test"), InputError) << keep;
+  EXPECT_THROW(decode_rgb(o.rgb, bytes.data(), bytes.size() - 1, 160, 120, "test"), InputError);
 }
 
 INSTANTIATE_TEST_SUITE_P(AllRgb, RgbCodecTest,

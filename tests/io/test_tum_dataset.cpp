@@ -83,8 +83,39 @@ TEST(TumDataset, ReadsSmallDatasetPngAndJpg) {
   for (const auto& p : ds.pairs) {
     const auto im = load_rgbd(p);
     EXPECT_EQ(im.bgr.type(), CV_8UC3);
+    EXPECT_EQ(cv::norm(im.bgr, cv::imread(p.rgb_path, cv::IMREAD_COLOR), cv::NORM_INF), 0.0) << p.rgb_path;
     EXPECT_EQ(im.depth.at<uint16_t>(0, 0), 5000);
   }
+  fs::remove_all(d);
+}
+
+// A JPEG is recognised by its bytes, not its name; a damaged one is an InputError naming the file.
+TEST(TumDataset, ColourImagesByContentAndDamagedJpegs) {
+  const fs::path d = make_temp_dir("cslam_ds_jpeg");
+  cv::Mat rgb(48, 64, CV_8UC3);
+  cv::randu(rgb, 0, 256);
+  std::vector<uchar> jpeg, png;
+  cv::imencode(".jpg", rgb, jpeg);
+  cv::imencode(".png", rgb, png);
+  auto write = [&](const std::string& name, const std::vector<uchar>& bytes, std::size_t size) {
+    std::ofstream(d / name, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(size));
+    return (d / name).string();
+  };
+  const std::string jpeg_as_png = write("jpeg_named.png", jpeg, jpeg.size());
+  const std::string png_as_jpg = write("png_named.jpg", png, png.size());
+  EXPECT_EQ(cv::norm(load_colour_image(jpeg_as_png), cv::imdecode(jpeg, cv::IMREAD_COLOR), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(load_colour_image(png_as_jpg), rgb, cv::NORM_INF), 0.0);
+  for (const std::size_t keep : {std::size_t(0), std::size_t(2), std::size_t(30), jpeg.size() / 2, jpeg.size() - 2}) {
+    const std::string path = write("cut_" + std::to_string(keep) + ".jpg", jpeg, keep);
+    try {
+      load_colour_image(path);
+      ADD_FAILURE() << "accepted " << keep << " of " << jpeg.size() << " bytes";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(load_colour_image((d / "missing.jpg").string()), InputError);
+  EXPECT_THROW(load_colour_image(d.string()), InputError);  // a folder
   fs::remove_all(d);
 }
 
@@ -119,4 +150,18 @@ TEST(TumDataset, RealSequence) {
   const auto im = load_rgbd(ds.pairs.front());
   EXPECT_EQ(im.bgr.cols, 640);
   EXPECT_EQ(im.depth.rows, 480);
+}
+
+// load_rgbd decodes JPEGs with TurboJPEG; SLAM results stay unchanged only if every frame's pixels
+// are exactly cv::imread's (about 2 s for the 723 frames).
+TEST(TumDataset, RealSequenceColourIsBitIdenticalToImread) {
+  CSLAM_REQUIRE_TUM_RPY();
+  const auto ds = open_tum_dataset(test::tum_rpy_dir());
+  int differing = 0;
+  for (const auto& f : ds.rgb)
+    if (cv::norm(load_colour_image(f.path), cv::imread(f.path, cv::IMREAD_COLOR), cv::NORM_INF) != 0) {
+      ++differing;
+      ADD_FAILURE() << f.path;
+    }
+  EXPECT_EQ(differing, 0);
 }
