@@ -1,5 +1,6 @@
 #include "bow/vocabulary.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -171,36 +172,64 @@ WordId Vocabulary::word_of(const Descriptor& d) const {
   return word_of(d, 0, unused);
 }
 
+namespace {
+
+// Sums (word, weight) pairs per word, in the order they were added (the sums equal adding them
+// one by one into a map), then L1-normalises.
+void build_bow(std::vector<std::pair<WordId, double>>& words, BowVector& bow) {
+  std::stable_sort(words.begin(), words.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  BowVector::sequence_type seq;
+  seq.reserve(words.size());
+  for (const auto& [w, v] : words) {
+    if (!seq.empty() && seq.back().first == w) seq.back().second += v;
+    else seq.emplace_back(w, v);
+  }
+  double sum = 0;
+  for (const auto& [w, v] : seq) sum += v;
+  if (sum > 0)
+    for (auto& [w, v] : seq) v /= sum;
+  bow.adopt_sequence(boost::container::ordered_unique_range, std::move(seq));
+}
+
+}  // namespace
+
 void Vocabulary::transform(const std::vector<Descriptor>& descriptors, BowVector& bow, FeatureVector& features,
                            int levels_up) const {
   bow.clear();
   features.clear();
   if (empty()) return;
+  std::vector<std::pair<WordId, double>> words;
+  std::vector<std::pair<NodeId, int>> nodes;
+  words.reserve(descriptors.size());
+  nodes.reserve(descriptors.size());
   for (std::size_t i = 0; i < descriptors.size(); ++i) {
     NodeId node;
     const WordId w = word_of(descriptors[i], levels_up, node);
     const double weight = weight_[w];
     if (weight <= 0) continue;
-    bow[w] += weight;
-    features[node].push_back(int(i));
+    words.emplace_back(w, weight);
+    nodes.emplace_back(node, int(i));
   }
-  double sum = 0;
-  for (const auto& [w, v] : bow) sum += v;
-  if (sum > 0)
-    for (auto& [w, v] : bow) v /= sum;
+  build_bow(words, bow);
+  std::stable_sort(nodes.begin(), nodes.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  FeatureVector::sequence_type seq;
+  for (const auto& [node, i] : nodes) {
+    if (seq.empty() || seq.back().first != node) seq.emplace_back(node, std::vector<int>{});
+    seq.back().second.push_back(i);
+  }
+  features.adopt_sequence(boost::container::ordered_unique_range, std::move(seq));
 }
 
 void Vocabulary::transform(const std::vector<Descriptor>& descriptors, BowVector& bow) const {
   bow.clear();
   if (empty()) return;
+  std::vector<std::pair<WordId, double>> words;
+  words.reserve(descriptors.size());
   for (const Descriptor& d : descriptors) {
     const WordId w = word_of(d);
-    if (weight_[w] > 0) bow[w] += weight_[w];
+    if (weight_[w] > 0) words.emplace_back(w, weight_[w]);
   }
-  double sum = 0;
-  for (const auto& [w, v] : bow) sum += v;
-  if (sum > 0)
-    for (auto& [w, v] : bow) v /= sum;
+  build_bow(words, bow);
 }
 
 double Vocabulary::score(const BowVector& a, const BowVector& b) {

@@ -23,7 +23,7 @@ BowVector normalised(std::map<WordId, double> raw) {
   double sum = 0;
   for (auto& [w, v] : raw) sum += v;
   for (auto& [w, v] : raw) v /= sum;
-  return raw;
+  return BowVector(raw.begin(), raw.end());
 }
 
 TEST(KeyFrameDatabase, HandMadeGroupsAndThresholds) {
