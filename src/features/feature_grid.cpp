@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace cslam {
@@ -14,17 +15,20 @@ FeatureGrid::FeatureGrid(const OrbFeatures& features, const std::array<double, 4
     throw std::invalid_argument("FeatureGrid: features.undistorted and keypoints differ in size");
   inv_cell_w_ = cols / (bounds[1] - bounds[0]);
   inv_cell_h_ = rows / (bounds[3] - bounds[2]);
-  cells_.assign(std::size_t(cols) * rows, {});
-  const std::size_t n = features.size();
-  u_.resize(n);
-  v_.resize(n);
-  level_.resize(n);
+  const std::size_t n = features.size(), num_cells = std::size_t(cols) * rows;
+  std::vector<int> cell(n);
+  cell_start_.assign(num_cells + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    u_[i] = features.undistorted[i].x();
-    v_[i] = features.undistorted[i].y();
-    level_[i] = features.keypoints[i].octave;
-    cells_[std::size_t(row_of(v_[i])) * cols_ + col_of(u_[i])].push_back(int(i));
+    const double u = features.undistorted[i].x(), v = features.undistorted[i].y();
+    cell[i] = row_of(v) * cols_ + col_of(u);
+    ++cell_start_[std::size_t(cell[i]) + 1];
   }
+  for (std::size_t c = 0; c < num_cells; ++c) cell_start_[c + 1] += cell_start_[c];
+  entries_.resize(n);
+  std::vector<int> fill(cell_start_.begin(), cell_start_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i)
+    entries_[std::size_t(fill[std::size_t(cell[i])]++)] = {features.undistorted[i].x(), features.undistorted[i].y(),
+                                                            features.keypoints[i].octave, int(i)};
 }
 
 int FeatureGrid::col_of(double u) const {
@@ -45,18 +49,20 @@ std::vector<int> FeatureGrid::features_in_area(double u, double v, double r, int
 
 void FeatureGrid::features_in_area(double u, double v, double r, int min_level, int max_level, std::vector<int>& out) const {
   out.clear();
-  if (cells_.empty() || !(r >= 0) || !std::isfinite(u) || !std::isfinite(v)) return;
+  if (entries_.empty() || !(r >= 0) || !std::isfinite(u) || !std::isfinite(v)) return;
   // Features clamped into border cells may lie outside the bounds, so border cells are always
   // included when the square touches them; the exact test below decides.
   const int c0 = col_of(u - r), c1 = col_of(u + r), r0 = row_of(v - r), r1 = row_of(v + r);
+  const int lo = min_level >= 0 ? min_level : std::numeric_limits<int>::min();
+  const int hi = max_level >= 0 ? max_level : std::numeric_limits<int>::max();
   for (int row = r0; row <= r1; ++row) {
-    for (int col = c0; col <= c1; ++col) {
-      for (int i : cells_[std::size_t(row) * cols_ + col]) {
-        if (std::abs(u_[i] - u) > r || std::abs(v_[i] - v) > r) continue;
-        if (min_level >= 0 && level_[i] < min_level) continue;
-        if (max_level >= 0 && level_[i] > max_level) continue;
-        out.push_back(i);
-      }
+    // The cells c0..c1 of one row are contiguous in entries_.
+    const Entry* e = entries_.data() + cell_start_[std::size_t(row) * cols_ + c0];
+    const Entry* end = entries_.data() + cell_start_[std::size_t(row) * cols_ + c1 + 1];
+    for (; e != end; ++e) {
+      if (std::abs(e->u - u) > r || std::abs(e->v - v) > r) continue;
+      if (e->level < lo || e->level > hi) continue;
+      out.push_back(e->index);
     }
   }
   std::sort(out.begin(), out.end());

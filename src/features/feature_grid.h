@@ -21,18 +21,24 @@ class FeatureGrid {
   // The same into `out` (cleared first), so that a search over many points reuses one buffer.
   void features_in_area(double u, double v, double r, int min_level, int max_level, std::vector<int>& out) const;
 
-  std::size_t size() const { return u_.size(); }
+  std::size_t size() const { return entries_.size(); }
 
  private:
   int col_of(double u) const;
   int row_of(double v) const;
 
+  // A feature as the queries read it, stored cell by cell (cell c holds entries
+  // [cell_start_[c], cell_start_[c + 1]), in ascending index): one contiguous scan per cell row.
+  struct Entry {
+    double u, v;
+    int level, index;
+  };
+
   std::array<double, 4> bounds_{0, 1, 0, 1};
   int cols_ = 0, rows_ = 0;
   double inv_cell_w_ = 0, inv_cell_h_ = 0;
-  std::vector<std::vector<int>> cells_;
-  std::vector<double> u_, v_;
-  std::vector<int> level_;
+  std::vector<int> cell_start_;
+  std::vector<Entry> entries_;
 };
 
 }  // namespace cslam
