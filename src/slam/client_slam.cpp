@@ -8,6 +8,7 @@
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "globalba/global_ba.h"
+#include "map/map_locks.h"
 
 namespace cslam {
 
@@ -154,14 +155,48 @@ int ClientSlam::main_map_index() const {
   return best;
 }
 
-Trajectory ClientSlam::trajectory() const {
+std::vector<std::shared_ptr<Map>> ClientSlam::main_frame_maps(const MapFrameOf& frame_of) const {
+  std::vector<std::shared_ptr<Map>> maps;
+  std::vector<std::size_t> frames;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    maps = maps_;
+    frames.assign(maps.size(), 0);
+    for (const auto& r : records_)
+      if (std::size_t(r.map_index) < frames.size()) ++frames[std::size_t(r.map_index)];
+  }
+  if (maps.empty()) return {};
+  // A frame label per map; a map without one (or -1) is a frame of its own.
+  std::vector<long> label(maps.size());
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    const int l = frame_of ? frame_of(maps[i].get()) : -1;
+    label[i] = l >= 0 ? long(l) : -1 - long(i);
+  }
+  // The frame with most tracked frames; on a tie the one holding the lowest map index.
+  std::size_t best = 0, best_frames = 0;
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    std::size_t n = 0;
+    for (std::size_t j = 0; j < maps.size(); ++j)
+      if (label[j] == label[i]) n += frames[j];
+    if (n > best_frames) best = i, best_frames = n;
+  }
+  std::vector<std::shared_ptr<Map>> out;
+  for (std::size_t i = 0; i < maps.size(); ++i)
+    if (label[i] == label[best]) out.push_back(maps[i]);
+  return out;
+}
+
+Trajectory ClientSlam::trajectory(const MapFrameOf& frame_of) const {
+  const auto included = main_frame_maps(frame_of);
+  if (included.empty()) return {};
+  std::vector<Map*> ptrs;
+  for (const auto& m : included) ptrs.push_back(m.get());
+  auto in_frame = [&ptrs](const Map* m) { return std::find(ptrs.begin(), ptrs.end(), m) != ptrs.end(); };
   std::lock_guard<std::mutex> lock(mutex_);
+  const auto map_locks = lock_maps<std::shared_lock<std::shared_mutex>>(ptrs);
   Trajectory out;
-  if (maps_.empty()) return out;
-  const int main = main_map_index();
-  std::shared_lock<std::shared_mutex> map_lock(maps_[main]->mutex);
   for (const auto& r : records_) {
-    if (r.map_index != main) continue;
+    if (std::size_t(r.map_index) >= maps_.size() || !in_frame(maps_[std::size_t(r.map_index)].get())) continue;
     // Follow culled reference keyframes up the spanning tree.
     SE3 T_cam_ref = r.T_cam_ref;
     KeyFrame* ref = r.reference.get();
@@ -195,16 +230,14 @@ std::shared_ptr<Map> ClientSlam::main_map() const {
   return maps_.empty() ? nullptr : maps_[main_map_index()];
 }
 
-Trajectory ClientSlam::keyframe_trajectory() const {
-  std::shared_ptr<Map> map;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (maps_.empty()) return {};
-    map = maps_[main_map_index()];
-  }
-  std::shared_lock<std::shared_mutex> map_lock(map->mutex);
+Trajectory ClientSlam::keyframe_trajectory(const MapFrameOf& frame_of) const {
+  const auto included = main_frame_maps(frame_of);
+  std::vector<Map*> ptrs;
+  for (const auto& m : included) ptrs.push_back(m.get());
+  const auto map_locks = lock_maps<std::shared_lock<std::shared_mutex>>(ptrs);
   Trajectory out;
-  for (const auto& kf : map->keyframes()) out.push_back({kf->timestamp(), kf->T_world_cam()});
+  for (Map* map : ptrs)
+    for (const auto& kf : map->keyframes()) out.push_back({kf->timestamp(), kf->T_world_cam()});
   sort_by_time(out);
   return out;
 }

@@ -45,6 +45,12 @@ struct ClientSlamTimings {
 // Told about every keyframe local mapping has finished (map fusion, loop detection listen).
 using KeyFrameListener = std::function<void(ClientId, const std::shared_ptr<Map>&, const KeyFramePtr&)>;
 
+// Which of a client's maps share one frame: frame_of(map) labels the frame the map's poses are in
+// (maps with equal labels >= 0 share it, e.g. map fusion's group; -1: a frame of its own). A
+// client has several maps after a long tracking loss or a new session; once map fusion has joined
+// them, their frames belong in one trajectory. Without it every map is a frame of its own.
+using MapFrameOf = std::function<int(const Map*)>;
+
 struct ClientSlamState;  // slam/client_slam_state.h
 
 class ClientSlam {
@@ -58,8 +64,9 @@ class ClientSlam {
   // Never throws on bad data: returns kRejected with a reason (wrong size/type, time going back).
   ProcessResult process(const RgbdFrame& frame);
   ClientSlamSnapshot snapshot() const;
-  // Every tracked frame of the map with most frames (camera-to-world), current estimates.
-  Trajectory trajectory() const;
+  // Every tracked frame (camera-to-world, current estimates) of the maps that share the frame
+  // holding most tracked frames (see MapFrameOf; without it: the map with most frames).
+  Trajectory trajectory(const MapFrameOf& frame_of = {}) const;
   // Current estimate of the frame processed last, if it had `timestamp` and was tracked: the
   // same computation as its trajectory() entry (its reference keyframe's current pose), in the
   // frame of the map it was tracked in (map_index). For pose feedback to the robot.
@@ -70,8 +77,8 @@ class ClientSlam {
   std::optional<FramePose> last_frame_pose(double timestamp) const;
   // The map the trajectory is expressed in.
   std::shared_ptr<Map> main_map() const;
-  // Keyframes of that map.
-  Trajectory keyframe_trajectory() const;
+  // Keyframes of the maps trajectory(frame_of) covers, time-ordered.
+  Trajectory keyframe_trajectory(const MapFrameOf& frame_of = {}) const;
   ClientSlamTimings timings() const;
   std::vector<std::shared_ptr<Map>> maps() const;
   // Stops local mapping after processing what is queued. Idempotent.
@@ -100,6 +107,9 @@ class ClientSlam {
   };
   void start_new_map();
   int main_map_index() const;
+  // The maps that share the frame holding most tracked frames (never locks a map; calls
+  // frame_of without holding mutex_).
+  std::vector<std::shared_ptr<Map>> main_frame_maps(const MapFrameOf& frame_of) const;
 
   const ClientInfo info_;
   SlamConfig config_;

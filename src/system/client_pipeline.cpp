@@ -182,12 +182,12 @@ ClientSnapshot ClientPipeline::snapshot() const {
 }
 
 Trajectory ClientPipeline::trajectory() const {
-  if (slam_) return slam_->trajectory();
+  if (slam_) return slam_->trajectory(group_of_);
   std::lock_guard<std::mutex> lock(mutex_);
   return counted_trajectory_;
 }
 
-Trajectory ClientPipeline::keyframe_trajectory() const { return slam_ ? slam_->keyframe_trajectory() : Trajectory{}; }
+Trajectory ClientPipeline::keyframe_trajectory() const { return slam_ ? slam_->keyframe_trajectory(group_of_) : Trajectory{}; }
 
 ClientSlamTimings ClientPipeline::timings() const { return slam_ ? slam_->timings() : ClientSlamTimings{}; }
 

@@ -31,6 +31,8 @@ class ClientPipeline {
   void finish();
 
   ClientSnapshot snapshot() const;
+  // Every frame of the client's maps that share the fused group holding most of its frames (a
+  // map started after a long loss counts once fusion has joined it), in that group's frame.
   Trajectory trajectory() const;
   Trajectory keyframe_trajectory() const;
   const ClientInfo& info() const { return info_; }
