@@ -1,5 +1,6 @@
 // cslam-slam: runs one client's SLAM on a TUM-layout dataset (real or synthetic) as fast as
 // possible and writes the frame trajectory, keyframes and timing statistics.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -17,8 +18,10 @@
 #include "core/stopwatch.h"
 #include "eval/stats.h"
 #include "eval/stats_json.h"
+#include "fusion/fusion_manager.h"
 #include "system/loop_stats_json.h"
 #include "geometry/camera_io.h"
+#include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
 #include "multi.h"
 #include "slam/client_slam.h"
@@ -42,7 +45,7 @@ int run(int argc, char** argv) {
       .option("clients", "multi-client mode: split --dataset into K clients with the paper's ranges", "1")
       .option("overlap", "overlap rate eta of the split, e.g. 0.05 or 5%", "5%")
       .option("out-dir", "multi-client mode: output folder (client_K.txt, fused_G.txt, stats.json)", "")
-      .option("camera", "camera preset (tum1, tum2, tum3, synthetic) or file; default DATASET/camera.yaml or tum1", "")
+      .option("camera", "camera preset (tum1, tum2, tum2-corrected, tum3, synthetic) or file; default: DATASET/camera.yaml, else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1", "")
       .option("range", "frames a:b (1-based, inclusive, of the associated RGB-D pairs)", "")
       .option("association", "colour-depth pairing: nearest (every colour frame, a depth image may serve two) | unique (TUM associate.py)", "nearest")
       .option("vocab", "vocabulary file", "")
@@ -53,7 +56,7 @@ int run(int argc, char** argv) {
       .flag("sync", "step every stage on one thread (local mapping, loop closing, fusion): the same input gives the same output")
       .flag("no-local-ba", "disable local bundle adjustment (ablation)")
       .flag("no-triangulation", "local mapping creates no points from keyframe pairs (ablation)")
-      .flag("no-fusion", "multi-client mode: disable map fusion (ablation)")
+      .flag("no-fusion", "disable map fusion (ablation): across clients, and of one client's maps after a long tracking loss")
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
@@ -69,12 +72,10 @@ int run(int argc, char** argv) {
   if (!args.has("dataset") || !args.has("out")) throw ConfigError("single-client mode needs --dataset and --out");
   const std::string dir = args.get("dataset");
   const TumDataset ds = open_tum_dataset(dir, 0.02, parse_association(args.get("association")));
-  std::string cam_name = args.get("camera");
-  if (cam_name.empty()) cam_name = std::filesystem::exists(dir + "/camera.yaml") ? dir + "/camera.yaml" : "tum1";
   ClientInfo info;
   info.id = ClientId(args.get_int("client"));
   info.name = std::filesystem::path(dir).filename().string();
-  info.camera = load_camera(cam_name);
+  info.camera = dataset_camera(dir, args.get("camera")).camera;
   std::vector<RgbdPair> pairs = ds.pairs;
   if (args.has("range")) {
     const auto [a, b] = parse_range(args.get("range"), int(pairs.size()));
@@ -92,7 +93,15 @@ int run(int argc, char** argv) {
   config.rgbd.depth_time_compensation = args.flag_set("depth-time");
   config.mapper.local_ba = !args.flag_set("no-local-ba");
   config.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
-  ClientSlam slam(info, config, vocabulary);
+  // A long tracking loss starts a new map; map fusion joins it to the earlier ones when the
+  // camera sees their places again (as on the server), so the trajectory covers both.
+  FusionConfig fusion_config;
+  fusion_config.threaded = config.threaded;
+  fusion_config.enabled = !args.flag_set("no-fusion");
+  FusionManager fusion(fusion_config, vocabulary);
+  const MapFrameOf frame_of = [&fusion](const Map* m) { return fusion.group_of(m); };
+  ClientSlam slam(info, config, vocabulary,
+                  [&fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion.notify(c, m, kf); });
 
   // Images are decoded on a second thread, ahead of tracking.
   BoundedQueue<std::pair<RgbdPair, RgbdImages>> loaded(4);
@@ -132,14 +141,28 @@ int run(int argc, char** argv) {
   }
   loader.join();
   slam.finish();
-  slam.final_global_ba();
+  fusion.finish();
+  // Maps joined by fusion were refined together by the group BA after it (as on the server).
+  const auto all_maps = slam.maps();
+  auto fused = [&](const Map& m) {
+    const int g = fusion.group_of(&m);
+    return g >= 0 && std::count_if(all_maps.begin(), all_maps.end(), [&](const auto& o) { return fusion.group_of(o.get()) == g; }) > 1;
+  };
+  slam.final_global_ba(fused);
   const double wall_s = wall.ms() / 1000.0;
   if (!quiet) std::fprintf(stderr, "\n");
 
-  const Trajectory traj = slam.trajectory();
+  const Trajectory traj = slam.trajectory(frame_of);
   write_tum_trajectory(args.get("out"), traj, "cslam-slam " + dir);
-  if (args.has("keyframes")) write_tum_trajectory(args.get("keyframes"), slam.keyframe_trajectory(), "cslam-slam keyframes");
+  if (args.has("keyframes")) write_tum_trajectory(args.get("keyframes"), slam.keyframe_trajectory(frame_of), "cslam-slam keyframes");
   const auto snap = slam.snapshot();
+  const auto fusion_events = fusion.events();
+  for (const auto& e : fusion_events)
+    std::printf("map fusion: a map of this client joined another at frame time %.3f, %d inliers, %d + %d keyframes\n",
+                e.query_timestamp, e.inliers, e.keyframes_moved, e.keyframes_kept);
+  if (snap.frames_tracked > traj.size())
+    logger("slam")->warn("{} tracked frames are in maps that map fusion did not join to the main one: not in {}",
+                         snap.frames_tracked - traj.size(), args.get("out"));
   const auto t = slam.timings();
   std::vector<double> tracking_total;
   for (size_t i = 0; i < t.track_ms.size(); ++i) tracking_total.push_back(t.track_ms[i] + t.extract_ms[i]);
@@ -151,6 +174,7 @@ int run(int argc, char** argv) {
       {"frames_rejected", rejected},
       {"trajectory_poses", traj.size()},
       {"maps", snap.maps},
+      {"map_fusions", fusion_events.size()},
       {"keyframes", snap.keyframes},
       {"map_points", snap.map_points},
       {"wall_time_s", wall_s},
