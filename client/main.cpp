@@ -17,6 +17,7 @@
 #include "core/stopwatch.h"
 #include "server/auth/curve_keys.h"
 #include "geometry/camera_io.h"
+#include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
 #include "system/dataset_frame.h"
 
@@ -34,7 +35,7 @@ int run(int argc, char** argv) {
       .option("poses-out", "write the poses received in acks (TUM) and FILE.feedback.csv (state, latency per ack)", "")
       .option("start-at", "wall-clock time (Unix seconds) to start streaming at, after loading (benchmarks start robots together)", "0")
       .option("summary-out", "write a JSON summary (frames sent/dropped/skipped, pose latency p50/p99)", "")
-      .option("camera", "tum1 | tum2 | tum3 | synthetic | camera file (default: DIR/camera.yaml if present, else tum1)", "")
+      .option("camera", "tum1 | tum2 | tum2-corrected | tum3 | synthetic | camera file (default: DIR/camera.yaml, else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1)", "")
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")
@@ -64,9 +65,7 @@ int run(int argc, char** argv) {
   config.server = cli.get("server");
   config.info.id = cslam::ClientId(id);
   config.info.name = cli.has("name") ? cli.get("name") : "client" + std::to_string(id);
-  std::string camera = cli.get("camera");
-  if (camera.empty()) camera = std::filesystem::exists(dir + "/camera.yaml") ? dir + "/camera.yaml" : "tum1";
-  config.info.camera = cslam::load_camera(camera);
+  config.info.camera = cslam::dataset_camera(dir, cli.get("camera")).camera;
   config.codecs.rgb = cslam::parse_rgb_codec(cli.get("rgb-codec"));
   config.codecs.jpeg_quality = cli.get_int("jpeg-quality");
   config.codecs.depth = cslam::parse_depth_codec(cli.get("depth-codec"));

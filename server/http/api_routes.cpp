@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "dense/trajectory_recon.h"
+#include "io/dataset_camera.h"
 #include "server/http/http_server.h"
 // After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
 #include "server/http/json_reply.h"
@@ -212,7 +213,7 @@ void HttpServer::api_routes() {
           break;
         }
       if (dir.empty()) return json_error(res, 409, "no dataset folder for client " + std::to_string(id) + " under " + root.string());
-      sources.push_back({dir, traj->second, dataset_camera(dir, config_.recon_camera)});
+      sources.push_back({dir, traj->second, dataset_camera(dir, config_.recon_camera).camera});
     }
     if (sources.empty()) return json_error(res, 409, "group " + std::to_string(group) + " has no poses yet");
     const auto id = jobs_.start(group, std::move(sources), dc);

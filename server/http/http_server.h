@@ -27,7 +27,7 @@ struct HttpConfig {
   std::string web_root;           // folder with index.html, viewer.js, node_modules/three
   std::string port_file;          // written with the bound port once listening
   std::string datasets_dir;       // reconstruction: DIR/<name>, DIR/robot_K or DIR/client_K per client
-  std::string recon_camera = "tum1";  // camera preset or file for datasets without camera.yaml
+  std::string recon_camera;  // camera preset or file for the datasets; empty: io/dataset_camera.h's rule
   CacheConfig cache;
   GuardConfig guard;              // request deadline, header/body caps, keep-alive, worker pool
   bool loopback() const;

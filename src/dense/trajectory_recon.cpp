@@ -1,14 +1,12 @@
 #include "dense/trajectory_recon.h"
 
 #include <algorithm>
-#include <filesystem>
 #include <optional>
 #include <thread>
 
 #include "core/bounded_queue.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 
 namespace cslam {
@@ -118,12 +116,6 @@ std::optional<SE3> depth_pose(const Trajectory& poses, const StampedPose& pose, 
 }
 
 }  // namespace
-
-PinholeCamera dataset_camera(const std::string& dataset_dir, const std::string& fallback) {
-  const auto file = std::filesystem::path(dataset_dir) / "camera.yaml";
-  if (std::filesystem::exists(file)) return load_camera_file(file.string());
-  return load_camera(fallback);
-}
 
 DenseResult reconstruct_from_trajectories(const std::vector<DatasetPoses>& sources, const DenseConfig& config,
                                           const DenseProgressCallback& progress) {

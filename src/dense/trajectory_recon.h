@@ -27,9 +27,6 @@ struct DatasetPoses {
   PinholeCamera camera;
 };
 
-// DIR/camera.yaml if it exists, else the preset or file `fallback` (see load_camera).
-PinholeCamera dataset_camera(const std::string& dataset_dir, const std::string& fallback);
-
 // Associates each source's poses one-to-one with its RGB-D pairs (nearest RGB timestamp within
 // config.max_time_gap, greedily by smallest gap); unmatched poses count as no_image. Depth
 // images are placed at their own time (DenseConfig::depth_time_compensation). With

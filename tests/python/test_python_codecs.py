@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import zstandard
 
-from cslam_client import codecs
+from cslam_client import camera, codecs
 
 TOOL = os.environ.get("CSLAM_CODEC_TOOL", "")
 
@@ -109,6 +109,18 @@ class CodecOptions(unittest.TestCase):
             codecs.encode_depth(np.zeros((4, 4), np.float32), codecs.Codecs())
         with self.assertRaises(TypeError):
             codecs.encode_rgb(np.zeros((4, 4), np.uint8), codecs.Codecs())
+
+
+class CameraFromName(unittest.TestCase):
+    def test_tum_camera_in_a_bag_or_folder_name_as_the_cpp_rule(self):
+        # The same cases as tests/io/test_dataset_camera.cpp.
+        cases = {"/data/rgbd_dataset_freiburg2_xyz": "tum2", "/data/rgbd_dataset_freiburg3_long_office_household/": "tum3",
+                 "../shared/data/tum_fr1_desk": "tum1", "FR3-office.bag": "tum3", "/data/freiburg2/xyz": "tum2",
+                 "/data/robot_1": "", "/data/frame_dump": "", "/data/run_fr12": "", "/data/afr1": "",
+                 "/data/freiburg4_x": "", "": ""}
+        for path, preset in cases.items():
+            with self.subTest(path=path):
+                self.assertEqual(camera.preset_from_name(path), preset)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@
 #include "cloud/ply_io.h"
 #include "core/stopwatch.h"
 #include "dense/trajectory_recon.h"
+#include "io/dataset_camera.h"
 
 namespace cslam::experiment {
 
@@ -33,7 +34,7 @@ std::vector<double> timestamps_of(const Trajectory& t) {
 }  // namespace
 
 CloudEvaluator::CloudEvaluator(ReconOptions options, std::string scene_ply, std::string camera, std::string cache_dir)
-    : options_(options), scene_ply_(std::move(scene_ply)), camera_(camera.empty() ? "tum1" : std::move(camera)),
+    : options_(options), scene_ply_(std::move(scene_ply)), camera_(std::move(camera)),
       cache_dir_(std::move(cache_dir)) {}
 
 const std::vector<Eigen::Vector3f>& CloudEvaluator::scene_points() {
@@ -62,7 +63,7 @@ const ColoredCloud& CloudEvaluator::groundtruth_cloud(const RunDetail& detail, c
     const TumDataset& ds = datasets.get(specs[i].dataset);
     DatasetPoses s;
     s.dataset_dir = specs[i].dataset;
-    s.camera = dataset_camera(specs[i].dataset, camera_);
+    s.camera = dataset_camera(specs[i].dataset, camera_).camera;
     s.poses = groundtruth_at(*ds.groundtruth, timestamps_of(detail.tracks[i].estimate));
     sources.push_back(std::move(s));
   }
@@ -91,7 +92,7 @@ CloudFigures CloudEvaluator::evaluate(const RunDetail& detail, const std::vector
     for (std::size_t i = 0; i < specs.size(); ++i) {
       DatasetPoses s;
       s.dataset_dir = specs[i].dataset;
-      s.camera = dataset_camera(specs[i].dataset, camera_);
+      s.camera = dataset_camera(specs[i].dataset, camera_).camera;
       s.poses = detail.tracks[i].raw_estimate;
       for (auto& p : s.poses) p.T_world_cam = apply_sim3_to_pose(detail.tracks[i].T_gt_est_cloud, p.T_world_cam);
       sources.push_back(std::move(s));

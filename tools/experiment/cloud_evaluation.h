@@ -18,7 +18,7 @@ namespace cslam::experiment {
 
 class CloudEvaluator {
  public:
-  // scene_ply may be empty. camera: fallback preset for datasets without camera.yaml.
+  // scene_ply may be empty. camera: preset or file for every dataset; empty: io/dataset_camera.h.
   CloudEvaluator(ReconOptions options, std::string scene_ply, std::string camera, std::string cache_dir);
 
   // Never throws for bad data: a cloud that cannot be built or compared gives figures with a note.

@@ -14,6 +14,7 @@
 #include "core/stopwatch.h"
 #include "dense/reconstructor.h"
 #include "dense/trajectory_recon.h"
+#include "io/dataset_camera.h"
 #include "dense/tsdf_volume.h"
 #include "eval/stats.h"
 #include "io/tum_dataset.h"
@@ -49,7 +50,7 @@ int run(int argc, char** argv) {
       .option("stride", "pixel stride", "2")
       .option("voxel", "voxel-grid leaf (m)", "0.01")
       .option("threads", "threads", "2")
-      .option("camera", "camera preset or file", "tum1")
+      .option("camera", "camera preset or file (default: DATASET/camera.yaml, else the TUM camera the folder name says, else tum1)", "")
       .option("tsdf-voxel", "TSDF voxel (m)", "0.01")
       .option("tsdf-trunc", "TSDF truncation (m)", "0.04")
       .option("tsdf-frames", "frames fused in the TSDF run (0 = all loaded)", "0")
@@ -57,7 +58,7 @@ int run(int argc, char** argv) {
   if (!args.parse(argc, argv)) return 0;
   const TumDataset ds = open_tum_dataset(args.get("dataset"));
   if (!ds.groundtruth) throw InputError(args.get("dataset"), "no groundtruth.txt");
-  const PinholeCamera cam = dataset_camera(args.get("dataset"), args.get("camera"));
+  const PinholeCamera cam = dataset_camera(args.get("dataset"), args.get("camera")).camera;
   std::vector<double> times;
   for (const auto& p : ds.pairs) times.push_back(p.rgb_time);
   const PoseFrameMatch m = match_poses_to_frames(*ds.groundtruth, times, 0.02);

@@ -13,6 +13,7 @@
 #include "core/log.h"
 #include "core/progress.h"
 #include "dense/trajectory_recon.h"
+#include "io/dataset_camera.h"
 #include "eval/trajectory_eval.h"
 #include "io/trajectory_io.h"
 
@@ -55,7 +56,7 @@ int run(int argc, char** argv) {
       .option("tsdf-voxel", "TSDF voxel size (m)", "0.01")
       .option("tsdf-trunc", "TSDF truncation distance (m)", "0.04")
       .option("tsdf-every", "fuse every n-th used frame into the TSDF", "1")
-      .option("camera", "camera preset or file when a dataset has no camera.yaml", "tum1")
+      .option("camera", "camera preset or file for every dataset (default: each DIR/camera.yaml, else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
       .option("align-to", "evaluation aid: SE3-align the poses to this ground-truth trajectory first (Umeyama over "
                           "timestamp-associated positions), so SLAM-pose and ground-truth-pose clouds share a frame", "")
       .option("log-level", "trace|debug|info|warn|error|off", "info");
@@ -95,7 +96,7 @@ int run(int argc, char** argv) {
   for (size_t k = 0; k < datasets.size(); ++k) {
     DatasetPoses s;
     s.dataset_dir = datasets[k];
-    s.camera = dataset_camera(datasets[k], args.get("camera"));
+    s.camera = dataset_camera(datasets[k], args.get("camera")).camera;
     if (datasets.size() == 1) {
       for (const auto& f : pose_files) {
         const Trajectory t = read_tum_trajectory(f);

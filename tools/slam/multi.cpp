@@ -16,6 +16,7 @@
 #include "eval/split.h"
 #include "eval/trajectory_eval.h"
 #include "geometry/camera_io.h"
+#include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
 #include "system/collaborative_system.h"
 #include "system/dataset_frame.h"
@@ -30,11 +31,7 @@ struct ClientJob {
   std::optional<Trajectory> groundtruth;
 };
 
-PinholeCamera camera_for(const CliArgs& args, const std::string& dir) {
-  std::string name = args.get("camera");
-  if (name.empty()) name = std::filesystem::exists(dir + "/camera.yaml") ? dir + "/camera.yaml" : "tum1";
-  return load_camera(name);
-}
+PinholeCamera camera_for(const CliArgs& args, const std::string& dir) { return dataset_camera(dir, args.get("camera")).camera; }
 
 }  // namespace
 

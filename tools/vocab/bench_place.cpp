@@ -6,7 +6,6 @@
 //     keyframe of robot A at the crossing ranks first for robot B's crossing frame.
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 
 #include "bow/keyframe_database.h"
@@ -17,8 +16,8 @@
 #include "features/orb_extractor.h"
 #include "features/procedural_image.h"
 #include "geometry/camera.h"
-#include "geometry/camera_io.h"
 #include "image_sources.h"
+#include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
 
 using namespace cslam;
@@ -63,10 +62,7 @@ std::vector<PosedImage> posed_frames(const TumDataset& ds, const Trajectory& gt,
   return out;
 }
 
-PinholeCamera camera_of(const std::string& root) {
-  const std::string yaml = root + "/camera.yaml";
-  return std::ifstream(yaml).good() ? load_camera_file(yaml) : camera_tum_fr1();
-}
+PinholeCamera camera_of(const std::string& root) { return dataset_camera(root).camera; }
 
 Trajectory groundtruth_of(const TumDataset& ds, const std::string& root) {
   if (!ds.groundtruth) throw InputError(root, "no groundtruth.txt");

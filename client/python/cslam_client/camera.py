@@ -4,6 +4,7 @@ Presets match src/geometry/camera.cpp; files are the YAML/JSON camera files that
 ``cslam-synth`` writes (``camera.yaml``) and ``cslam-client --camera`` reads.
 """
 import os
+import re
 from dataclasses import dataclass, field
 from typing import List
 
@@ -87,6 +88,18 @@ def load_file(path):
     fs.release()
     c.validate()
     return c
+
+
+def preset_from_name(path):
+    """'tum1' | 'tum2' | 'tum3' when the last or second-to-last part of `path` names a TUM camera
+    (freiburg1..3 or fr1..3 as a word: rgbd_dataset_freiburg2_xyz.bag, tum_fr1_desk), else ''
+    (the rule of src/io/dataset_camera.cpp)."""
+    parts = [q for q in os.path.normpath(path).split(os.sep) if q][-2:] if path else []
+    for part in reversed(parts):
+        m = re.search(r"(?<![a-z0-9])(?:freiburg|fr)([123])(?![0-9])", part.lower())
+        if m:
+            return "tum" + m.group(1)
+    return ""
 
 
 def load(preset_or_path):
