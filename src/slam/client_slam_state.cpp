@@ -135,19 +135,32 @@ void ClientSlam::start_new_session() {
 }
 
 Trajectory state_trajectory(const ClientSlamState& s, int* map_index) {
-  std::vector<int> counts(s.maps.size(), 0);
+  const std::size_t n = s.maps.size();
+  std::vector<std::size_t> counts(n, 0);
   for (const auto& r : s.records)
-    if (r.map_index >= 0 && std::size_t(r.map_index) < counts.size()) ++counts[std::size_t(r.map_index)];
-  int best = counts.empty() ? -1 : 0;
-  for (std::size_t i = 0; i < counts.size(); ++i)
-    if (counts[i] > counts[std::size_t(best)]) best = int(i);
-  if (map_index) *map_index = best;
-  Trajectory out;
-  if (best < 0) return out;
+    if (r.map_index >= 0 && std::size_t(r.map_index) < n) ++counts[std::size_t(r.map_index)];
+  // Maps of one fused group share a frame (as ClientSlam::trajectory with fusion's groups).
+  auto label = [&](std::size_t i) { return s.maps[i].group >= 0 ? long(s.maps[i].group) : -1 - long(i); };
+  std::size_t best = 0, best_frames = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::size_t frames = 0;
+    for (std::size_t j = 0; j < n; ++j)
+      if (label(j) == label(i)) frames += counts[j];
+    if (frames > best_frames) best = i, best_frames = frames;
+  }
+  int main = -1;
   std::unordered_map<KeyFrameId, SE3> poses;
-  for (const auto& k : s.maps[std::size_t(best)].keyframes) poses[k.id] = k.T_cam_world;
+  std::vector<char> included(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (label(i) != label(best)) continue;
+    included[i] = 1;
+    if (main < 0 || counts[i] > counts[std::size_t(main)]) main = int(i);
+    for (const auto& k : s.maps[i].keyframes) poses[k.id] = k.T_cam_world;
+  }
+  if (map_index) *map_index = main;
+  Trajectory out;
   for (const auto& r : s.records) {
-    if (r.map_index != best) continue;
+    if (r.map_index < 0 || std::size_t(r.map_index) >= n || !included[std::size_t(r.map_index)]) continue;
     auto it = poses.find(r.reference);
     if (it != poses.end()) out.push_back({r.timestamp, (r.T_cam_ref * it->second).inverse()});
   }

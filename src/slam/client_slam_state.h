@@ -30,8 +30,10 @@ struct ClientSlamState {
   std::vector<FrameRecordState> records;
 };
 
-// The frame trajectory of the map with most frames (as ClientSlam::trajectory does on the live
-// state), camera-to-world in that map's frame; `map_index` receives the map used (-1: none).
+// The frame trajectory of the maps sharing the fused group (MapState::group) that holds most
+// frames, a map without a group being one of its own (as ClientSlam::trajectory does on the live
+// state with fusion's groups), camera-to-world in that frame; `map_index` receives the included
+// map with most frames (-1: none).
 Trajectory state_trajectory(const ClientSlamState& state, int* map_index = nullptr);
 // Keyframe poses (camera-to-world) of one map.
 Trajectory state_keyframes(const MapState& map);

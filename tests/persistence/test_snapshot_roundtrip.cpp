@@ -168,5 +168,30 @@ TEST(SnapshotMerge, TwoOverlappingSessionsBecomeOneGroup) {
   EXPECT_NE(same.output.find("ids must differ"), std::string::npos) << same.output;
 }
 
+TEST(SnapshotTrajectory, MapsOfOneFusedGroupAreOneTrajectory) {
+  // Client 3 lost tracking for long: map 1 was started and later fused with map 0 (one group).
+  ClientSlamState c;
+  c.info.id = 3;
+  c.maps.resize(2);
+  for (int m = 0; m < 2; ++m) {
+    c.maps[std::size_t(m)].index = m;
+    KeyFrameState k;
+    k.id = KeyFrameId{3, std::uint32_t(10 + m)};
+    k.T_cam_world = SE3(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-double(m), 0, 0));  // camera at x = m
+    c.maps[std::size_t(m)].keyframes.push_back(k);
+  }
+  for (int i = 0; i < 5; ++i) c.records.push_back({double(i), i < 3 ? 0 : 1, KeyFrameId{3, std::uint32_t(i < 3 ? 10 : 11)}, SE3()});
+  int main = -1;
+  EXPECT_EQ(state_trajectory(c, &main).size(), 3u) << "two frames: only the map with most frames";
+  EXPECT_EQ(main, 0);
+  c.maps[0].group = c.maps[1].group = 300;
+  const Trajectory t = state_trajectory(c, &main);
+  ASSERT_EQ(t.size(), 5u) << "one group: both maps' frames";
+  EXPECT_EQ(main, 0);
+  EXPECT_NEAR(t[4].T_world_cam.translation().x(), 1.0, 1e-12);
+  c.maps[1].group = 301;  // fused with someone else, not with map 0
+  EXPECT_EQ(state_trajectory(c).size(), 3u);
+}
+
 }  // namespace
 }  // namespace cslam
