@@ -2,9 +2,17 @@
 
 #include <cctype>
 #include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <vector>
 
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/error.h"
 #include "core/log.h"
 #include "geometry/camera_io.h"
+#include "io/tum_dataset.h"
 
 namespace cslam {
 
@@ -43,6 +51,40 @@ std::string tum_preset_from_name(const std::string& path) {
 
 namespace {
 
+// calibration.txt as the ETH3D SLAM benchmark ships it beside its TUM-layout listings: one line
+// "fx fy cx cy" of an undistorted pinhole camera, depth 5000 per metre as TUM's. The image size is
+// the first colour image's. nullopt (with a warning) if the file says something else.
+std::optional<PinholeCamera> calibration_txt(const std::string& dataset_dir, const std::string& path) {
+  std::ifstream in(path);
+  std::vector<double> v;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream words(line);
+    for (double x; words >> x;) v.push_back(x);
+    if (!words.eof()) v.clear();  // a word that is not a number
+    break;
+  }
+  if (v.size() != 4 || !(v[0] > 0 && v[1] > 0 && v[2] > 0 && v[3] > 0)) {
+    logger("io")->warn("{}: not 'fx fy cx cy' (ETH3D's calibration.txt): ignored", path);
+    return std::nullopt;
+  }
+  PinholeCamera c;
+  c.name = "calibration.txt";
+  c.fx = v[0];
+  c.fy = v[1];
+  c.cx = v[2];
+  c.cy = v[3];
+  const TumDataset ds = open_tum_dataset(dataset_dir);
+  if (ds.rgb.empty()) throw InputError(dataset_dir + "/rgb.txt", "no colour image listed: cannot size the camera of " + path);
+  const cv::Mat first = cv::imread(ds.rgb.front().path, cv::IMREAD_UNCHANGED);
+  if (first.empty()) throw InputError(ds.rgb.front().path, "cannot read the first colour image");
+  c.width = first.cols;
+  c.height = first.rows;
+  c.validate();
+  return c;
+}
+
 DatasetCamera choose(const std::string& dataset_dir, const std::string& choice) {
   DatasetCamera out;
   if (!choice.empty()) {
@@ -56,6 +98,14 @@ DatasetCamera choose(const std::string& dataset_dir, const std::string& choice) 
     out.source = yaml.string();
     return out;
   }
+  const auto calibration = std::filesystem::path(dataset_dir) / "calibration.txt";
+  if (std::filesystem::exists(calibration)) {
+    if (auto c = calibration_txt(dataset_dir, calibration.string())) {
+      out.camera = *c;
+      out.source = calibration.string();
+      return out;
+    }
+  }
   const std::string preset = tum_preset_from_name(dataset_dir);
   if (!preset.empty()) {
     out.camera = camera_preset(preset);
@@ -63,7 +113,7 @@ DatasetCamera choose(const std::string& dataset_dir, const std::string& choice) 
     return out;
   }
   out.camera = camera_preset("tum1");
-  out.source = "default: no camera.yaml and no TUM camera (freiburg1..3) in the folder name; pass --camera";
+  out.source = "default: no camera.yaml, no calibration.txt and no TUM camera (freiburg1..3) in the folder name; pass --camera";
   out.guessed = true;
   return out;
 }

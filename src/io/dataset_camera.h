@@ -1,7 +1,9 @@
 #pragma once
 // The camera of a TUM-layout dataset folder, chosen by one rule for every program: what the user
-// named; else the folder's camera.yaml; else the TUM camera its name says (the benchmark's
-// folders and bags are named rgbd_dataset_freiburgN_..., shortened frN_... by many); else tum1.
+// named; else the folder's camera.yaml; else its calibration.txt ("fx fy cx cy", as the ETH3D SLAM
+// benchmark ships its TUM-layout sequences: undistorted, depth 5000 per metre); else the TUM
+// camera its name says (the benchmark's folders and bags are named rgbd_dataset_freiburgN_...,
+// shortened frN_... by many); else tum1.
 // A sequence of another TUM camera run with fr1's intrinsics and distortion loses accuracy
 // without any error, so a program says which camera it took and why.
 #include <string>
