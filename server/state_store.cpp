@@ -95,6 +95,14 @@ bool StateStore::write() {
     stats_.last_encode_ms = encode_ms;
     stats_.last_write_ms = sw.ms();
     stats_.last_bytes = bytes.size();
+    stats_.last_yields = stats_.last_forced = 0;
+    for (const auto& c : state.clients)
+      for (const auto& m : c.maps) {
+        stats_.last_yields += std::uint64_t(m.export_yields);
+        stats_.last_forced += m.export_forced ? 1 : 0;
+      }
+    stats_.yields += stats_.last_yields;
+    stats_.forced += stats_.last_forced;
     stats_.last_error.clear();
     log()->debug("snapshot {}: {} clients, {:.1f} MB (copy {:.1f} ms, encode {:.1f} ms, write {:.1f} ms)",
                  snapshot::current_path(config_.dir), state.clients.size(), double(bytes.size()) / 1e6, export_ms,
@@ -150,6 +158,8 @@ std::string StateStore::stats_json() const {
                       {"written", s.written},         {"failed", s.failed},
                       {"last_copy_ms", s.last_export_ms}, {"last_encode_ms", s.last_encode_ms},
                       {"last_write_ms", s.last_write_ms}, {"last_bytes", s.last_bytes},
+                      {"last_copy_yields", s.last_yields}, {"last_copy_forced", s.last_forced},
+                      {"copy_yields", s.yields},      {"copy_forced", s.forced},
                       {"last_error", s.last_error}};
   return j.dump();
 }

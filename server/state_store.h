@@ -28,6 +28,9 @@ struct StateStoreStats {
   std::uint64_t written = 0, failed = 0;
   double last_export_ms = 0, last_encode_ms = 0, last_write_ms = 0;  // lock-holding copy, serialise, file
   std::uint64_t last_bytes = 0;
+  // Map copies that gave their lock up to a waiting writer (yields), and that then copied without
+  // yielding after 20 such (forced): in the last write, and over all writes.
+  std::uint64_t last_yields = 0, last_forced = 0, yields = 0, forced = 0;
   std::string last_error;
 };
 

@@ -1,9 +1,28 @@
 #include "map/map.h"
 
 #include <algorithm>
+#include <chrono>
 #include <limits>
 
 namespace cslam {
+
+MapWriteLock::MapWriteLock(Map& map, bool record_wait) : lock_(map.mutex, std::defer_lock) {
+  const auto start = std::chrono::steady_clock::now();
+  map.writers_waiting_.fetch_add(1);
+  lock_.lock();
+  if (map.writers_waiting_.fetch_sub(1) == 1) {
+    // Last waiting writer: wake readers waiting for it (the mutex makes the wake-up not lost).
+    { std::lock_guard<std::mutex> guard(map.writers_mutex_); }
+    map.writers_cv_.notify_all();
+  }
+  if (record_wait && map.write_waits_.size() < Map::kMaxRecordedWaits)
+    map.write_waits_.push_back({start, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()});
+}
+
+void Map::wait_until_no_writer_waits() const {
+  std::unique_lock<std::mutex> guard(writers_mutex_);
+  writers_cv_.wait(guard, [&] { return writers_waiting_.load() == 0; });
+}
 
 void Map::add_keyframe(const KeyFramePtr& kf) {
   keyframes_[kf->id] = kf;

@@ -3,10 +3,16 @@
 // spanning tree and its keyframe database. Not a singleton: each client has its own maps.
 // Locking: `mutex` guards every mutable member of the map, its keyframes and its points.
 // Methods marked [unique] require the caller to hold mutex exclusively, [shared] at least shared.
+// Whole-map readers yield to writers: a writer that takes `mutex` through MapWriteLock is counted
+// while it waits (writers_waiting), and a long reader (the snapshot copy, export_map_state) checks
+// that count as it goes, gives the lock up when a writer waits and starts again after it.
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <shared_mutex>
 #include <unordered_map>
 #include <vector>
@@ -60,6 +66,13 @@ class Map {
   void for_each_map_point(F&& f) const {
     for (const auto& entry : map_points_) f(*entry.second);
   }
+  // The same, stopping as soon as f returns false; false if it stopped.
+  template <class F>
+  bool for_each_map_point_while(F&& f) const {
+    for (const auto& entry : map_points_)
+      if (!f(*entry.second)) return false;
+    return true;
+  }
   KeyFramePtr keyframe(KeyFrameId id) const;
   std::size_t num_keyframes() const { return keyframes_.size(); }
   std::size_t num_map_points() const { return map_points_.size(); }
@@ -79,11 +92,26 @@ class Map {
   // Recomputes a point's normal, distance bounds (from its reference keyframe) and descriptor.
   void update_map_point(MapPoint* mp) const;
 
+  // Writers (MapWriteLock) waiting for `mutex` right now.
+  int writers_waiting() const { return writers_waiting_.load(std::memory_order_relaxed); }
+  // Blocks (no lock of the map held) until no MapWriteLock waits for `mutex`; a writer that was
+  // waiting holds it by then, so a shared lock taken next is granted after that writer is through.
+  void wait_until_no_writer_waits() const;
+  // [shared] How long each MapWriteLock built with record_wait waited for `mutex` (the tracker's
+  // keyframe insertions), in order; the first kMaxRecordedWaits only.
+  struct WriteWait {
+    std::chrono::steady_clock::time_point asked;  // when it asked for the lock
+    double ms = 0;                                // until it held it
+  };
+  static constexpr std::size_t kMaxRecordedWaits = 1 << 16;
+  const std::vector<WriteWait>& recorded_write_waits() const { return write_waits_; }
+
   // Monotone counter of structural changes (loop corrections, fusions) for consumers to notice.
   std::uint64_t big_change_index() const { return big_changes_; }
   void note_big_change() { ++big_changes_; }
 
  private:
+  friend class MapWriteLock;
   void erase_keyframe_from_tables(KeyFrame* kf);
 
   ClientId client_;
@@ -93,6 +121,23 @@ class Map {
   std::unordered_map<MapPointId, MapPointPtr> map_points_;
   KeyFramePtr origin_;
   std::uint64_t big_changes_ = 0;
+  mutable std::atomic<int> writers_waiting_{0};
+  mutable std::mutex writers_mutex_;  // only to wait for writers_waiting_ == 0
+  mutable std::condition_variable writers_cv_;
+  std::vector<WriteWait> write_waits_;  // [unique] to append
+};
+
+// The map's exclusive lock, taken so that whole-map readers step aside: counted in
+// writers_waiting() from before it asks for the lock until it holds it. With record_wait, the
+// wait is appended to the map's recorded_write_waits().
+class MapWriteLock {
+ public:
+  explicit MapWriteLock(Map& map, bool record_wait = false);
+  MapWriteLock(const MapWriteLock&) = delete;
+  MapWriteLock& operator=(const MapWriteLock&) = delete;
+
+ private:
+  std::unique_lock<std::shared_mutex> lock_;
 };
 
 }  // namespace cslam

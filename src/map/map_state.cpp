@@ -11,16 +11,57 @@
 
 namespace cslam {
 
+namespace {
+// Checks for a waiting writer this often while copying (a few tens of microseconds of copy).
+constexpr std::size_t kKeyFramesPerCheck = 32, kPointsPerCheck = 256;
+}  // namespace
+
 MapState export_map_state(const Map& map) {
+  MapState s;
+  export_map_state(map, s, false);
+  return s;
+}
+
+MapState export_map_state_yielding(const Map& map, int max_yields, const std::function<void()>& under_lock) {
+  using Clock = std::chrono::steady_clock;
+  std::vector<std::pair<Clock::time_point, Clock::time_point>> holds;
+  for (int yields = 0;; ++yields) {
+    MapState s;
+    {
+      std::shared_lock<std::shared_mutex> lock(map.mutex);
+      const Clock::time_point start = Clock::now();
+      if (export_map_state(map, s, yields < max_yields)) {
+        if (under_lock) under_lock();
+        lock.unlock();
+        holds.emplace_back(start, Clock::now());
+        s.export_yields = yields;
+        s.export_forced = yields >= max_yields;
+        s.export_holds = std::move(holds);
+        return s;
+      }
+      lock.unlock();
+      holds.emplace_back(start, Clock::now());
+    }
+    // Abandoned: the lock is free for the writer; the partial copy is dropped without the lock.
+    s = MapState();
+    map.wait_until_no_writer_waits();
+  }
+}
+
+bool export_map_state(const Map& map, MapState& s, bool yield_to_writers) {
   // Runs under the map's shared lock: plain copies only (ids instead of pointers, no lookups,
   // no sorting); tidy_map_state does the rest without the lock.
-  MapState s;
+  auto writer_waits = [&] { return yield_to_writers && map.writers_waiting() > 0; };
+  if (writer_waits()) return false;
+  s = MapState();
   s.client = map.client();
   s.index = map.index();
   if (auto o = map.origin(); o && !o->bad) s.origin = o->id;
   const auto keyframes = map.keyframes();
   s.keyframes.reserve(keyframes.size());
+  std::size_t visited = 0;
   for (const auto& kf : keyframes) {
+    if (++visited % kKeyFramesPerCheck == 0 && writer_waits()) return false;
     if (kf->bad) continue;
     KeyFrameState k;
     k.id = kf->id;
@@ -45,8 +86,10 @@ MapState export_map_state(const Map& map) {
   s.flat_observations.clear();
   s.flat_observations.reserve(map.num_map_points() * 8);
   std::size_t n = 0;
-  map.for_each_map_point([&](const MapPoint& mp) {
-    if (mp.bad) return;
+  visited = 0;
+  const bool complete = map.for_each_map_point_while([&](const MapPoint& mp) {
+    if (++visited % kPointsPerCheck == 0 && writer_waits()) return false;
+    if (mp.bad) return true;
     MapPointState& p = s.points[n++];
     p.id = mp.id;
     p.position = mp.position;
@@ -63,9 +106,11 @@ MapState export_map_state(const Map& map) {
     p.found = mp.found;
     p.color = mp.color;
     p.first_keyframe_seq = mp.first_keyframe_seq;
+    return true;
   });
+  if (!complete) return false;
   s.points.resize(n);
-  return s;
+  return true;
 }
 
 void tidy_map_state(MapState& s) {

@@ -69,7 +69,7 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
   if (prob.observations.empty()) return;
   const BaResult res = bundle_adjust(prob, config_.ba);
   {
-    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    MapWriteLock lock(*map_);
     // The map was moved meanwhile (fusion, loop correction): the solution is in the old frame.
     if (map_->big_change_index() != change_index) return;
     for (size_t i = 0; i < prob.observations.size(); ++i) {

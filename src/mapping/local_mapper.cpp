@@ -91,7 +91,7 @@ LocalMapperStats LocalMapper::stats() const {
 void LocalMapper::process(const KeyFramePtr& kf) {
   Stopwatch sw;
   {
-    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    MapWriteLock lock(*map_);
     insert_into_map(kf.get());
     cull_map_points(kf.get());
     const auto created = create_new_map_points(*map_, kf.get(), config_.triangulation);
@@ -100,12 +100,12 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     stats_.points_triangulated += int(created.size());
   }
   {
-    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    MapWriteLock lock(*map_);
     fuse_with_neighbours(kf.get());
   }
   if (config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
   {
-    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    MapWriteLock lock(*map_);
     if (!kf->bad) cull_keyframes(kf.get());
     if (!kf->bad) map_->database.add(kf->id, kf->data->bow);
   }

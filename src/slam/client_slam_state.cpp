@@ -10,6 +10,11 @@
 
 namespace cslam {
 
+namespace {
+// Times one map's snapshot copy gives its lock up to a waiting writer before it copies regardless.
+constexpr int kMaxSnapshotYields = 20;
+}  // namespace
+
 ClientSlamState ClientSlam::export_state() const {
   ClientSlamState s;
   s.info = info_;
@@ -33,19 +38,21 @@ ClientSlamState ClientSlam::export_state() const {
     if (records[i].map_index >= 0 && std::size_t(records[i].map_index) < maps.size()) by_map[records[i].map_index].push_back(i);
   std::vector<std::optional<FrameRecordState>> resolved(records.size());
   for (std::size_t m = 0; m < maps.size(); ++m) {
-    std::shared_lock<std::shared_mutex> lock(maps[m]->mutex);
-    s.maps.push_back(export_map_state(*maps[m]));
-    for (std::size_t i : by_map[m]) {
-      const FrameRecord& r = records[i];
-      SE3 T_cam_ref = r.T_cam_ref;
-      KeyFrame* ref = r.reference.get();
-      while (ref && ref->bad && ref->parent) {
-        T_cam_ref = T_cam_ref * ref->T_cam_parent;
-        ref = ref->parent.get();
+    // Each map in one shared-lock hold, which steps aside while the tracker (or local mapping)
+    // waits to write; the frame records are resolved in that same hold.
+    s.maps.push_back(export_map_state_yielding(*maps[m], kMaxSnapshotYields, [&] {
+      for (std::size_t i : by_map[m]) {
+        const FrameRecord& r = records[i];
+        SE3 T_cam_ref = r.T_cam_ref;
+        KeyFrame* ref = r.reference.get();
+        while (ref && ref->bad && ref->parent) {
+          T_cam_ref = T_cam_ref * ref->T_cam_parent;
+          ref = ref->parent.get();
+        }
+        if (!ref || ref->bad || maps[m]->keyframe(ref->id).get() != ref) continue;
+        resolved[i] = FrameRecordState{r.timestamp, int(m), ref->id, T_cam_ref};
       }
-      if (!ref || ref->bad || maps[m]->keyframe(ref->id).get() != ref) continue;
-      resolved[i] = FrameRecordState{r.timestamp, int(m), ref->id, T_cam_ref};
-    }
+    }));
   }
   s.next_ids = ids_->next();  // read after the maps: above every id they hold
   for (auto& m : s.maps) tidy_map_state(m);

@@ -108,7 +108,7 @@ bool Tracker::initialize(Frame& frame) {
   frame.has_pose = true;
   KeyFramePtr kf;
   {
-    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    MapWriteLock lock(*map_, /*record_wait=*/true);
     kf = std::make_shared<KeyFrame>(map_->ids().next_keyframe(), frame.data, frame.T_cam_world);
     map_->add_keyframe(kf);
     for (size_t i = 0; i < f.size(); ++i) {
@@ -346,7 +346,7 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
   const FrameData& f = *frame.data;
   KeyFramePtr kf;
   {
-    std::unique_lock<std::shared_mutex> lock(map_->mutex);
+    MapWriteLock lock(*map_, /*record_wait=*/true);
     if (map_->big_change_index() != tracked_change_index_) return nullptr;  // map moved meanwhile: next frame
     kf = std::make_shared<KeyFrame>(map_->ids().next_keyframe(), frame.data, frame.T_cam_world);
     if (frame.reference && !frame.reference->bad) {

@@ -37,21 +37,37 @@ double thread_cpu_ms() {
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
 }
 
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, std::size_t(q * double(v.size())))];
+}
+
 // Tracking stall: per-frame ClientSlam::process() time (threaded SLAM, as the server runs it;
-// images preloaded) over the sequence, without and with a background thread that takes a
-// snapshot copy (export_state) every `period_s`. Prints median, p99 and max of both.
+// images preloaded) over the sequence, and the tracker's wait for the map's exclusive lock at
+// each keyframe insertion (MapWriteLock with record_wait: from asking for the lock to holding
+// it), without snapshots, with a background snapshot copy (export_state, yielding to writers)
+// every `period_s`, and with a copy of every map that does not yield (each map copied under
+// one shared lock as before the yielding copy). Prints median, p99 and max of each.
 int stall_test(const ClientInfo& info, const std::shared_ptr<const Vocabulary>& vocabulary,
-               const std::vector<RgbdPair>& pairs, double period_s) {
+               const std::vector<RgbdPair>& pairs, double period_s, bool with_blocking) {
   std::vector<RgbdFrame> frames;
   frames.reserve(pairs.size());
   for (const auto& p : pairs) frames.push_back(load_dataset_frame(p, info.id));
   SlamConfig config;  // threaded
-  for (const bool with_snapshots : {false, true}) {
+  enum Mode { kNone, kYielding, kBlocking };
+  std::vector<Mode> modes = {kNone, kYielding};
+  if (with_blocking) modes.push_back(kBlocking);
+  for (const Mode mode : modes) {
+    const bool with_snapshots = mode != kNone;
     ClientSlam slam(info, config, vocabulary);
+    std::uint64_t yields = 0, forced = 0;
     std::mutex m;
     std::condition_variable cv;
     bool stop = false;
     std::vector<double> copy_ms;
+    using Span = std::pair<std::chrono::steady_clock::time_point, std::chrono::steady_clock::time_point>;
+    std::vector<Span> copy_spans, holds;  // whole export_state calls; the copy's shared-lock holds
     std::thread snapshotter;
     if (with_snapshots)
       snapshotter = std::thread([&] {
@@ -59,10 +75,30 @@ int stall_test(const ClientInfo& info, const std::shared_ptr<const Vocabulary>& 
         while (!cv.wait_for(lock, std::chrono::duration<double>(period_s), [&] { return stop; })) {
           lock.unlock();
           Stopwatch sw;
-          const ClientSlamState state = slam.export_state();
+          const auto copy_start = std::chrono::steady_clock::now();
+          std::uint64_t y = 0, f = 0;
+          if (mode == kYielding) {
+            const ClientSlamState state = slam.export_state();
+            for (const auto& ms : state.maps) {
+              y += std::uint64_t(ms.export_yields);
+              f += ms.export_forced ? 1 : 0;
+              holds.insert(holds.end(), ms.export_holds.begin(), ms.export_holds.end());
+            }
+          } else {
+            for (const auto& map : slam.maps()) {
+              std::shared_lock<std::shared_mutex> map_lock(map->mutex);
+              const auto start = std::chrono::steady_clock::now();
+              MapState ms = export_map_state(*map);
+              map_lock.unlock();
+              holds.emplace_back(start, std::chrono::steady_clock::now());
+            }
+          }
           const double ms = sw.ms();
           lock.lock();
           copy_ms.push_back(ms);
+          copy_spans.emplace_back(copy_start, std::chrono::steady_clock::now());
+          yields += y;
+          forced += f;
         }
       });
     std::vector<double> frame_ms;
@@ -78,16 +114,46 @@ int stall_test(const ClientInfo& info, const std::shared_ptr<const Vocabulary>& 
     cv.notify_all();
     if (snapshotter.joinable()) snapshotter.join();
     slam.finish();
-    std::sort(frame_ms.begin(), frame_ms.end());
-    const Summary s = summarize(frame_ms);
-    const double p99 = frame_ms[std::min(frame_ms.size() - 1, std::size_t(0.99 * double(frame_ms.size())))];
-    std::printf("%-26s frames %zu: process() median %.2f ms, p99 %.2f ms, max %.2f ms", with_snapshots ? "with snapshots" : "without snapshots",
-                frame_ms.size(), s.median, p99, s.max);
-    if (with_snapshots) {
-      const Summary c = summarize(copy_ms);
-      std::printf(" | %zu snapshot copies every %.2f s, copy median %.1f ms, max %.1f ms", copy_ms.size(), period_s, c.median, c.max);
+    // All waits; those overlapping a snapshot copy and the others; and, per wait, how long a
+    // snapshot copy held the shared lock during it (the part of the wait the snapshot caused).
+    std::vector<double> wait_ms, overlapping_ms, apart_ms, held_during_ms;
+    for (const auto& map : slam.maps()) {
+      std::shared_lock<std::shared_mutex> map_lock(map->mutex);
+      for (const auto& w : map->recorded_write_waits()) {
+        wait_ms.push_back(w.ms);
+        const auto end = w.asked + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double, std::milli>(w.ms));
+        const bool overlaps = std::any_of(copy_spans.begin(), copy_spans.end(), [&](const auto& c) { return c.first < end && w.asked < c.second; });
+        (overlaps ? overlapping_ms : apart_ms).push_back(w.ms);
+        double held = 0;
+        for (const auto& h : holds)
+          if (h.first < end && w.asked < h.second)
+            held += std::chrono::duration<double, std::milli>(std::min(end, h.second) - std::max(w.asked, h.first)).count();
+        held_during_ms.push_back(held);
+      }
     }
-    std::printf("\n");
+    const Summary s = summarize(frame_ms);
+    const char* name = mode == kNone ? "without snapshots" : mode == kYielding ? "with snapshots (yielding)" : "with snapshots (not yielding)";
+    std::printf("%-30s frames %zu: process() median %.2f ms, p99 %.2f ms, max %.2f ms\n", name, frame_ms.size(), s.median,
+                percentile(frame_ms, 0.99), s.max);
+    const Summary w = summarize(wait_ms.empty() ? std::vector<double>{0.0} : wait_ms);
+    const auto over5 = std::count_if(wait_ms.begin(), wait_ms.end(), [](double v) { return v > 5.0; });
+    std::printf("%-30s tracker exclusive-lock wait (%zu keyframe insertions): median %.3f ms, p99 %.3f ms, max %.3f ms, %ld over 5 ms\n",
+                "", wait_ms.size(), w.median, percentile(wait_ms, 0.99), w.max, long(over5));
+    if (with_snapshots) {
+      auto max_of = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
+      std::printf("%-30s of these, %zu overlapped a snapshot copy (max %.3f ms), %zu did not (max %.3f ms)\n", "",
+                  overlapping_ms.size(), max_of(overlapping_ms), apart_ms.size(), max_of(apart_ms));
+      std::printf("%-30s snapshot shared-lock hold within a wait: max %.3f ms (%zu holds, longest %.3f ms)\n", "",
+                  max_of(held_during_ms), holds.size(), [&] {
+                    double m = 0;
+                    for (const auto& h : holds) m = std::max(m, std::chrono::duration<double, std::milli>(h.second - h.first).count());
+                    return m;
+                  }());
+      const Summary c = summarize(copy_ms.empty() ? std::vector<double>{0.0} : copy_ms);
+      std::printf("%-30s %zu snapshot copies every %.2f s, copy median %.1f ms, max %.1f ms", "", copy_ms.size(), period_s, c.median, c.max);
+      if (mode == kYielding) std::printf(", %llu yields, %llu forced copies", (unsigned long long)yields, (unsigned long long)forced);
+      std::printf("\n");
+    }
   }
   return 0;
 }
@@ -103,6 +169,7 @@ int run(int argc, char** argv) {
       .option("json", "also write the figures to this JSON file", "")
       .option("stall-test", "instead: per-frame tracking time of threaded SLAM over --dataset without and with a "
               "snapshot copy every this many seconds", "0")
+      .option("stall-blocking", "with --stall-test: also a run whose copies do not yield to writers (yes/no)", "no")
       .option("log-level", "trace, debug, info, warn, error, off", "warn");
   if (!args.parse(argc, argv)) return 0;
   set_log_level(args.get("log-level"));
@@ -126,7 +193,7 @@ int run(int argc, char** argv) {
   }
   if (args.get_double("stall-test") > 0) {
     if (pairs.empty()) throw ConfigError("--stall-test needs --dataset");
-    return stall_test(info, vocabulary, pairs, args.get_double("stall-test"));
+    return stall_test(info, vocabulary, pairs, args.get_double("stall-test"), args.get("stall-blocking") == "yes");
   }
   ClientSlam slam(info, config, vocabulary);
   Stopwatch mapping;
