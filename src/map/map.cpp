@@ -8,13 +8,21 @@ namespace cslam {
 
 MapWriteLock::MapWriteLock(Map& map, bool record_wait) : lock_(map.mutex, std::defer_lock) {
   const auto start = std::chrono::steady_clock::now();
+  auto done_waiting = [&] {
+    if (map.writers_waiting_.fetch_sub(1) == 1) {
+      // Last waiting writer: wake readers waiting for it (the mutex makes the wake-up not lost).
+      { std::lock_guard<std::mutex> guard(map.writers_mutex_); }
+      map.writers_cv_.notify_all();
+    }
+  };
   map.writers_waiting_.fetch_add(1);
-  lock_.lock();
-  if (map.writers_waiting_.fetch_sub(1) == 1) {
-    // Last waiting writer: wake readers waiting for it (the mutex makes the wake-up not lost).
-    { std::lock_guard<std::mutex> guard(map.writers_mutex_); }
-    map.writers_cv_.notify_all();
+  try {
+    lock_.lock();
+  } catch (...) {  // never counted as waiting forever
+    done_waiting();
+    throw;
   }
+  done_waiting();
   if (record_wait && map.write_waits_.size() < Map::kMaxRecordedWaits)
     map.write_waits_.push_back({start, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()});
 }
