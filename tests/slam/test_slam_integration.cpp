@@ -1,13 +1,17 @@
 // End-to-end runs of the offline programs on a small synthetic scene with exact ground truth.
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "common/run_program.h"
 #include "io/trajectory_io.h"
+#include "io/tum_dataset.h"
 
 using cslam::test::run_program;
 using cslam::test::TempDir;
@@ -150,6 +154,82 @@ TEST_F(SlamIntegration, ClientsInDifferentRoomsDoNotFuse) {
   // The control: within each room the robots do fuse.
   EXPECT_EQ(c[0]["group"], c[2]["group"]);
   EXPECT_EQ(c[1]["group"], c[3]["group"]);
+}
+
+// The lens is covered for longer than max_lost_seconds (3 s), then the robot retraces its path:
+// tracking starts a second map, map fusion joins it to the first, and cslam-slam writes the
+// frames of both maps in one frame. --sync: the one possible outcome.
+TEST_F(SlamIntegration, SingleClientLongLossSecondMapIsJoinedAndWritten) {
+  const cslam::TumDataset ds = cslam::open_tum_dataset(scene("robot_1"));
+  ASSERT_TRUE(ds.groundtruth);
+  const std::string dir = tmp("covered");
+  std::filesystem::create_directories(dir);
+  std::filesystem::create_directory_symlink(scene("robot_1/rgb"), dir + "/rgb");
+  std::filesystem::create_directory_symlink(scene("robot_1/depth"), dir + "/depth");
+  std::filesystem::copy_file(scene("robot_1/camera.yaml"), dir + "/camera.yaml");
+  const cv::Mat first = cv::imread(ds.pairs[0].rgb_path);
+  ASSERT_FALSE(first.empty());
+  ASSERT_TRUE(cv::imwrite(dir + "/black.png", cv::Mat(first.size(), CV_8UC3, cv::Scalar(0, 0, 0))));
+  ASSERT_TRUE(cv::imwrite(dir + "/empty.png", cv::Mat(first.size(), CV_16UC1, cv::Scalar(0))));
+  auto rel = [](const std::string& path) {
+    const std::filesystem::path p(path);
+    return (p.parent_path().filename() / p.filename()).string();
+  };
+  auto gt_at = [&](double t) {
+    for (const auto& g : *ds.groundtruth)
+      if (std::abs(g.timestamp - t) < 1e-6) return g.T_world_cam;
+    ADD_FAILURE() << "no ground truth at " << t;
+    return cslam::SE3();
+  };
+  std::ofstream rgb(dir + "/rgb.txt"), depth(dir + "/depth.txt");
+  rgb.precision(17);
+  depth.precision(17);
+  cslam::Trajectory gt;
+  std::size_t real = 0;
+  double t = 0;
+  for (std::size_t i = 0; i < 40; ++i, ++real) {  // frames 1-40
+    t = ds.pairs[i].rgb_time;
+    rgb << t << " " << rel(ds.pairs[i].rgb_path) << "\n";
+    depth << t << " " << rel(ds.pairs[i].depth_path) << "\n";
+    gt.push_back({t, gt_at(t)});
+  }
+  for (int k = 0; k < 15; ++k) {  // 3.5 s of covered lens
+    t += 0.25;
+    rgb << t << " black.png\n";
+    depth << t << " empty.png\n";
+  }
+  const double shift = t + 0.25 - ds.pairs[10].rgb_time;
+  for (std::size_t i = 10; i < ds.pairs.size(); ++i, ++real) {  // frames 11-60 again
+    rgb << ds.pairs[i].rgb_time + shift << " " << rel(ds.pairs[i].rgb_path) << "\n";
+    depth << ds.pairs[i].rgb_time + shift << " " << rel(ds.pairs[i].depth_path) << "\n";
+    gt.push_back({ds.pairs[i].rgb_time + shift, gt_at(ds.pairs[i].rgb_time)});
+  }
+  rgb.close();
+  depth.close();
+  cslam::write_tum_trajectory(dir + "/groundtruth.txt", gt);
+
+  for (const bool fusion : {true, false}) {
+    SCOPED_TRACE(fusion ? "fusion" : "--no-fusion");
+    const std::string out = tmp(fusion ? "loss_fused" : "loss_apart");
+    const auto r = run_program("cslam-slam", "--dataset " + dir + " --out " + out + ".txt --stats " + out + ".json" +
+                                                 " --sync --quiet --log-level warn" + (fusion ? "" : " --no-fusion"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto stats = nlohmann::json::parse(std::ifstream(out + ".json"));
+    EXPECT_EQ(stats["maps"].get<int>(), 2) << "the covered stretch must start a second map";
+    const int poses = stats["trajectory_poses"].get<int>();
+    std::printf("%s: %d poses of %zu real frames, %d map fusions\n", fusion ? "fusion" : "--no-fusion", poses, real,
+                stats["map_fusions"].get<int>());
+    if (fusion) {
+      EXPECT_EQ(stats["map_fusions"].get<int>(), 1);
+      EXPECT_GE(poses + 2, int(real)) << "both maps' frames are written";
+      const double ate = ate_rmse(dir + "/groundtruth.txt " + out + ".txt");
+      std::printf("ATE %.4f m\n", ate);
+      EXPECT_LT(ate, 0.02) << "in one frame";
+    } else {
+      EXPECT_EQ(stats["map_fusions"].get<int>(), 0);
+      EXPECT_LT(poses, int(real) - 20) << "two frames: only the larger map is written";
+    }
+  }
 }
 
 TEST_F(SlamIntegration, BadArgumentsGiveOneLineErrors) {
