@@ -1,27 +1,11 @@
 #include <gtest/gtest.h>
 
+#include "common/fake_frame_data.h"
 #include "loopclosing/essential_graph.h"
 
 using namespace cslam;
 
-namespace {
-
-std::shared_ptr<const FrameData> fake_frame_data(int n, const std::shared_ptr<const ScalePyramid>& pyramid) {
-  auto f = std::make_shared<FrameData>();
-  f->pyramid = pyramid;
-  f->camera = camera_preset("synthetic");
-  for (int i = 0; i < n; ++i) {
-    f->features.keypoints.emplace_back(float(10 + i % 600), float(10 + i / 600), 31.f, 0.f, 0.f, 0);
-    f->features.undistorted.emplace_back(10 + i % 600, 10 + i / 600);
-    f->features.descriptors.push_back(Descriptor{});
-    f->depth.push_back(1.f);
-    f->u_right.push_back(1.f);
-    f->colors.emplace_back();
-  }
-  return f;
-}
-
-}  // namespace
+using test::fake_frame_data;
 
 TEST(EssentialGraph, SpanningTreeLoopStrongCovisibilityAndNewLinks) {
   Map map(1, 0, std::make_shared<IdAllocator>(1));
