@@ -9,6 +9,7 @@
 #include "core/stopwatch.h"
 #include "globalba/global_ba.h"
 #include "map/map_locks.h"
+#include "slam/map_frames.h"
 
 namespace cslam {
 
@@ -165,24 +166,13 @@ std::vector<std::shared_ptr<Map>> ClientSlam::main_frame_maps(const MapFrameOf& 
     for (const auto& r : records_)
       if (std::size_t(r.map_index) < frames.size()) ++frames[std::size_t(r.map_index)];
   }
-  if (maps.empty()) return {};
-  // A frame label per map; a map without one (or -1) is a frame of its own.
-  std::vector<long> label(maps.size());
-  for (std::size_t i = 0; i < maps.size(); ++i) {
-    const int l = frame_of ? frame_of(maps[i].get()) : -1;
-    label[i] = l >= 0 ? long(l) : -1 - long(i);
-  }
-  // The frame with most tracked frames; on a tie the one holding the lowest map index.
-  std::size_t best = 0, best_frames = 0;
-  for (std::size_t i = 0; i < maps.size(); ++i) {
-    std::size_t n = 0;
-    for (std::size_t j = 0; j < maps.size(); ++j)
-      if (label[j] == label[i]) n += frames[j];
-    if (n > best_frames) best = i, best_frames = n;
-  }
+  std::vector<long> labels(maps.size(), -1);
+  if (frame_of)
+    for (std::size_t i = 0; i < maps.size(); ++i) labels[i] = frame_of(maps[i].get());
+  const std::vector<char> in = maps_in_main_frame(frames, std::move(labels));
   std::vector<std::shared_ptr<Map>> out;
   for (std::size_t i = 0; i < maps.size(); ++i)
-    if (label[i] == label[best]) out.push_back(maps[i]);
+    if (in[i]) out.push_back(maps[i]);
   return out;
 }
 

@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "slam/map_frames.h"
 
 namespace cslam {
 
@@ -146,21 +147,14 @@ Trajectory state_trajectory(const ClientSlamState& s, int* map_index) {
   std::vector<std::size_t> counts(n, 0);
   for (const auto& r : s.records)
     if (r.map_index >= 0 && std::size_t(r.map_index) < n) ++counts[std::size_t(r.map_index)];
-  // Maps of one fused group share a frame (as ClientSlam::trajectory with fusion's groups).
-  auto label = [&](std::size_t i) { return s.maps[i].group >= 0 ? long(s.maps[i].group) : -1 - long(i); };
-  std::size_t best = 0, best_frames = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    std::size_t frames = 0;
-    for (std::size_t j = 0; j < n; ++j)
-      if (label(j) == label(i)) frames += counts[j];
-    if (frames > best_frames) best = i, best_frames = frames;
-  }
+  // Maps of one fused group share a frame (the rule of ClientSlam::trajectory with fusion's groups).
+  std::vector<long> labels(n);
+  for (std::size_t i = 0; i < n; ++i) labels[i] = s.maps[i].group;
+  const std::vector<char> included = maps_in_main_frame(counts, std::move(labels));
   int main = -1;
   std::unordered_map<KeyFrameId, SE3> poses;
-  std::vector<char> included(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    if (label(i) != label(best)) continue;
-    included[i] = 1;
+    if (!included[i]) continue;
     if (main < 0 || counts[i] > counts[std::size_t(main)]) main = int(i);
     for (const auto& k : s.maps[i].keyframes) poses[k.id] = k.T_cam_world;
   }
