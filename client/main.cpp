@@ -35,7 +35,7 @@ int run(int argc, char** argv) {
       .option("poses-out", "write the poses received in acks (TUM) and FILE.feedback.csv (state, latency per ack)", "")
       .option("start-at", "wall-clock time (Unix seconds) to start streaming at, after loading (benchmarks start robots together)", "0")
       .option("summary-out", "write a JSON summary (frames sent/dropped/skipped, pose latency p50/p99)", "")
-      .option("camera", "tum1 | tum2 | tum2-corrected | tum3 | synthetic | camera file (default: DIR/camera.yaml, else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1)", "")
+      .option("camera", "tum1 | tum2 | tum2-corrected | tum3 | synthetic | camera file (default: DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1)", "")
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")

@@ -23,7 +23,7 @@ void declare_options(CliArgs& cli) {
       .option("web-root", "folder of the web viewer (index.html, viewer.js, node_modules/three)", CSLAM_WEB_DIR)
       .option("http-port-file", "write the bound HTTP port to this file once listening", "")
       .option("datasets-dir", "reconstruction over HTTP: per-client TUM folders DIR/<name>, DIR/robot_K or DIR/client_K", "")
-      .option("recon-camera", "camera preset or file for the reconstruction datasets (default: each DIR/camera.yaml, else the TUM camera its folder name says, else tum1)", "");
+      .option("recon-camera", "camera preset or file for the reconstruction datasets (default: each DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says, else tum1)", "");
 }
 
 HttpConfig config_from(const CliArgs& cli) {

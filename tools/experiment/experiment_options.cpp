@@ -35,7 +35,7 @@ void declare_options(CliArgs& args) {
                      "it generates and uses the small synthetic scene (cslam-synth --preset test-small) in OUT")
       .option("timeout", "seconds per run before its processes are stopped and the run is reported as failed; --quick: 180", "")
       .option("rate", "client send rate in network mode: frames/s or 'max'", "max")
-      .option("camera", "camera preset or file for the dataset (default: DATASET/camera.yaml, else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
+      .option("camera", "camera preset or file for the dataset (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
       .option("bin-dir", "folder of cslam-slam, cslam-server, cslam-client, cslam-synth (default: this program's folder)", "")
       .option("recon-voxel", "voxel size (m) of the reconstructions for Table III; --quick: 0.04", "")
       .option("recon-stride", "back-project every n-th pixel; --quick: 8", "")

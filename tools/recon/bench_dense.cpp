@@ -50,7 +50,7 @@ int run(int argc, char** argv) {
       .option("stride", "pixel stride", "2")
       .option("voxel", "voxel-grid leaf (m)", "0.01")
       .option("threads", "threads", "2")
-      .option("camera", "camera preset or file (default: DATASET/camera.yaml, else the TUM camera the folder name says, else tum1)", "")
+      .option("camera", "camera preset or file (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera the folder name says, else tum1)", "")
       .option("tsdf-voxel", "TSDF voxel (m)", "0.01")
       .option("tsdf-trunc", "TSDF truncation (m)", "0.04")
       .option("tsdf-frames", "frames fused in the TSDF run (0 = all loaded)", "0")

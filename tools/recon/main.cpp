@@ -56,7 +56,7 @@ int run(int argc, char** argv) {
       .option("tsdf-voxel", "TSDF voxel size (m)", "0.01")
       .option("tsdf-trunc", "TSDF truncation distance (m)", "0.04")
       .option("tsdf-every", "fuse every n-th used frame into the TSDF", "1")
-      .option("camera", "camera preset or file for every dataset (default: each DIR/camera.yaml, else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
+      .option("camera", "camera preset or file for every dataset (default: each DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
       .option("align-to", "evaluation aid: SE3-align the poses to this ground-truth trajectory first (Umeyama over "
                           "timestamp-associated positions), so SLAM-pose and ground-truth-pose clouds share a frame", "")
       .option("log-level", "trace|debug|info|warn|error|off", "info");

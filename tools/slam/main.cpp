@@ -45,7 +45,7 @@ int run(int argc, char** argv) {
       .option("clients", "multi-client mode: split --dataset into K clients with the paper's ranges", "1")
       .option("overlap", "overlap rate eta of the split, e.g. 0.05 or 5%", "5%")
       .option("out-dir", "multi-client mode: output folder (client_K.txt, fused_G.txt, stats.json)", "")
-      .option("camera", "camera preset (tum1, tum2, tum2-corrected, tum3, synthetic) or file; default: DATASET/camera.yaml, else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1", "")
+      .option("camera", "camera preset (tum1, tum2, tum2-corrected, tum3, synthetic) or file; default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1", "")
       .option("range", "frames a:b (1-based, inclusive, of the associated RGB-D pairs)", "")
       .option("association", "colour-depth pairing: nearest (every colour frame, a depth image may serve two) | unique (TUM associate.py)", "nearest")
       .option("vocab", "vocabulary file", "")
