@@ -89,7 +89,7 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
                                                  const PinholeCamera& camera, const RgbdParams& rgbd,
                                                  const OrbExtractor& extractor,
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
-                                                 const Vocabulary& vocabulary, int bow_levels_up,
+                                                 const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
                                                  const std::optional<SE3>& T_depthcam_cam) {
   auto f = std::make_shared<FrameData>();
   f->id = id;
@@ -119,7 +119,15 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
   }
   f->bounds = camera.undistorted_bounds();
   f->grid = FeatureGrid(f->features, f->bounds);
-  if (!vocabulary.empty()) vocabulary.transform(f->features.descriptors, f->bow, f->feature_vector, bow_levels_up);
+  if (vocabulary && !vocabulary->empty()) f->pending_bow = {vocabulary, bow_levels_up};
+  return f;
+}
+
+std::shared_ptr<const FrameData> with_bow(std::shared_ptr<const FrameData> data) {
+  if (!data || !data->pending_bow.vocabulary) return data;
+  auto f = std::make_shared<FrameData>(*data);
+  f->pending_bow.vocabulary->transform(f->features.descriptors, f->bow, f->feature_vector, f->pending_bow.levels_up);
+  f->pending_bow = {};
   return f;
 }
 

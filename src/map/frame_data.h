@@ -46,6 +46,14 @@ struct RgbdParams {
   double close_depth(double fx) const { return th_depth * bf / fx; }
 };
 
+// Bag-of-words vectors a frame does not have yet: they are computed when first needed (with_bow).
+// Most frames never become keyframes, are never relocalised and are never matched against a
+// reference keyframe, so their words would never be read.
+struct PendingBow {
+  std::shared_ptr<const Vocabulary> vocabulary;  // null: nothing pending
+  int levels_up = 4;
+};
+
 struct FrameData {
   FrameId id;
   double timestamp = 0;
@@ -58,8 +66,9 @@ struct FrameData {
   std::vector<cv::Vec3b> colors;
   FeatureGrid grid;
   std::array<double, 4> bounds{};  // undistorted image bounds
-  BowVector bow;
+  BowVector bow;  // empty while `pending_bow` holds a vocabulary (see with_bow)
   FeatureVector feature_vector;
+  PendingBow pending_bow;
 
   std::size_t size() const { return features.size(); }
   bool has_depth(int i) const { return depth[i] > 0; }
@@ -76,13 +85,18 @@ struct FrameData {
 // camera. Without `T_depthcam_cam`, depth is looked up at the (distorted) keypoint position. With
 // it (the colour camera's pose at the colour image's instant, seen from the camera at the depth
 // image's instant), each keypoint's depth is read where the point along its ray lies in the depth
-// image and expressed in the colour camera (depth_at_keypoint).
+// image and expressed in the colour camera (depth_at_keypoint). The bag-of-words vectors are left
+// pending (PendingBow) with a non-empty `vocabulary`; with_bow computes them.
 std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
                                                  const PinholeCamera& camera, const RgbdParams& rgbd,
                                                  const OrbExtractor& extractor,
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
-                                                 const Vocabulary& vocabulary, int bow_levels_up = 4,
+                                                 const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up = 4,
                                                  const std::optional<SE3>& T_depthcam_cam = std::nullopt);
+
+// `data` with its bag-of-words vectors: `data` itself if none are pending, else a copy with them
+// computed (the copy costs far less than the transform it stands for).
+std::shared_ptr<const FrameData> with_bow(std::shared_ptr<const FrameData> data);
 
 // Metric depth, in the colour camera, of the point seen at undistorted pixel `undistorted` (the
 // keypoint at distorted pixel `distorted`); 0 if missing, out of range or at an occlusion boundary.

@@ -154,6 +154,7 @@ void derive_frame_data(FrameData& f, const Vocabulary* vocabulary, int bow_level
   f.grid = FeatureGrid(f.features, f.bounds);
   f.bow.clear();
   f.feature_vector.clear();
+  f.pending_bow = {};
   if (vocabulary && !vocabulary->empty())
     vocabulary->transform(f.features.descriptors, f.bow, f.feature_vector, bow_levels_up);
 }

@@ -93,7 +93,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
       config_.rgbd.depth_time_compensation && frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset)
                                                                              : std::nullopt;
   auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
-                              pyramid_, *vocabulary_,
+                              pyramid_, vocabulary_,
                               std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam);
   r.extract_ms = sw.ms();
   r.features = int(data->size());

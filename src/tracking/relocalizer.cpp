@@ -8,6 +8,7 @@
 namespace cslam {
 
 bool Tracker::relocalize(Frame& frame) {
+  frame.data = with_bow(std::move(frame.data));
   const FrameData& f = *frame.data;
   KeyFrameDatabase::QueryParams params;
   params.min_score = 0;

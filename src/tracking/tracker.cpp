@@ -100,10 +100,11 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
 }
 
 bool Tracker::initialize(Frame& frame) {
-  const FrameData& f = *frame.data;
   int with_depth = 0;
-  for (size_t i = 0; i < f.size(); ++i) with_depth += f.has_depth(int(i)) ? 1 : 0;
+  for (size_t i = 0; i < frame.data->size(); ++i) with_depth += frame.data->has_depth(int(i)) ? 1 : 0;
   if (with_depth < config_.min_init_points) return false;
+  frame.data = with_bow(std::move(frame.data));  // a keyframe's words go to the database
+  const FrameData& f = *frame.data;
   frame.T_cam_world = SE3();
   frame.has_pose = true;
   KeyFramePtr kf;
@@ -229,6 +230,7 @@ bool Tracker::track_with_motion_model(Frame& frame) {
 bool Tracker::track_reference_keyframe(Frame& frame) {
   if (!reference_kf_ || reference_kf_->bad) return false;
   std::vector<MapPointPtr> matches;
+  frame.data = with_bow(std::move(frame.data));
   const int n = search_by_bow(*reference_kf_, *frame.data, matches, 0.7, true);
   if (n < 15) return false;
   frame.map_points = matches;
@@ -343,6 +345,7 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
 }
 
 KeyFramePtr Tracker::create_keyframe(Frame& frame) {
+  frame.data = with_bow(std::move(frame.data));  // a keyframe's words go to the database
   const FrameData& f = *frame.data;
   KeyFramePtr kf;
   {
