@@ -3,6 +3,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "core/allocator_tuning.h"
 #include "core/error.h"
 
 namespace cslam {
@@ -158,6 +159,7 @@ std::string CliArgs::help() const {
 }
 
 int run_main(const char* program, int argc, char** argv, int (*run)(int, char**)) {
+  keep_freed_memory_for_reuse();
   try {
     return run(argc, argv);
   } catch (const ConfigError& e) {

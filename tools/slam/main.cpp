@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/allocator_tuning.h"
 #include "core/bounded_queue.h"
 #include "core/cli.h"
 #include "core/error.h"
@@ -209,6 +210,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  cslam::keep_freed_memory_for_reuse();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
