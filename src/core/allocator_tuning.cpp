@@ -1,5 +1,6 @@
 #include "core/allocator_tuning.h"
 
+#include <cstdlib>  // defines __GLIBC__ on glibc systems
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
