@@ -13,6 +13,7 @@
 
 #include "codec/image_codec.h"
 #include "codec/jpeg_decode.h"
+#include "codec/png16_decode.h"
 #include "core/error.h"
 #include "cpu_stopwatch.h"
 #include "eval/stats.h"
@@ -81,6 +82,13 @@ std::vector<Method> methods() {
   // Depth.
   m.push_back({"imread (load_rgbd before)", false, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_ANYDEPTH); }});
   m.push_back({"load_depth_image (load_rgbd)", false, [](const Sample& s) { return load_depth_image(s.path); }});
+  m.push_back({"imdecode (from memory)", false, [](const Sample& s) { return cv::imdecode(s.bytes, cv::IMREAD_ANYDEPTH); }});
+  m.push_back({"decode_png16_gray (from memory)", false, [](const Sample& s) {
+                 cv::Mat out;
+                 std::string why;
+                 if (!decode_png16_gray(s.bytes.data(), s.bytes.size(), out, &why)) throw InputError(s.path, why);
+                 return out;
+               }});
   m.push_back({"decode_depth png (wire)", false, [](const Sample& s) {
                  return decode_depth(DepthCodec::kPng, s.bytes.data(), s.bytes.size(), s.width, s.height, s.path);
                }});

@@ -1,7 +1,9 @@
 #pragma once
 // Part of cslam-bench-codec: time per image of decoding a dataset's own files (colour JPEG/PNG,
 // 16-bit depth PNG) by each decoding path cslam has, and whether each path's pixels equal the
-// reference path's (the first of its kind, cv::imread as load_rgbd used it).
+// reference path's (the first of its kind, cv::imread as load_rgbd used it). Depth: cv::imread,
+// load_depth_image (libdeflate, codec/png16_decode.h), cv::imdecode and decode_png16_gray from
+// memory (the decoders alone), and the wire's PNG decoder.
 #include "io/tum_dataset.h"
 
 namespace cslam {

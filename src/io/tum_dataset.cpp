@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "codec/jpeg_decode.h"
+#include "codec/png16_decode.h"
 #include "core/error.h"
 #include "io/text_table.h"
 
@@ -19,15 +20,15 @@ namespace cslam {
 namespace {
 
 // One read() of the whole file (an istreambuf_iterator copy costs ~0.15 ms for a 40 KB JPEG).
-std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
+// Throws InputError(path, error) if it is not a readable regular file.
+std::vector<std::uint8_t> read_file_bytes(const std::string& path, const char* error) {
   std::error_code ec;
   const bool regular = fs::is_regular_file(path, ec);
   const std::uintmax_t size = regular ? fs::file_size(path, ec) : 0;
   std::ifstream in(path, std::ios::binary);
-  if (!regular || ec || !in) throw InputError(path, "cannot read RGB image");
+  if (!regular || ec || !in) throw InputError(path, error);
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
-  if (!in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size)))
-    throw InputError(path, "cannot read RGB image");
+  if (!in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size))) throw InputError(path, error);
   return bytes;
 }
 
@@ -147,7 +148,7 @@ std::pair<int, int> parse_range(const std::string& text, int count) {
 }
 
 cv::Mat load_colour_image(const std::string& path) {
-  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path, "cannot read RGB image");
   if (looks_like_jpeg(bytes.data(), bytes.size())) return decode_jpeg_bgr(bytes.data(), bytes.size(), path);
   cv::Mat out;
   if (!bytes.empty()) out = cv::imdecode(bytes, cv::IMREAD_COLOR);
@@ -156,7 +157,11 @@ cv::Mat load_colour_image(const std::string& path) {
 }
 
 cv::Mat load_depth_image(const std::string& path) {
-  cv::Mat depth = cv::imread(path, cv::IMREAD_ANYDEPTH);
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path, "cannot read depth image");
+  cv::Mat depth;
+  if (decode_png16_gray(bytes.data(), bytes.size(), depth)) return depth;
+  // Any other file, or a damaged one: OpenCV decodes the same bytes as cv::imread did.
+  if (!bytes.empty()) depth = cv::imdecode(bytes, cv::IMREAD_ANYDEPTH);
   if (depth.empty()) throw InputError(path, "cannot read depth image");
   if (depth.type() != CV_16UC1) throw InputError(path, "depth image must be 16-bit single channel");
   return depth;

@@ -68,7 +68,11 @@ struct RgbdImages {
 RgbdImages load_rgbd(const RgbdPair& pair);
 // The two halves of load_rgbd. Colour: a JPEG (recognised by its first bytes) is decoded by
 // codec/jpeg_decode.h, straight to BGR and bit-identical to cv::imread; a corrupt or truncated one
-// is an InputError. Anything else (PNG) goes through OpenCV. Depth: cv::imread, 16-bit only.
+// is an InputError. Anything else (PNG) goes through OpenCV. Depth: a plain 16-bit greyscale PNG
+// (TUM's depth images) is decoded by codec/png16_decode.h (libdeflate), bit-identical to
+// cv::imread; any other file, and any PNG it does not fully accept, goes to OpenCV (cv::imdecode
+// of the same bytes: cv::imread's decoder and errors). Unreadable, undecodable or not 16-bit
+// single-channel: InputError.
 cv::Mat load_colour_image(const std::string& path);
 cv::Mat load_depth_image(const std::string& path);
 

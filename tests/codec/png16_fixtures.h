@@ -1,0 +1,125 @@
+#pragma once
+// Synthetic 16-bit images and PNG byte streams built by hand for the PNG decoder tests: each row
+// filtered with a chosen filter type by a plain reference filter, compressed with libdeflate,
+// split into IDAT chunks, with extra chunks where a test wants them.
+#include <algorithm>
+#include <cstdlib>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <libdeflate.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "codec/image_codec.h"
+
+namespace cslam::test {
+
+// Depth-like content: "random" (full 16-bit noise), "smooth" (gradients, blobs, a step and zero
+// holes, like a depth image), "flat" (one value: long runs).
+inline cv::Mat synthetic_depth(int w, int h, const std::string& kind, unsigned seed) {
+  cv::Mat im(h, w, CV_16UC1);
+  cv::RNG rng(seed);
+  if (kind == "random") {
+    rng.fill(im, cv::RNG::UNIFORM, 0, 65536);
+  } else if (kind == "flat") {
+    im.setTo(4321);
+  } else {
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        im.at<std::uint16_t>(y, x) = std::uint16_t(5000 + 37 * x + 11 * y + int(rng.uniform(0, 8)) + (x > w / 2 ? 9000 : 0));
+    cv::circle(im, cv::Point(w / 3, h / 2), std::max(1, h / 4), cv::Scalar(0), cv::FILLED);
+  }
+  return im;
+}
+
+inline void put32(Bytes& b, std::uint32_t v) {
+  for (int s = 24; s >= 0; s -= 8) b.push_back(std::uint8_t(v >> s));
+}
+
+inline void add_chunk(Bytes& png, const char* type, const Bytes& body) {
+  put32(png, std::uint32_t(body.size()));
+  const std::size_t start = png.size();
+  png.insert(png.end(), type, type + 4);
+  png.insert(png.end(), body.begin(), body.end());
+  put32(png, libdeflate_crc32(0, png.data() + start, png.size() - start));
+}
+
+inline Bytes ihdr(int w, int h, int bit_depth = 16, int colour_type = 0, int interlace = 0) {
+  Bytes b;
+  put32(b, std::uint32_t(w));
+  put32(b, std::uint32_t(h));
+  b.insert(b.end(), {std::uint8_t(bit_depth), std::uint8_t(colour_type), 0, 0, std::uint8_t(interlace)});
+  return b;
+}
+
+inline Bytes zlib_compress(const Bytes& raw, int level) {
+  libdeflate_compressor* c = libdeflate_alloc_compressor(level);
+  Bytes out(libdeflate_zlib_compress_bound(c, raw.size()));
+  out.resize(libdeflate_zlib_compress(c, raw.data(), raw.size(), out.data(), out.size()));
+  libdeflate_free_compressor(c);
+  return out;
+}
+
+// The spec's Paeth predictor, written as the spec states it.
+inline int paeth_reference(int a, int b, int c) {
+  const int p = a + b - c;
+  const int pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+  if (pa <= pb && pa <= pc) return a;
+  if (pb <= pc) return b;
+  return c;
+}
+
+// Filtered image data of a CV_16UC1 image, row y with filter filters[y % size] (bpp = 2).
+inline Bytes filter_rows(const cv::Mat& im, const std::vector<int>& filters) {
+  const int n = 2 * im.cols;
+  Bytes out, prior(std::size_t(n), 0), row(static_cast<std::size_t>(n));
+  for (int y = 0; y < im.rows; ++y) {
+    for (int x = 0; x < im.cols; ++x) {
+      row[2 * x] = std::uint8_t(im.at<std::uint16_t>(y, x) >> 8);
+      row[2 * x + 1] = std::uint8_t(im.at<std::uint16_t>(y, x) & 0xff);
+    }
+    const int f = filters[std::size_t(y) % filters.size()];
+    out.push_back(std::uint8_t(f));
+    for (int i = 0; i < n; ++i) {
+      const int a = i >= 2 ? row[i - 2] : 0, b = prior[i], c = i >= 2 ? prior[i - 2] : 0;
+      const int pred = f == 0 ? 0 : f == 1 ? a : f == 2 ? b : f == 3 ? (a + b) / 2 : paeth_reference(a, b, c);
+      out.push_back(std::uint8_t(row[i] - pred));
+    }
+    prior = row;
+  }
+  return out;
+}
+
+// A PNG: signature, IHDR, `before` chunks, the zlib stream in IDATs of `idat_chunk` bytes, `after` chunks, IEND.
+using Chunks = std::vector<std::pair<std::string, Bytes>>;
+inline Bytes build_png(const Bytes& header, const Bytes& zlib, std::size_t idat_chunk, const Chunks& before = {},
+                const Chunks& after = {}) {
+  Bytes png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  add_chunk(png, "IHDR", header);
+  for (const auto& [type, body] : before) add_chunk(png, type.c_str(), body);
+  for (std::size_t p = 0; p < zlib.size(); p += idat_chunk)
+    add_chunk(png, "IDAT", Bytes(zlib.begin() + long(p), zlib.begin() + long(std::min(zlib.size(), p + idat_chunk))));
+  for (const auto& [type, body] : after) add_chunk(png, type.c_str(), body);
+  add_chunk(png, "IEND", {});
+  return png;
+}
+
+inline Bytes hand_png(const cv::Mat& im, const std::vector<int>& filters, int level = 6, std::size_t idat_chunk = 8192,
+               const Chunks& before = {}, const Chunks& after = {}) {
+  return build_png(ihdr(im.cols, im.rows), zlib_compress(filter_rows(im, filters), level), idat_chunk, before, after);
+}
+
+// Recomputes every chunk's CRC (to get past the CRC check to the later ones); stops at bad lengths.
+inline void fix_crcs(Bytes& png) {
+  for (std::size_t pos = 8; pos + 12 <= png.size();) {
+    const std::size_t len = (std::size_t(png[pos]) << 24) | (png[pos + 1] << 16) | (png[pos + 2] << 8) | png[pos + 3];
+    if (len > png.size() - pos - 12) return;
+    const std::uint32_t crc = libdeflate_crc32(0, png.data() + pos + 4, len + 4);
+    for (int k = 0; k < 4; ++k) png[pos + 8 + len + std::size_t(k)] = std::uint8_t(crc >> (24 - 8 * k));
+    pos += 12 + len;
+  }
+}
+
+}  // namespace cslam::test

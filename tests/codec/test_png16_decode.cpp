@@ -1,0 +1,306 @@
+// decode_png16_gray (libdeflate) against cv::imdecode / cv::imread: PNGs written by OpenCV's
+// libpng at every compression level and strategy, PNGs built here with each row filter 0-4, other
+// PNG kinds (refused), damaged files (refused, never a crash), threads, and the real depth images.
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <libdeflate.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "codec/image_codec.h"
+#include "codec/png16_decode.h"
+#include "codec/png16_fixtures.h"
+#include "common/test_data.h"
+
+namespace cslam {
+namespace {
+
+using namespace cslam::test;
+
+cv::Mat opencv_decode(const Bytes& png) { return cv::imdecode(png, cv::IMREAD_ANYDEPTH); }
+
+void expect_identical(const cv::Mat& got, const cv::Mat& expected) {
+  ASSERT_EQ(expected.type(), CV_16UC1);
+  ASSERT_EQ(got.type(), CV_16UC1);
+  ASSERT_EQ(got.size(), expected.size());
+  EXPECT_EQ(cv::norm(got, expected, cv::NORM_INF), 0.0);
+}
+
+bool decodes(const Bytes& png, cv::Mat& out, std::string* why = nullptr) {
+  return decode_png16_gray(png.data(), png.size(), out, why);
+}
+
+// ---- Tests ----
+
+TEST(Png16Decode, PaethPredictorMatchesTheSpecForAllInputs) {
+  int mismatches = 0;
+  for (int a = 0; a < 256; ++a)
+    for (int b = 0; b < 256; ++b)
+      for (int c = 0; c < 256; ++c)
+        if (png16_detail::paeth(a, b, c) != paeth_reference(a, b, c)) ++mismatches;
+  EXPECT_EQ(mismatches, 0);
+}
+
+// The SSE4.1 kernel (four rows at once, every filter) against the scalar one, on random filtered
+// data with random filter bytes: every band shape (1-4 rows left over) and narrow widths.
+TEST(Png16Decode, VectorAndScalarUnfilteringAgree) {
+  std::mt19937 rng(3);
+  for (int h = 1; h <= 11; ++h)
+    for (int w : {1, 2, 3, 4, 5, 7, 64, 641}) {
+      Bytes rows(std::size_t(h) * (1 + 2 * std::size_t(w)));
+      for (std::size_t i = 0; i < rows.size(); ++i)
+        rows[i] = i % (1 + 2 * std::size_t(w)) == 0 ? std::uint8_t(rng() % 5) : std::uint8_t(rng());
+      Bytes scratch = rows;
+      cv::Mat simd(h, w, CV_16UC1), scalar(h, w, CV_16UC1);
+      png16_detail::unfilter_rows(scratch.data(), w, h, simd, true);
+      scratch = rows;
+      png16_detail::unfilter_rows(scratch.data(), w, h, scalar, false);
+      ASSERT_EQ(cv::norm(simd, scalar, cv::NORM_INF), 0.0) << w << "x" << h;
+    }
+}
+
+struct Size2 { int w, h; };
+const std::vector<Size2> kSizes = {{1, 1}, {1, 9}, {9, 1}, {3, 5}, {17, 6}, {33, 17}, {64, 48}};
+
+// OpenCV's encoder (libpng + zlib) at every level 0-9 with every strategy, and its default.
+TEST(Png16Decode, OpenCvEncodedPngsDecodeIdentically) {
+  std::array<int, 5> filter_rows_seen{};
+  int cases = 0;
+  for (const Size2& s : kSizes)
+    for (const std::string kind : {"random", "smooth", "flat"})
+      for (int level = -1; level <= 9; ++level)
+        for (int strategy = 0; strategy <= 4; ++strategy) {
+          if (level == -1 && strategy > 0) continue;
+          const cv::Mat im = synthetic_depth(s.w, s.h, kind, unsigned(s.w * 131 + s.h));
+          std::vector<int> params;
+          if (level >= 0) params = {cv::IMWRITE_PNG_COMPRESSION, level, cv::IMWRITE_PNG_STRATEGY, strategy};
+          Bytes png;
+          ASSERT_TRUE(cv::imencode(".png", im, png, params));
+          cv::Mat got;
+          std::string why;
+          ASSERT_TRUE(decodes(png, got, &why)) << s.w << "x" << s.h << " " << kind << " level " << level << ": " << why;
+          expect_identical(got, opencv_decode(png));
+          expect_identical(got, im);
+          ++cases;
+          // Which filters libpng chose: inflate the data once more here.
+          std::size_t pos = 8;
+          Bytes z;
+          while (pos + 12 <= png.size()) {
+            const std::size_t len = (std::size_t(png[pos]) << 24) | (png[pos + 1] << 16) | (png[pos + 2] << 8) | png[pos + 3];
+            if (std::string(png.begin() + long(pos) + 4, png.begin() + long(pos) + 8) == "IDAT")
+              z.insert(z.end(), png.begin() + long(pos) + 8, png.begin() + long(pos + 8 + len));
+            pos += 12 + len;
+          }
+          Bytes raw(std::size_t(s.h) * (1 + 2 * std::size_t(s.w)));
+          libdeflate_decompressor* dec = libdeflate_alloc_decompressor();
+          ASSERT_EQ(libdeflate_zlib_decompress(dec, z.data(), z.size(), raw.data(), raw.size(), nullptr), LIBDEFLATE_SUCCESS);
+          libdeflate_free_decompressor(dec);
+          for (int y = 0; y < s.h; ++y) ++filter_rows_seen[raw[std::size_t(y) * (1 + 2 * std::size_t(s.w))] % 5];
+        }
+  EXPECT_EQ(cases, int(kSizes.size()) * 3 * 51);
+  for (int f = 0; f < 5; ++f) EXPECT_GT(filter_rows_seen[std::size_t(f)], 0) << "libpng never chose filter " << f;
+}
+
+TEST(Png16Decode, FullSizeDepthImageFromOpenCv) {
+  const cv::Mat im = synthetic_depth(640, 480, "smooth", 3);
+  for (const std::vector<int>& params : {std::vector<int>{}, std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 6}}) {
+    Bytes png;
+    ASSERT_TRUE(cv::imencode(".png", im, png, params));
+    cv::Mat got;
+    ASSERT_TRUE(decodes(png, got));
+    expect_identical(got, opencv_decode(png));
+  }
+}
+
+// Each filter type alone, and all five mixed, written here; level 0 gives stored blocks.
+TEST(Png16Decode, EveryFilterTypeDecodesIdentically) {
+  const std::vector<std::vector<int>> filter_sets = {{0}, {1}, {2}, {3}, {4}, {0, 1, 2, 3, 4}, {4, 3, 2, 1, 0}};
+  for (const Size2& s : std::vector<Size2>{{1, 1}, {1, 5}, {2, 3}, {5, 4}, {31, 9}, {640, 8}})
+    for (const std::string kind : {"random", "smooth"})
+      for (const auto& filters : filter_sets)
+        for (int level : {0, 1, 6, 12}) {
+          const cv::Mat im = synthetic_depth(s.w, s.h, kind, unsigned(s.w + 7 * s.h));
+          const Bytes png = hand_png(im, filters, level, 1000);
+          cv::Mat got;
+          std::string why;
+          ASSERT_TRUE(decodes(png, got, &why)) << why;
+          expect_identical(got, opencv_decode(png));
+          expect_identical(got, im);
+        }
+}
+
+TEST(Png16Decode, IgnorableChunksAndOddChunkingDecodeIdentically) {
+  const cv::Mat im = synthetic_depth(37, 21, "smooth", 8);
+  const Chunks meta = {{"gAMA", {0, 0, 0xb1, 0x8f}}, {"pHYs", {0, 0, 0x0b, 0x13, 0, 0, 0x0b, 0x13, 1}},
+                       {"tEXt", {'K', 'e', 'y', 0, 'v'}}, {"sBIT", {12}}};
+  for (const Bytes& png : {hand_png(im, {4, 1}, 6, 1, meta, {{"tEXt", {'a', 0, 'b'}}}),  // one-byte IDATs
+                           hand_png(im, {2}, 6, 100000, {{"tIME", {7, 0xe9, 1, 2, 3, 4, 5}}})}) {
+    cv::Mat got;
+    std::string why;
+    ASSERT_TRUE(decodes(png, got, &why)) << why;
+    expect_identical(got, opencv_decode(png));
+  }
+  // Empty IDAT chunks between the others, and bytes after IEND (libpng does not read them).
+  const Bytes z = zlib_compress(filter_rows(im, {3}), 6);
+  Bytes png = build_png(ihdr(37, 21), z, 50, {{"IDAT", {}}});
+  png.insert(png.end(), {1, 2, 3});
+  cv::Mat got;
+  ASSERT_TRUE(decodes(png, got));
+  expect_identical(got, opencv_decode(png));
+}
+
+void expect_refused(const Bytes& png, const std::string& what) {
+  cv::Mat out(2, 3, CV_8UC1, cv::Scalar(7));
+  std::string why;
+  EXPECT_FALSE(decodes(png, out, &why)) << what;
+  EXPECT_FALSE(why.empty()) << what;
+  EXPECT_EQ(out.type(), CV_8UC1) << what;  // untouched
+  EXPECT_EQ(out.at<std::uint8_t>(1, 2), 7) << what;
+}
+
+TEST(Png16Decode, OtherPngKindsAreLeftToOpenCv) {
+  const cv::Mat depth = synthetic_depth(20, 10, "smooth", 1);
+  cv::Mat grey8, colour16, colour8;
+  depth.convertTo(grey8, CV_8U, 1.0 / 256);
+  cv::merge(std::vector<cv::Mat>{depth, depth, depth}, colour16);
+  cv::cvtColor(grey8, colour8, cv::COLOR_GRAY2BGR);
+  for (const cv::Mat& im : {grey8, colour16, colour8}) {
+    Bytes png;
+    ASSERT_TRUE(cv::imencode(".png", im, png));
+    expect_refused(png, "OpenCV type " + std::to_string(im.type()));
+  }
+  const Bytes z = zlib_compress(filter_rows(depth, {0}), 6);
+  expect_refused(build_png(ihdr(20, 10, 16, 0, 1), z, 8192), "interlaced");
+  expect_refused(build_png(ihdr(20, 10, 16, 4), z, 8192), "grey + alpha");
+  expect_refused(build_png(ihdr(20, 10, 8, 0), z, 8192), "8-bit header");
+  expect_refused(build_png(ihdr(20, 10), z, 8192, {{"tRNS", {0, 0}}}), "tRNS");
+  expect_refused(build_png(ihdr(20, 10), z, 8192, {{"eXIf", {'M', 'M', 0, 42, 0, 0, 0, 8}}}), "eXIf");
+  expect_refused(build_png(ihdr(20, 10), z, 8192, {{"prIv", {1}}}), "unknown ancillary chunk");
+  expect_refused(build_png(ihdr(20, 10), z, 8192, {{"PLTE", {0, 0, 0}}}), "PLTE");
+}
+
+TEST(Png16Decode, DamagedFilesAreRefused) {
+  const cv::Mat im = synthetic_depth(24, 12, "smooth", 2);
+  const Bytes good = hand_png(im, {4, 1, 2}, 6, 64);
+  cv::Mat out;
+  ASSERT_TRUE(decodes(good, out));
+  for (std::size_t keep = 0; keep < good.size(); ++keep)  // every truncation, IEND's last byte included
+    expect_refused(Bytes(good.begin(), good.begin() + long(keep)), "truncated to " + std::to_string(keep));
+  Bytes b = good;
+  b[8 + 12 + 13 + 8 + 20] ^= 0x10;  // inside the first IDAT: its CRC fails
+  expect_refused(b, "flipped IDAT byte");
+  fix_crcs(b);
+  expect_refused(b, "flipped IDAT byte, CRC fixed (inflate or Adler-32 fails)");
+  b = good;
+  b[19] = 25;  // width 25: the data inflates to too few bytes
+  fix_crcs(b);
+  expect_refused(b, "wrong width");
+  b = good;
+  b[8] = 0, b[11] = 14;  // IHDR length 14
+  expect_refused(b, "IHDR length");
+  for (const std::uint32_t len : {0xffffffffu, 0x7fffffffu, std::uint32_t(good.size())}) {
+    b = good;
+    for (int k = 0; k < 4; ++k) b[33 + std::size_t(k)] = std::uint8_t(len >> (24 - 8 * k));  // first IDAT's length
+    expect_refused(b, "chunk length " + std::to_string(len));
+  }
+  const Bytes raw = filter_rows(im, {4});
+  Bytes bad_filter = raw;
+  bad_filter[std::size_t(5) * (1 + 2 * 24)] = 5;
+  expect_refused(build_png(ihdr(24, 12), zlib_compress(bad_filter, 6), 8192), "filter byte 5");
+  Bytes extra = zlib_compress(raw, 6);
+  extra.push_back(0);
+  expect_refused(build_png(ihdr(24, 12), extra, 8192), "data after the zlib stream");
+  Bytes longer = raw;
+  longer.insert(longer.end(), 49, 0);  // one row too many
+  expect_refused(build_png(ihdr(24, 12), zlib_compress(longer, 6), 8192), "too much image data");
+  expect_refused(build_png(ihdr(24, 12), zlib_compress(raw, 6), 8192, {}, {{"tEXt", {'a', 0}}, {"IDAT", {}}}),
+                 "IDAT chunks not consecutive");
+  expect_refused(build_png(ihdr(9000, 1), zlib_compress(Bytes(18001, 0), 6), 8192), "wider than kMaxImageSide");
+}
+
+// Random damage, with and without CRCs fixed up: never a crash, and whatever is accepted is
+// exactly what OpenCV decodes (OpenCV must accept it too).
+TEST(Png16Decode, MutatedFilesNeverCrashOrDisagreeWithOpenCv) {
+  const cv::Mat im = synthetic_depth(40, 16, "smooth", 4);
+  const Bytes valid = hand_png(im, {0, 1, 2, 3, 4}, 6, 200);
+  std::mt19937 rng(17);
+  int accepted = 0, refused = 0;
+  for (int i = 0; i < 3000; ++i) {
+    Bytes b = valid;
+    std::uniform_int_distribution<std::size_t> pos(0, b.size() - 1);
+    for (int k = 0; k < 1 + int(rng() % 4); ++k) b[pos(rng)] = std::uint8_t(rng());
+    if (i % 5 == 0) b.resize(rng() % b.size());
+    if (i % 2 == 0) fix_crcs(b);
+    cv::Mat got;
+    if (decodes(b, got)) {
+      ++accepted;
+      const cv::Mat expected = opencv_decode(b);
+      ASSERT_FALSE(expected.empty()) << "accepted what OpenCV refuses, mutation " << i;
+      expect_identical(got, expected);
+    } else {
+      ++refused;
+    }
+  }
+  EXPECT_GT(refused, 2000);
+  EXPECT_GT(accepted, 0);  // changes to CRC fields that fix_crcs undoes
+}
+
+TEST(Png16Decode, ManyThreadsAtOnce) {
+  std::vector<Bytes> pngs;
+  std::vector<cv::Mat> expected;
+  for (int k = 0; k < 4; ++k) {
+    Bytes png;
+    ASSERT_TRUE(cv::imencode(".png", synthetic_depth(160 + k, 120, k % 2 ? "random" : "smooth", unsigned(k)), png,
+                             {cv::IMWRITE_PNG_COMPRESSION, 3 + k}));
+    pngs.push_back(png);
+    expected.push_back(opencv_decode(png));
+  }
+  std::vector<int> mismatches(4, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      for (int i = 0; i < 60; ++i) {
+        const std::size_t k = std::size_t(t + i) % pngs.size();
+        cv::Mat got;
+        if (i % 7 == 0) decode_png16_gray(pngs[k].data(), pngs[k].size() / 2, got);  // a failure in between
+        if (!decode_png16_gray(pngs[k].data(), pngs[k].size(), got) || cv::norm(got, expected[k], cv::NORM_INF) != 0)
+          ++mismatches[std::size_t(t)];
+      }
+    });
+  for (auto& th : threads) th.join();
+  for (int m : mismatches) EXPECT_EQ(m, 0);
+}
+
+// The dataset's own depth images: the first 50 of fr1/rpy and fr1/desk, bit for bit as cv::imread.
+void check_dataset_depth(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::path(CSLAM_SHARED_DATA_DIR) / name / "depth";
+  if (!std::filesystem::is_directory(dir)) {
+    if (test::running_in_ci()) FAIL() << "real sequence missing: " << dir;
+    GTEST_SKIP() << "real sequence not found at " << dir;
+  }
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().extension() == ".png") files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  ASSERT_GE(files.size(), 50u);
+  for (std::size_t i = 0; i < 50; ++i) {
+    std::ifstream in(files[i], std::ios::binary);
+    const Bytes bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    cv::Mat got;
+    std::string why;
+    ASSERT_TRUE(decodes(bytes, got, &why)) << files[i] << ": " << why;
+    expect_identical(got, cv::imread(files[i].string(), cv::IMREAD_ANYDEPTH));
+  }
+}
+
+TEST(Png16Decode, TumRpyDepthImagesMatchImread) { check_dataset_depth("tum_fr1_rpy"); }
+TEST(Png16Decode, TumDeskDepthImagesMatchImread) { check_dataset_depth("tum_fr1_desk"); }
+
+}  // namespace
+}  // namespace cslam
