@@ -2,6 +2,7 @@
 
 #include <shared_mutex>
 
+#include "core/error.h"
 #include "core/stopwatch.h"
 #include "core/thread_priority.h"
 #include "match/projection_search.h"
@@ -15,7 +16,15 @@ LocalMapper::LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, boo
 
 LocalMapper::~LocalMapper() { finish(); }
 
+TrackingWait parse_tracking_wait(const std::string& name) {
+  if (name == "none") return TrackingWait::kNone;
+  if (name == "new-points") return TrackingWait::kNewPoints;
+  if (name == "keyframe") return TrackingWait::kKeyframe;
+  throw ConfigError("tracking wait '" + name + "' is not none, new-points or keyframe");
+}
+
 void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
+  std::uint64_t n = 0;
   {
     std::unique_lock<std::mutex> lock(queue_mutex_);
     // Backpressure: tracking waits while local mapping is a full queue behind, so that every
@@ -23,8 +32,14 @@ void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
     if (threaded_) space_cv_.wait(lock, [&] { return stop_requested_ || queue_.size() + (idle_ ? 0 : 1) < config_.max_pending_keyframes; });
     queue_.push_back(kf);
     idle_ = false;
+    n = ++inserted_;
   }
   queue_cv_.notify_one();
+  if (!threaded_ || config_.tracking_wait == TrackingWait::kNone) return;
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  space_cv_.wait(lock, [&] {
+    return stop_requested_ || (config_.tracking_wait == TrackingWait::kKeyframe ? processed_ : points_done_) >= n;
+  });
 }
 
 std::size_t LocalMapper::queued() const {
@@ -103,6 +118,11 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     MapWriteLock lock(*map_);
     fuse_with_neighbours(kf.get());
   }
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    ++points_done_;
+  }
+  space_cv_.notify_all();
   if (config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
   {
     MapWriteLock lock(*map_);
@@ -115,6 +135,11 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     stats_.step_ms.push_back(sw.ms());
   }
   if (on_processed_) on_processed_(kf);
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    ++processed_;
+  }
+  space_cv_.notify_all();
 }
 
 void LocalMapper::insert_into_map(KeyFrame* kf) {

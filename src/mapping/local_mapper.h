@@ -7,6 +7,7 @@
 #include <deque>
 #include <list>
 #include <mutex>
+#include <string>
 #include <thread>
 
 #include "eval/stats.h"
@@ -16,6 +17,18 @@
 #include "tracking/tracker.h"
 
 namespace cslam {
+
+// How long tracking waits, after handing local mapping a keyframe, before it tracks the next frame
+// (threaded mode). Tracking that runs ahead tracks frames against a keyframe whose new points are
+// not yet triangulated or fused with the neighbours' duplicates; those frames then create
+// duplicate points and keyframes, and which ones depends on thread timing (docs/slam.md).
+enum class TrackingWait {
+  kNone,       // only the max_pending_keyframes backpressure
+  kNewPoints,  // until the keyframe's points are created and fused (local BA runs on meanwhile)
+  kKeyframe,   // until local mapping finished the keyframe: the same map states as --sync
+};
+// "none" | "new-points" | "keyframe"; throws ConfigError otherwise.
+TrackingWait parse_tracking_wait(const std::string& name);
 
 struct LocalMapperConfig {
   int min_observations = 3;        // a recent point seen by fewer keyframes (after 2 keyframes) is culled
@@ -28,6 +41,7 @@ struct LocalMapperConfig {
   BaConfig ba;
   // Keyframes waiting or in work before tracking waits to insert another (threaded mode).
   std::size_t max_pending_keyframes = 2;
+  TrackingWait tracking_wait = TrackingWait::kNewPoints;
 };
 
 struct LocalMapperStats {
@@ -75,6 +89,9 @@ class LocalMapper : public KeyFrameSink {
   std::condition_variable queue_cv_, space_cv_;
   std::deque<KeyFramePtr> queue_;
   std::atomic<bool> idle_{true}, stopping_{false};
+  // Keyframes inserted, with their new points fused, fully processed (FIFO order; guarded by
+  // queue_mutex_, tracking waits on space_cv_ for them).
+  std::uint64_t inserted_ = 0, points_done_ = 0, processed_ = 0;
   bool stop_requested_ = false;
   std::list<MapPointPtr> recent_points_;
   KeyFrameProcessedCallback on_processed_;

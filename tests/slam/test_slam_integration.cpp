@@ -115,6 +115,23 @@ TEST_F(SlamIntegration, SyncRunsAreIdentical) {
   }
 }
 
+// Threaded, with tracking waiting until local mapping has processed each new keyframe (the
+// default), every frame is tracked against the map --sync tracks it against: the same bytes. Without
+// the wait, tracking runs ahead of local mapping and the output depends on thread timing.
+TEST_F(SlamIntegration, ThreadedRunWaitingForEachKeyframeEqualsSync) {
+  const std::string sync = tmp("wait_sync.txt");
+  auto r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + sync + " --sync --quiet --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string expected = file_text(sync);
+  ASSERT_GT(expected.size(), 1000u);
+  for (const char* run : {"a", "b", "c"}) {
+    const std::string out = tmp(std::string("wait_threaded_") + run + ".txt");
+    r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + out + " --quiet --log-level warn");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(file_text(out), expected) << "threaded run " << run;
+  }
+}
+
 TEST_F(SlamIntegration, OfflineTwoClientsWithoutFusionStayApart) {
   const auto r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
                                                tmp("apart") + " --no-fusion --log-level warn");

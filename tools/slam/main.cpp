@@ -62,6 +62,7 @@ int run(int argc, char** argv) {
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
       .flag("depth-time", "read keypoint depth where the predicted motion carried it over the depth image's time offset")
+      .option("tracking-wait", "threaded: after a new keyframe, tracking waits until local mapping has fully processed it (keyframe: the same output as --sync, run after run), created and fused its points (new-points: the server's choice, lower latency) or not at all (none)", "keyframe")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -93,6 +94,7 @@ int run(int argc, char** argv) {
   if (args.flag_set("no-final-ba")) config.final_global_ba_iterations = 0;
   config.rgbd.depth_time_compensation = args.flag_set("depth-time");
   config.mapper.local_ba = !args.flag_set("no-local-ba");
+  config.mapper.tracking_wait = parse_tracking_wait(args.get("tracking-wait"));
   config.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   // A long tracking loss starts a new map; map fusion joins it to the earlier ones when the
   // camera sees their places again (as on the server), so the trajectory covers both.

@@ -76,6 +76,7 @@ int run_multi_client(const CliArgs& args) {
   config.slam.threaded = !stepped;
   config.fusion.threaded = !stepped;
   config.slam.mapper.local_ba = !args.flag_set("no-local-ba");
+  config.slam.mapper.tracking_wait = parse_tracking_wait(args.get("tracking-wait"));
   config.slam.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
   config.slam.loop.enabled = !args.flag_set("no-loop");
   if (args.flag_set("no-final-ba")) config.slam.final_global_ba_iterations = 0;
