@@ -15,6 +15,7 @@
 #include "server/receiver.h"
 #include "server/state_store.h"
 #include "server/http/map_routes.h"
+#include "mapping/local_mapper.h"
 #include "system/collaborative_system.h"
 
 namespace {
@@ -76,6 +77,7 @@ int run(int argc, char** argv) {
       .option("max-pixels", "largest camera (width*height) a hello may announce", "2073600")
       .option("session-ttl", "seconds after which a disconnected or finished session is reclaimed (0: never)", "300")
       .option("decode-threads", "threads decoding frames for all clients", "2")
+      .option("tracking-wait", "after a new keyframe, a client's tracking waits until local mapping has created and fused its points (new-points), fully processed it (keyframe: repeatable runs, more latency) or not at all (none)", "new-points")
       .option("state-dir", "folder of map snapshots: loaded at start, written periodically and at exit (empty: off)", "")
       .option("snapshot-interval", "seconds between background map snapshots (0: only on demand and at exit)", "10")
       .flag("state-reset", "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)");
@@ -134,6 +136,7 @@ int run(int argc, char** argv) {
   cslam::SystemConfig sc;
   sc.client_queue_capacity = std::size_t(capacity);
   sc.run_slam = !cli.flag_set("no-slam");
+  sc.slam.mapper.tracking_wait = cslam::parse_tracking_wait(cli.get("tracking-wait"));
   if (cli.flag_set("deterministic")) {
     sc.slam.threaded = false;
     sc.fusion.threaded = false;
