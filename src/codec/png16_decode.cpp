@@ -315,25 +315,15 @@ bool decode_png16_gray(const std::uint8_t* d, std::size_t size, cv::Mat& out, st
   // Exactly inflated_size bytes (fewer: SHORT_OUTPUT, more: INSUFFICIENT_SPACE), Adler-32 checked.
   const libdeflate_result rc =
       libdeflate_zlib_decompress_ex(st.inflater.get(), idat, idat_size, st.rows.data(), inflated_size, &used, nullptr);
-  bool ok = rc == LIBDEFLATE_SUCCESS;
-  std::string reason = ok ? "" : "inflate failed (libdeflate result " + std::to_string(int(rc)) + ")";
-  if (ok && used != idat_size) {
-    ok = false;
-    reason = "data after the end of the zlib stream";
-  }
-  for (std::uint32_t y = 0; y < h && ok; ++y) {
+  if (rc != LIBDEFLATE_SUCCESS) return fail(why, "inflate failed (libdeflate result " + std::to_string(int(rc)) + ")");
+  if (used != idat_size) return fail(why, "data after the end of the zlib stream");
+  for (std::uint32_t y = 0; y < h; ++y) {
     const std::uint8_t filter_type = st.rows[std::size_t(y) * stride];
-    if (filter_type > 4) {
-      ok = false;
-      reason = "bad filter type " + std::to_string(int(filter_type)) + " in row " + std::to_string(y);
-    }
+    if (filter_type > 4)
+      return fail(why, "bad filter type " + std::to_string(int(filter_type)) + " in row " + std::to_string(y));
   }
-  cv::Mat image;
-  if (ok) {
-    image.create(int(h), int(w), CV_16UC1);
-    png16_detail::unfilter_rows(st.rows.data(), int(w), int(h), image, true);
-  }
-  if (!ok) return fail(why, reason);
+  cv::Mat image(int(h), int(w), CV_16UC1);
+  png16_detail::unfilter_rows(st.rows.data(), int(w), int(h), image, true);
   out = image;
   return true;
 }

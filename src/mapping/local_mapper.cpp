@@ -29,9 +29,8 @@ void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
     std::unique_lock<std::mutex> lock(queue_mutex_);
     // Backpressure: tracking waits while local mapping is a full queue behind, so that every
     // keyframe tracking decides on is processed completely (no skipped fusion or BA).
-    if (threaded_) space_cv_.wait(lock, [&] { return stop_requested_ || queue_.size() + (idle_ ? 0 : 1) < config_.max_pending_keyframes; });
+    if (threaded_) space_cv_.wait(lock, [&] { return stop_requested_ || inserted_ - processed_ < config_.max_pending_keyframes; });
     queue_.push_back(kf);
-    idle_ = false;
     n = ++inserted_;
   }
   queue_cv_.notify_one();
@@ -56,8 +55,6 @@ bool LocalMapper::step() {
     queue_.pop_front();
   }
   process(kf);
-  std::lock_guard<std::mutex> lock(queue_mutex_);
-  if (queue_.empty()) idle_ = true;
   return true;
 }
 
@@ -71,14 +68,8 @@ void LocalMapper::run() {
       if (queue_.empty()) return;  // stop requested and drained
       kf = queue_.front();
       queue_.pop_front();
-      idle_ = false;
     }
     process(kf);
-    {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      if (queue_.empty()) idle_ = true;
-    }
-    space_cv_.notify_all();
   }
 }
 
@@ -118,11 +109,7 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     MapWriteLock lock(*map_);
     fuse_with_neighbours(kf.get());
   }
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    ++points_done_;
-  }
-  space_cv_.notify_all();
+  count_and_notify(points_done_);
   if (config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
   {
     MapWriteLock lock(*map_);
@@ -135,9 +122,13 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     stats_.step_ms.push_back(sw.ms());
   }
   if (on_processed_) on_processed_(kf);
+  count_and_notify(processed_);
+}
+
+void LocalMapper::count_and_notify(std::uint64_t& counter) {
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
-    ++processed_;
+    ++counter;
   }
   space_cv_.notify_all();
 }

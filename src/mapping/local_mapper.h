@@ -63,7 +63,6 @@ class LocalMapper : public KeyFrameSink {
   void insert_keyframe(const KeyFramePtr& kf) override;
   bool accepts_keyframes() const override { return !stopping_.load(); }
 
-  bool idle() const { return idle_.load(); }
   std::size_t queued() const;
 
   // Processes one queued keyframe (non-threaded mode). Returns false if none was queued.
@@ -81,6 +80,7 @@ class LocalMapper : public KeyFrameSink {
   void fuse_with_neighbours(KeyFrame* kf);
   void local_bundle_adjustment(KeyFrame* kf);
   void cull_keyframes(KeyFrame* kf);
+  void count_and_notify(std::uint64_t& counter);  // ++counter under queue_mutex_, wakes tracking
 
   LocalMapperConfig config_;
   std::shared_ptr<Map> map_;
@@ -88,9 +88,9 @@ class LocalMapper : public KeyFrameSink {
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_, space_cv_;
   std::deque<KeyFramePtr> queue_;
-  std::atomic<bool> idle_{true}, stopping_{false};
+  std::atomic<bool> stopping_{false};
   // Keyframes inserted, with their new points fused, fully processed (FIFO order; guarded by
-  // queue_mutex_, tracking waits on space_cv_ for them).
+  // queue_mutex_). inserted_ - processed_ are queued or in work; tracking waits on space_cv_.
   std::uint64_t inserted_ = 0, points_done_ = 0, processed_ = 0;
   bool stop_requested_ = false;
   std::list<MapPointPtr> recent_points_;
