@@ -234,17 +234,20 @@ void Vocabulary::transform(const std::vector<Descriptor>& descriptors, BowVector
 
 double Vocabulary::score(const BowVector& a, const BowVector& b) {
   // For L1-normalised vectors |a-b|_1 = 2 - sum over common words of (|ai| + |bi| - |ai - bi|).
+  // A linear merge of the two sorted word lists: BoW vectors of similar size share many words,
+  // so stepping is cheaper than a binary search (over the whole vector) at every mismatch.
   double common = 0;
-  auto ia = a.begin();
-  auto ib = b.begin();
-  while (ia != a.end() && ib != b.end()) {
-    if (ia->first < ib->first) {
-      ia = a.lower_bound(ib->first);
-    } else if (ib->first < ia->first) {
-      ib = b.lower_bound(ia->first);
-    } else {
+  auto ia = a.begin(), ib = b.begin();
+  const auto ea = a.end(), eb = b.end();
+  while (ia != ea && ib != eb) {
+    const auto wa = ia->first, wb = ib->first;
+    if (wa == wb) {
       common += std::abs(ia->second) + std::abs(ib->second) - std::abs(ia->second - ib->second);
       ++ia;
+      ++ib;
+    } else if (wa < wb) {
+      ++ia;
+    } else {
       ++ib;
     }
   }

@@ -222,15 +222,24 @@ std::vector<cv::KeyPoint> OrbExtractor::detect_level(const cv::Mat& image, int b
     return true;
   });
   if (config_.min_fast_threshold < config_.ini_fast_threshold) {
+    // One pass per horizontal run of such cells: the same corners as one pass per cell (each
+    // cell's surroundings are inside the run's area), without a FAST call per cell.
     for (int r = 0; r < rows; ++r)
-      for (int c = 0; c < cols; ++c) {
-        const int cell = r * cols + c;
-        if (strong[cell]) continue;
+      for (int c = 0; c < cols;) {
+        if (strong[r * cols + c]) {
+          ++c;
+          continue;
+        }
+        int end = c;
+        while (end < cols && !strong[r * cols + end]) ++end;
         const int x0 = int(std::floor(b + c * cell_w)) - 4, y0 = int(std::floor(b + r * cell_h)) - 4;
-        const int x1 = c + 1 == cols ? W : int(std::ceil(b + (c + 1) * cell_w)) + 4;
+        const int x1 = end == cols ? W : int(std::ceil(b + end * cell_w)) + 4;
         const int y1 = r + 1 == rows ? H : int(std::ceil(b + (r + 1) * cell_h)) + 4;
         const cv::Rect area = cv::Rect(x0, y0, x1 - x0, y1 - y0) & region;
-        if (area.width > 6 && area.height > 6) detect(area, config_.min_fast_threshold, [&](int k) { return k == cell; });
+        const int first = r * cols + c, last = r * cols + end;
+        if (area.width > 6 && area.height > 6)
+          detect(area, config_.min_fast_threshold, [&](int k) { return k >= first && k < last; });
+        c = end;
       }
     // The raster order of a single pass: the quadtree's choices depend on the order.
     std::sort(kps.begin(), kps.end(), [](const cv::KeyPoint& p, const cv::KeyPoint& q) {

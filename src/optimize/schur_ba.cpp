@@ -71,6 +71,13 @@ class SchurBaProblem {
       const BaObservation& o = prob.observations[i];
       entries_[fill[point_var[o.point]]++] = {int(i), cam_var[o.camera]};
     }
+    // Per point, its entries with a free camera (the only ones in the reduced camera system).
+    free_start_.push_back(0);
+    for (size_t p = 0; p + 1 < point_start_.size(); ++p) {
+      for (int e = point_start_[p]; e < point_start_[p + 1]; ++e)
+        if (entries_[e].cam_var >= 0) free_entries_.push_back(e);
+      free_start_.push_back(int(free_entries_.size()));
+    }
     const size_t F = cam_vars_.size(), P = point_vars_.size();
     cur_.resize(F, P, entries_.size());
     next_.resize(F, P, entries_.size());
@@ -110,15 +117,14 @@ class SchurBaProblem {
       Eigen::Matrix3d Vd = L.V[p];
       for (int d = 0; d < 3; ++d) Vd(d, d) += lm_damping(L.V[p](d, d), radius);
       Vinv_[p] = Vd.inverse();
-      const int begin = point_start_[p], end = point_start_[p + 1];
-      for (int e = begin; e < end; ++e) {
-        const int a = entries_[e].cam_var;
-        if (a < 0) continue;
+      const int begin = free_start_[p], end = free_start_[p + 1];
+      for (int i = begin; i < end; ++i) {
+        const int e = free_entries_[i], a = entries_[e].cam_var;
         T_[e].noalias() = L.W[e] * Vinv_[p];
         rhs_.segment<6>(6 * a).noalias() += T_[e] * L.gp[p];
-        for (int f = begin; f < end; ++f) {
-          const int b = entries_[f].cam_var;
-          if (b < 0 || b > a) continue;
+        for (int j = begin; j < end; ++j) {
+          const int f = free_entries_[j], b = entries_[f].cam_var;
+          if (b > a) continue;
           S_.block<6, 6>(6 * a, 6 * b).noalias() -= T_[e] * L.W[f].transpose();
         }
       }
@@ -178,7 +184,9 @@ class SchurBaProblem {
       Eigen::Vector3d gp = Eigen::Vector3d::Zero();
       for (int e = point_start_[p]; e < point_start_[p + 1]; ++e) {
         const BaObservation& o = prob_.observations[entries_[e].obs];
-        project_with_jacobians(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jc, Jp);
+        const int v = entries_[e].cam_var;
+        if (v >= 0) project_with_jacobians(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jc, Jp);
+        else project_with_point_jacobian(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jp);
         const WeightedResidual wr = weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
         const bool stereo = wr.stereo;
         const Eigen::Vector3d& r = wr.r;
@@ -191,7 +199,6 @@ class SchurBaProblem {
         const Eigen::Matrix3d wJpT = w * Jp.transpose();
         V.noalias() += wJpT * Jp;
         gp.noalias() += wJpT * r;
-        const int v = entries_[e].cam_var;
         if (v >= 0) {
           const Matrix63d wJcT = w * Jc.transpose();
           L.U[v].noalias() += wJcT * Jc;
@@ -215,7 +222,7 @@ class SchurBaProblem {
   const double delta_mono_, delta_stereo_;
   std::vector<std::array<double, 6>>& poses_;
   std::vector<Eigen::Vector3d>& points_;
-  std::vector<int> cams_used_, cam_vars_, point_vars_, point_start_;
+  std::vector<int> cams_used_, cam_vars_, point_vars_, point_start_, free_start_, free_entries_;
   std::vector<Entry> entries_;
   std::vector<PoseLinearizationPoint> lp_;
   Linearization cur_, next_;

@@ -64,6 +64,22 @@ inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLineariz
   J_pose.rightCols<3>() = d_pc;
 }
 
+// The same projection and point Jacobian (bit-identical to project_with_jacobians'), without the
+// pose Jacobian: for observations from cameras held fixed.
+inline void project_with_point_jacobian(const StereoIntrinsics& k, const PoseLinearizationPoint& T, const Eigen::Vector3d& pw,
+                                        Eigen::Vector3d& uvr, Eigen::Matrix3d& J_point) {
+  const Eigen::Vector3d pc = T.R * pw + T.t;
+  const double iz = 1.0 / pc.z(), iz2 = iz * iz;
+  uvr.x() = k.fx * pc.x() * iz + k.cx;
+  uvr.y() = k.fy * pc.y() * iz + k.cy;
+  uvr.z() = uvr.x() - k.bf * iz;
+  Eigen::Matrix3d d_pc;
+  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
+      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
+      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
+  J_point.noalias() = d_pc * T.R;
+}
+
 // Huber kernel on a squared whitened error s (Ceres' HuberLoss(delta)): rho(s) = s inside
 // delta^2, 2 delta sqrt(s) - delta^2 beyond; weight = rho'(s). Ceres' residual correction for
 // this kernel (rho'' <= 0) scales residuals and Jacobians by sqrt(rho'), i.e. plain IRLS.

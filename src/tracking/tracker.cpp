@@ -242,12 +242,16 @@ bool Tracker::track_reference_keyframe(Frame& frame) {
 
 void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
                                KeyFramePtr& reference) const {
-  std::map<KeyFrame*, int, ById> counter;
+  // Keyframes sharing the frame's points, counted in a hash map and then visited in id order.
+  std::unordered_map<KeyFrame*, int> count;
+  count.reserve(64);
   for (size_t i = 0; i < frame.map_points.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || mp->bad || frame.outlier[i]) continue;
-    for (const auto& [kf, idx] : mp->observations) ++counter[kf];
+    for (const auto& [kf, idx] : mp->observations) ++count[kf];
   }
+  std::vector<std::pair<KeyFrame*, int>> counter(count.begin(), count.end());
+  std::sort(counter.begin(), counter.end(), [](const auto& a, const auto& b) { return ById()(a.first, b.first); });
   std::set<KeyFrame*, ById> chosen;
   int best = 0;
   KeyFrame* best_kf = nullptr;
