@@ -10,6 +10,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "features/opencv_threads.h"
 #include "server/auth/curve_keys.h"
 #include "server/http/http_server.h"
 #include "server/receiver.h"
@@ -183,4 +184,7 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) { return cslam::run_main("cslam-server", argc, argv, run); }
+int main(int argc, char** argv) {
+  cslam::run_opencv_on_calling_threads();
+  return cslam::run_main("cslam-server", argc, argv, run);
+}

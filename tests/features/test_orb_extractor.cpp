@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "features/matching.h"
 #include "features/orb_extractor.h"
+#include "features/opencv_threads.h"
 #include "features/procedural_image.h"
 #include "io/tum_dataset.h"
 
@@ -199,3 +200,9 @@ TEST(Quadtree, KeepsStrongestAndSpreads) {
 
 }  // namespace
 }  // namespace cslam
+
+TEST(OpenCvThreads, ProgramsRunOpenCvOnTheCallingThread) {
+  cv::setNumThreads(-1);  // OpenCV's default pool
+  cslam::run_opencv_on_calling_threads();
+  EXPECT_EQ(cv::getNumThreads(), 1);
+}

@@ -19,6 +19,7 @@
 #include "core/stopwatch.h"
 #include "eval/stats.h"
 #include "eval/stats_json.h"
+#include "features/opencv_threads.h"
 #include "fusion/fusion_manager.h"
 #include "system/loop_stats_json.h"
 #include "geometry/camera_io.h"
@@ -213,6 +214,7 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   cslam::keep_freed_memory_for_reuse();
+  cslam::run_opencv_on_calling_threads();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
