@@ -281,9 +281,11 @@ void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& loc
   std::unordered_set<const MapPoint*> seen;
   seen.reserve(total);
   local_points.clear();
+  // Deduplicate before reading the point: keyframes share most points, and each first read of a
+  // point is a cache miss.
   for (const auto& kf : local_kfs)
     for (const auto& mp : kf->map_points)
-      if (mp && !mp->bad && seen.insert(mp.get()).second) local_points.push_back(mp);
+      if (mp && seen.insert(mp.get()).second && !mp->bad) local_points.push_back(mp);
 }
 
 bool Tracker::track_local_map(Frame& frame) {
