@@ -1,15 +1,24 @@
 // cslam-bench-codec: encoded size and encode/decode time of every RGB and depth codec on a
 // TUM-layout dataset (default: the shared tum_fr1_rpy), plus the totals per codec pair; then the
-// time to decode the dataset's own image files by each path (file_decode_bench.h).
+// time to decode the dataset's own image files by each path (file_decode_bench.h). With
+// --decode-png-dir, also the time to decode a folder's colour PNGs by each path (TUM's published
+// colour images are 8-bit RGB PNGs; the shared copies are JPEGs).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
 #include <iostream>
+#include <iterator>
 #include <map>
+#include <utility>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "codec/image_codec.h"
+#include "codec/png_rgb8_decode.h"
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
@@ -38,6 +47,85 @@ std::string fmt(const cslam::Summary& s, int precision = 2) {
   return buf;
 }
 
+// --decode-png-dir: thread-CPU ms per image of decoding the first `files` (0: all) colour PNGs of
+// `dir` (sorted by name) by each path, over `repeat` passes, and whether each path's pixels equal
+// cv::imdecode's. decode_png_rgb8 alone refuses what it does not handle (counted, not timed).
+void run_colour_png_bench(const std::string& dir, int files, int repeat) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> paths;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.is_regular_file() && e.path().extension() == ".png") paths.push_back(e.path().string());
+  std::sort(paths.begin(), paths.end());
+  if (files > 0 && int(paths.size()) > files) paths.resize(std::size_t(files));
+  if (paths.empty()) throw cslam::InputError(dir, "no .png files");
+  std::vector<cslam::Bytes> bytes;
+  for (const std::string& p : paths) {
+    std::ifstream in(p, std::ios::binary);
+    bytes.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  struct Path {
+    std::string name;
+    std::function<cv::Mat(std::size_t)> decode;  // empty Mat: refused
+    std::vector<double> ms{};
+    int differing = 0, refused = 0;
+  };
+  const auto path = [](std::string name, std::function<cv::Mat(std::size_t)> decode) {
+    Path p;
+    p.name = std::move(name);
+    p.decode = std::move(decode);
+    return p;
+  };
+  std::vector<Path> methods = {
+      path("imdecode IMREAD_COLOR (from memory)",
+           [&](std::size_t i) { return cv::imdecode(bytes[i], cv::IMREAD_COLOR); }),
+      path("decode_png_rgb8 (from memory)",
+           [&](std::size_t i) {
+             cv::Mat out;
+             cslam::decode_png_rgb8(bytes[i].data(), bytes[i].size(), out);
+             return out;
+           }),
+      path("imread IMREAD_COLOR (file)", [&](std::size_t i) { return cv::imread(paths[i], cv::IMREAD_COLOR); }),
+      path("load_colour_image (file)", [&](std::size_t i) { return cslam::load_colour_image(paths[i]); }),
+  };
+  double kb = 0;
+  for (const auto& b : bytes) kb += double(b.size()) / 1000.0 / double(bytes.size());
+  for (int pass = 0; pass < repeat; ++pass)
+    for (std::size_t i = 0; i < paths.size(); ++i) {
+      cv::Mat reference;
+      for (Path& m : methods) {
+        CpuStopwatch t;
+        const cv::Mat out = m.decode(i);
+        const double ms = t.ms();
+        if (out.empty()) {
+          if (pass == 0) ++m.refused;
+          continue;
+        }
+        m.ms.push_back(ms);
+        if (pass > 0) continue;
+        if (reference.empty()) {
+          reference = out;
+        } else if (out.size() != reference.size() || out.type() != reference.type() ||
+                   cv::norm(out, reference, cv::NORM_INF) != 0) {
+          ++m.differing;
+        }
+      }
+    }
+  std::printf("decoding colour PNGs: %zu files of %s (mean %.1f KB), %d passes;\n"
+              "thread CPU ms per image, median (min-max); 'differ' = images whose pixels differ from the first row\n\n",
+              paths.size(), dir.c_str(), kb, repeat);
+  std::printf("%-36s %9s %16s %8s %8s\n", "path", "median", "min-max", "differ", "refused");
+  for (const Path& m : methods) {
+    if (m.ms.empty()) {
+      std::printf("%-36s %9s %16s %8d %8d\n", m.name.c_str(), "-", "-", m.differing, m.refused);
+      continue;
+    }
+    const cslam::Summary s = cslam::summarize(m.ms);
+    char range[48];
+    std::snprintf(range, sizeof range, "%.2f-%.2f", s.min, s.max);
+    std::printf("%-36s %9.2f %16s %8d %8d\n", m.name.c_str(), s.median, range, m.differing, m.refused);
+  }
+}
+
 int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-bench-codec", "Sizes and times of the image codecs on a TUM-layout dataset.");
   cli.option("dataset", "TUM-layout folder", std::string(CSLAM_SHARED_DATA_DIR) + "/tum_fr1_rpy")
@@ -45,8 +133,19 @@ int run(int argc, char** argv) {
       .option("jpeg-qualities", "comma-separated JPEG qualities to measure", "75,90,95")
       .option("decode-files", "decode the first N colour and depth files of the dataset by each path (0 = skip)", "100")
       .option("decode-repeat", "passes over those files", "3")
+      .option("decode-png-dir",
+              "also decode the first --decode-files colour PNGs (*.png) of this folder by each path (cv::imdecode, "
+              "decode_png_rgb8, cv::imread, load_colour_image; --decode-files 0: all of them); with --decode-only, "
+              "only that table",
+              "")
       .flag("decode-only", "only the file-decoding table, not the codec round trips");
   if (!cli.parse(argc, argv)) return 0;
+  if (!cli.get("decode-png-dir").empty()) {
+    run_colour_png_bench(cli.get("decode-png-dir"), cli.get_int("decode-files"),
+                         std::max(1, cli.get_int("decode-repeat")));
+    if (cli.flag_set("decode-only")) return 0;
+    std::printf("\n");
+  }
   const cslam::TumDataset ds = cslam::open_tum_dataset(cli.get("dataset"));
   cslam::FileDecodeBenchOptions decode_options;
   decode_options.files = cli.get_int("decode-files");

@@ -1,13 +1,10 @@
 #include "codec/png16_decode.h"
 
-#include <libdeflate.h>
-
 #include <algorithm>
 #include <cstring>
-#include <memory>
 #include <vector>
 
-#include "codec/image_codec.h"
+#include "codec/png_inflate.h"
 
 #if defined(__SSE4_1__)
 #include <smmintrin.h>
@@ -16,61 +13,6 @@
 namespace cslam {
 
 namespace {
-
-// libpng refuses (fatally) any chunk longer than PNG_USER_CHUNK_MALLOC_MAX (8,000,000 in Debian
-// 12's build) unless it is an IDAT within the image's size; such files are left to it.
-constexpr std::uint32_t kMaxChunkLength = 8000000;
-// Scratch buffers larger than this are released after the image instead of kept for the next.
-constexpr std::size_t kKeepScratchBytes = std::size_t(32) << 20;
-
-struct DecompressorDeleter {
-  void operator()(libdeflate_decompressor* d) const { libdeflate_free_decompressor(d); }
-};
-
-// Per thread: a libdeflate_decompressor must not be used by two threads at once, and keeping the
-// buffers avoids allocating ~0.7 MB per 640x480 image.
-struct ThreadState {
-  std::unique_ptr<libdeflate_decompressor, DecompressorDeleter> inflater;
-  std::vector<std::uint8_t> idat;  // the IDAT chunks' data, when there is more than one
-  std::vector<std::uint8_t> rows;  // inflated image data: per row a filter byte and 2 * width bytes
-};
-
-ThreadState& thread_state() {
-  thread_local ThreadState state;
-  return state;
-}
-
-// Releases the thread's buffers after an unusually large image, on every way out.
-struct TrimScratch {
-  ThreadState& st;
-  ~TrimScratch() {
-    if (st.rows.capacity() > kKeepScratchBytes) std::vector<std::uint8_t>().swap(st.rows);
-    if (st.idat.capacity() > kKeepScratchBytes) std::vector<std::uint8_t>().swap(st.idat);
-  }
-};
-
-bool fail(std::string* why, const std::string& reason) {
-  if (why) *why = reason;
-  return false;
-}
-
-std::uint32_t be32(const std::uint8_t* p) {
-  return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3];
-}
-
-bool is_letter(std::uint8_t c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z'); }
-
-bool type_is(const std::uint8_t* type, const char* name) { return std::memcmp(type, name, 4) == 0; }
-
-// Ancillary chunks libpng only stores (or checks and drops) and OpenCV 4.6 does not apply to a
-// 16-bit grey image. tRNS, eXIf (OpenCV applies its orientation), the APNG chunks, compressed
-// text and ICC profiles, and unknown chunks go to OpenCV.
-bool ignorable_ancillary(const std::uint8_t* type) {
-  static const char* kIgnorable[] = {"gAMA", "cHRM", "sRGB", "sBIT", "bKGD", "pHYs", "tIME", "tEXt"};
-  for (const char* name : kIgnorable)
-    if (type_is(type, name)) return true;
-  return false;
-}
 
 // Undoing the row filters, bpp = 2: a byte's "left" neighbour is 2 bytes back, so the high and
 // low bytes of the pixels form two independent chains. Scalar version, in place: the fallback
@@ -107,8 +49,8 @@ void unfilter_paeth(std::uint8_t* __restrict cur, const std::uint8_t* __restrict
   cur[1] = std::uint8_t(cur[1] + prev[1]);
   int a0 = cur[0], a1 = cur[1];
   for (std::size_t i = 2; i < n; i += 2) {
-    a0 = std::uint8_t(cur[i] + png16_detail::paeth(a0, prev[i], prev[i - 2]));
-    a1 = std::uint8_t(cur[i + 1] + png16_detail::paeth(a1, prev[i + 1], prev[i - 1]));
+    a0 = std::uint8_t(cur[i] + png_detail::paeth(a0, prev[i], prev[i - 2]));
+    a1 = std::uint8_t(cur[i + 1] + png_detail::paeth(a1, prev[i + 1], prev[i - 1]));
     cur[i] = std::uint8_t(a0);
     cur[i + 1] = std::uint8_t(a1);
   }
@@ -237,93 +179,11 @@ void unfilter_rows(std::uint8_t* rows, int width, int height, cv::Mat& out, bool
 }  // namespace png16_detail
 
 bool decode_png16_gray(const std::uint8_t* d, std::size_t size, cv::Mat& out, std::string* why) {
-  static const std::uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (d == nullptr || size < 8 || std::memcmp(d, kSignature, 8) != 0) return fail(why, "not a PNG");
-  // IHDR: first, 13 bytes, its CRC right.
-  if (size < 8 + 12 + 13 || be32(d + 8) != 13 || !type_is(d + 12, "IHDR"))
-    return fail(why, "no IHDR chunk of 13 bytes first");
-  if (libdeflate_crc32(0, d + 12, 4 + 13) != be32(d + 29)) return fail(why, "IHDR CRC mismatch");
-  const std::uint32_t w = be32(d + 16), h = be32(d + 20);
-  const int bit_depth = d[24], colour_type = d[25], compression = d[26], filter = d[27], interlace = d[28];
-  if (bit_depth != 16 || colour_type != 0 || interlace != 0)
-    return fail(why, "not a non-interlaced 16-bit greyscale PNG (depth " + std::to_string(bit_depth) + ", colour type " +
-                         std::to_string(colour_type) + ", interlace " + std::to_string(interlace) + ")");
-  if (compression != 0 || filter != 0) return fail(why, "invalid compression or filter method in IHDR");
-  if (w == 0 || h == 0 || w > std::uint32_t(kMaxImageSide) || h > std::uint32_t(kMaxImageSide))
-    return fail(why, "size " + std::to_string(w) + "x" + std::to_string(h) + " out of range");
-  const std::size_t row_bytes = 2 * std::size_t(w);
-  const std::size_t stride = 1 + row_bytes;
-  const std::size_t inflated_size = std::size_t(h) * stride;  // <= 8192 * 16385: no overflow
-
-  // The other chunks, up to IEND: lengths inside the buffer, valid types, CRCs; IDATs consecutive.
-  ThreadState& st = thread_state();
-  const TrimScratch trim{st};
-  // More compressed data than even fixed Huffman codes need for this image: not from an encoder.
-  const std::size_t max_idat_size = 2 * inflated_size + 1024;
-  const std::uint8_t* idat = nullptr;  // the image data, contiguous
-  std::size_t idat_size = 0;
-  int idat_chunks = 0;
-  bool idat_ended = false, seen_iend = false;
-  std::size_t pos = 8 + 12 + 13;
-  while (!seen_iend) {
-    if (size - pos < 12) return fail(why, "truncated (no IEND)");
-    const std::uint32_t length = be32(d + pos);
-    const std::uint8_t* type = d + pos + 4;
-    const std::uint8_t* body = d + pos + 8;
-    if (length > size - pos - 12) return fail(why, "chunk runs past the end of the data");
-    if (length > kMaxChunkLength) return fail(why, "chunk longer than libpng's limit");
-    if (!is_letter(type[0]) || !is_letter(type[1]) || !is_letter(type[2]) || !is_letter(type[3]))
-      return fail(why, "invalid chunk type");
-    const std::string name(reinterpret_cast<const char*>(type), 4);
-    if (libdeflate_crc32(0, type, 4 + std::size_t(length)) != be32(body + length))
-      return fail(why, name + " CRC mismatch");
-    if (name == "IDAT") {
-      if (idat_ended) return fail(why, "IDAT chunks not consecutive");
-      if (length > max_idat_size - idat_size) return fail(why, "more image data than the image size allows");
-      if (++idat_chunks == 1) {
-        idat = body;
-        idat_size = length;
-      } else {
-        if (idat_chunks == 2) st.idat.assign(idat, idat + idat_size);
-        st.idat.insert(st.idat.end(), body, body + length);
-        idat = st.idat.data();
-        idat_size = st.idat.size();
-      }
-    } else {
-      if (idat_chunks > 0) idat_ended = true;
-      if (name == "IEND") {
-        if (length != 0) return fail(why, "IEND not empty");
-        seen_iend = true;
-      } else if (!(type[0] & 0x20) || !ignorable_ancillary(type)) {  // bit 5 clear: critical
-        return fail(why, "chunk " + name + " left to OpenCV");
-      }
-    }
-    pos += 12 + std::size_t(length);
-  }
-  if (idat_chunks == 0 || idat_size < 2) return fail(why, "no image data");
-  // libpng lets zlib use the window the stream's header declares; libdeflate always allows 32 KB.
-  // A smaller declared window is only safe when the whole image data fits in it (libpng's
-  // encoder declares one for small images, and then it always does).
-  const int window_log = (idat[0] >> 4) + 8;
-  if (window_log < 15 && inflated_size > (std::size_t(1) << window_log))
-    return fail(why, "zlib window smaller than the image data");
-
-  if (!st.inflater) st.inflater.reset(libdeflate_alloc_decompressor());
-  if (!st.inflater) return fail(why, "cannot allocate a libdeflate decompressor");
-  st.rows.resize(inflated_size);
-  std::size_t used = 0;
-  // Exactly inflated_size bytes (fewer: SHORT_OUTPUT, more: INSUFFICIENT_SPACE), Adler-32 checked.
-  const libdeflate_result rc =
-      libdeflate_zlib_decompress_ex(st.inflater.get(), idat, idat_size, st.rows.data(), inflated_size, &used, nullptr);
-  if (rc != LIBDEFLATE_SUCCESS) return fail(why, "inflate failed (libdeflate result " + std::to_string(int(rc)) + ")");
-  if (used != idat_size) return fail(why, "data after the end of the zlib stream");
-  for (std::uint32_t y = 0; y < h; ++y) {
-    const std::uint8_t filter_type = st.rows[std::size_t(y) * stride];
-    if (filter_type > 4)
-      return fail(why, "bad filter type " + std::to_string(int(filter_type)) + " in row " + std::to_string(y));
-  }
-  cv::Mat image(int(h), int(w), CV_16UC1);
-  png16_detail::unfilter_rows(st.rows.data(), int(w), int(h), image, true);
+  static const png_detail::PngFormat kFormat = {16, 0, 2, "16-bit greyscale"};
+  png_detail::InflatedPng png;  // declared first: releases oversized scratch on every way out
+  if (!png_detail::inflate_png(d, size, kFormat, png, why)) return false;
+  cv::Mat image(png.height, png.width, CV_16UC1);
+  png16_detail::unfilter_rows(png.rows, png.width, png.height, image, true);
   out = image;
   return true;
 }

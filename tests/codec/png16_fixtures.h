@@ -1,7 +1,7 @@
 #pragma once
-// Synthetic 16-bit images and PNG byte streams built by hand for the PNG decoder tests: each row
-// filtered with a chosen filter type by a plain reference filter, compressed with libdeflate,
-// split into IDAT chunks, with extra chunks where a test wants them.
+// Synthetic 16-bit images and PNG byte streams (16-bit grey or 8-bit RGB) built by hand for the
+// PNG decoder tests: each row filtered with a chosen filter type by a plain reference filter,
+// compressed with libdeflate, split into IDAT chunks, with extra chunks where a test wants them.
 #include <algorithm>
 #include <cstdlib>
 #include <string>
@@ -71,25 +71,47 @@ inline int paeth_reference(int a, int b, int c) {
   return c;
 }
 
-// Filtered image data of a CV_16UC1 image, row y with filter filters[y % size] (bpp = 2).
-inline Bytes filter_rows(const cv::Mat& im, const std::vector<int>& filters) {
-  const int n = 2 * im.cols;
-  Bytes out, prior(std::size_t(n), 0), row(static_cast<std::size_t>(n));
-  for (int y = 0; y < im.rows; ++y) {
-    for (int x = 0; x < im.cols; ++x) {
-      row[2 * x] = std::uint8_t(im.at<std::uint16_t>(y, x) >> 8);
-      row[2 * x + 1] = std::uint8_t(im.at<std::uint16_t>(y, x) & 0xff);
-    }
-    const int f = filters[std::size_t(y) % filters.size()];
+// Filtered image data: each row of `raw` (unfiltered PNG bytes, bpp bytes per pixel) with filter
+// filters[y % size].
+inline Bytes filter_raw_rows(const std::vector<Bytes>& raw, int bpp, const std::vector<int>& filters) {
+  Bytes out;
+  if (raw.empty()) return out;
+  const int n = int(raw[0].size());
+  Bytes zeros(std::size_t(n), 0);
+  const Bytes* prior = &zeros;
+  for (std::size_t y = 0; y < raw.size(); ++y) {
+    const Bytes& row = raw[y];
+    const int f = filters[y % filters.size()];
     out.push_back(std::uint8_t(f));
     for (int i = 0; i < n; ++i) {
-      const int a = i >= 2 ? row[i - 2] : 0, b = prior[i], c = i >= 2 ? prior[i - 2] : 0;
+      const int a = i >= bpp ? row[std::size_t(i - bpp)] : 0, b = (*prior)[std::size_t(i)];
+      const int c = i >= bpp ? (*prior)[std::size_t(i - bpp)] : 0;
       const int pred = f == 0 ? 0 : f == 1 ? a : f == 2 ? b : f == 3 ? (a + b) / 2 : paeth_reference(a, b, c);
-      out.push_back(std::uint8_t(row[i] - pred));
+      out.push_back(std::uint8_t(row[std::size_t(i)] - pred));
     }
-    prior = row;
+    prior = &row;
   }
   return out;
+}
+
+// Filtered image data of a CV_16UC1 image, row y with filter filters[y % size] (bpp = 2).
+inline Bytes filter_rows(const cv::Mat& im, const std::vector<int>& filters) {
+  std::vector<Bytes> raw(std::size_t(im.rows), Bytes(2 * std::size_t(im.cols)));
+  for (int y = 0; y < im.rows; ++y)
+    for (int x = 0; x < im.cols; ++x) {
+      raw[std::size_t(y)][2 * std::size_t(x)] = std::uint8_t(im.at<std::uint16_t>(y, x) >> 8);
+      raw[std::size_t(y)][2 * std::size_t(x) + 1] = std::uint8_t(im.at<std::uint16_t>(y, x) & 0xff);
+    }
+  return filter_raw_rows(raw, 2, filters);
+}
+
+// Filtered image data of a CV_8UC3 BGR image as an RGB PNG's (bpp = 3).
+inline Bytes filter_rows_rgb8(const cv::Mat& bgr, const std::vector<int>& filters) {
+  std::vector<Bytes> raw(std::size_t(bgr.rows), Bytes(3 * std::size_t(bgr.cols)));
+  for (int y = 0; y < bgr.rows; ++y)
+    for (int x = 0; x < bgr.cols; ++x)
+      for (int k = 0; k < 3; ++k) raw[std::size_t(y)][3 * std::size_t(x) + std::size_t(k)] = bgr.at<cv::Vec3b>(y, x)[2 - k];
+  return filter_raw_rows(raw, 3, filters);
 }
 
 // A PNG: signature, IHDR, `before` chunks, the zlib stream in IDATs of `idat_chunk` bytes, `after` chunks, IEND.
