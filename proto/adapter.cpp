@@ -86,6 +86,7 @@ Hello to_hello(const ClientInfo& info) {
   c->set_depth_factor(cam.depth_factor);
   c->set_depth_scale_correction(cam.depth_scale_correction);
   c->set_name(cam.name);
+  c->set_readout_time(cam.readout_time);
   return h;
 }
 
@@ -117,6 +118,7 @@ ClientInfo from_hello(const Hello& hello, const std::string& source, std::uint64
   cam.height = int(c.height());
   cam.depth_factor = c.depth_factor();
   cam.depth_scale_correction = c.depth_scale_correction() == 0.0 ? 1.0 : c.depth_scale_correction();
+  cam.readout_time = c.readout_time();  // 0 (global shutter) from peers that do not send it
   cam.name = c.name().empty() ? "client" + std::to_string(info.id) : c.name();
   for (double d : cam.dist)
     if (!std::isfinite(d)) throw WireError(ERROR_BAD_HELLO, source, "non-finite distortion coefficient");

@@ -77,6 +77,7 @@ void to_proto(const PinholeCamera& c, Camera* p) {
   p->set_depth_factor(c.depth_factor);
   p->set_depth_scale_correction(c.depth_scale_correction);
   p->set_name(c.name);
+  p->set_readout_time(c.readout_time);
 }
 
 
@@ -181,6 +182,7 @@ struct Decoder {
     c.depth_factor = p.depth_factor();
     c.depth_scale_correction = p.depth_scale_correction();
     c.name = p.name();
+    c.readout_time = p.readout_time();
     try {
       c.validate();
     } catch (const std::exception& e) {

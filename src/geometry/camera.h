@@ -17,6 +17,9 @@ struct PinholeCamera {
   double depth_factor = 5000.0;
   // Multiplicative correction applied after dividing by depth_factor (fr2: 1.031 is sometimes used).
   double depth_scale_correction = 1.0;
+  // Rolling shutter: seconds from the first row's capture to the last row's (0: global shutter).
+  // Keypoints are then moved to the middle row's instant (map/rolling_shutter.h).
+  double readout_time = 0.0;
   std::string name = "custom";
 
   bool has_distortion() const;

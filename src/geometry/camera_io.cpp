@@ -12,7 +12,7 @@ namespace cslam {
 namespace {
 const std::set<std::string> kRequired = {"fx", "fy", "cx", "cy", "width", "height"};
 const std::set<std::string> kKnown = {"name", "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3",
-                                      "width", "height", "depth_factor", "depth_scale_correction"};
+                                      "width", "height", "depth_factor", "depth_scale_correction", "readout_time"};
 }  // namespace
 
 PinholeCamera load_camera_file(const std::string& path) {
@@ -43,6 +43,7 @@ PinholeCamera load_camera_file(const std::string& path) {
   c.height = int(num("height", c.height));
   c.depth_factor = num("depth_factor", c.depth_factor);
   c.depth_scale_correction = num("depth_scale_correction", 1.0);
+  c.readout_time = num("readout_time", 0.0);  // absent: global shutter
   try {
     c.validate();
   } catch (const ConfigError& e) {
@@ -57,7 +58,7 @@ void save_camera_file(const PinholeCamera& c, const std::string& path) {
   fs << "name" << c.name << "fx" << c.fx << "fy" << c.fy << "cx" << c.cx << "cy" << c.cy;
   fs << "k1" << c.dist[0] << "k2" << c.dist[1] << "p1" << c.dist[2] << "p2" << c.dist[3] << "k3" << c.dist[4];
   fs << "width" << c.width << "height" << c.height << "depth_factor" << c.depth_factor;
-  fs << "depth_scale_correction" << c.depth_scale_correction;
+  fs << "depth_scale_correction" << c.depth_scale_correction << "readout_time" << c.readout_time;
 }
 
 PinholeCamera load_camera(const std::string& preset_or_path) {

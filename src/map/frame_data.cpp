@@ -1,4 +1,5 @@
 #include "map/frame_data.h"
+#include "map/rolling_shutter.h"
 
 #include <algorithm>
 #include <cmath>
@@ -90,7 +91,8 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
                                                  const OrbExtractor& extractor,
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
                                                  const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
-                                                 const std::optional<SE3>& T_depthcam_cam) {
+                                                 const std::optional<SE3>& T_depthcam_cam,
+                                                 const std::optional<SE3>& T_lastrow_cam) {
   auto f = std::make_shared<FrameData>();
   f->id = id;
   f->timestamp = timestamp;
@@ -117,6 +119,9 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
       f->u_right[i] = float(und.x() - rgbd.bf / d);
     }
   }
+  // Rolling shutter: the keypoints as a global-shutter camera at the middle row's instant would
+  // have seen them (map/rolling_shutter.h).
+  if (T_lastrow_cam) compensate_rolling_shutter(camera, rgbd.bf, *T_lastrow_cam, f->features, f->depth, f->u_right);
   f->bounds = camera.undistorted_bounds();
   f->grid = FeatureGrid(f->features, f->bounds);
   if (vocabulary && !vocabulary->empty()) f->pending_bow = {vocabulary, bow_levels_up};

@@ -86,13 +86,17 @@ struct FrameData {
 // it (the colour camera's pose at the colour image's instant, seen from the camera at the depth
 // image's instant), each keypoint's depth is read where the point along its ray lies in the depth
 // image and expressed in the colour camera (depth_at_keypoint). The bag-of-words vectors are left
-// pending (PendingBow) with a non-empty `vocabulary`; with_bow computes them.
+// pending (PendingBow) with a non-empty `vocabulary`; with_bow computes them. With `T_lastrow_cam`
+// (the camera's motion over half of camera.readout_time, from the middle row's instant to the last
+// row's), the keypoints are compensated for the rolling shutter (map/rolling_shutter.h) after their
+// depth is read.
 std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
                                                  const PinholeCamera& camera, const RgbdParams& rgbd,
                                                  const OrbExtractor& extractor,
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
                                                  const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up = 4,
-                                                 const std::optional<SE3>& T_depthcam_cam = std::nullopt);
+                                                 const std::optional<SE3>& T_depthcam_cam = std::nullopt,
+                                                 const std::optional<SE3>& T_lastrow_cam = std::nullopt);
 
 // `data` with its bag-of-words vectors: `data` itself if none are pending, else a copy with them
 // computed (the copy costs far less than the transform it stands for).

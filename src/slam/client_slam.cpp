@@ -92,9 +92,12 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   const std::optional<SE3> T_depthcam_cam =
       config_.rgbd.depth_time_compensation && frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset)
                                                                              : std::nullopt;
+  // A rolling-shutter camera's last row, half the readout after the middle one (none known: as is).
+  const std::optional<SE3> T_lastrow_cam =
+      cam.readout_time > 0 ? tracker_->predicted_motion(0.5 * cam.readout_time) : std::nullopt;
   auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
                               pyramid_, vocabulary_,
-                              std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam);
+                              std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam, T_lastrow_cam);
   r.extract_ms = sw.ms();
   r.features = int(data->size());
   sw.reset();

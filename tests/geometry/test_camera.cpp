@@ -1,3 +1,4 @@
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -40,6 +41,15 @@ TEST(Camera, PresetsAndValidation) {
   EXPECT_THROW(bad.validate(), ConfigError);
   EXPECT_NEAR(camera_tum_fr1().depth_from_raw(5000), 1.0, 1e-12);
   EXPECT_EQ(camera_tum_fr1().depth_from_raw(0), 0.0);
+  // The TUM Kinect/Xtion colour cameras are rolling shutter; the synthetic renderer is not.
+  for (const char* name : {"tum1", "tum2", "tum2-corrected", "tum3"}) EXPECT_DOUBLE_EQ(camera_preset(name).readout_time, 0.020);
+  EXPECT_EQ(camera_preset("synthetic").readout_time, 0.0);
+  EXPECT_EQ(PinholeCamera().readout_time, 0.0);
+  for (double readout : {-0.001, 1.5, std::nan("")}) {
+    PinholeCamera c = camera_tum_fr1();
+    c.readout_time = readout;
+    EXPECT_THROW(c.validate(), ConfigError) << readout;
+  }
 }
 
 TEST(Camera, FileRoundTripYamlAndJson) {
@@ -50,6 +60,7 @@ TEST(Camera, FileRoundTripYamlAndJson) {
     const PinholeCamera c = load_camera_file(path);
     EXPECT_DOUBLE_EQ(c.fx, camera_tum_fr1().fx);
     EXPECT_DOUBLE_EQ(c.dist[4], camera_tum_fr1().dist[4]);
+    EXPECT_DOUBLE_EQ(c.readout_time, camera_tum_fr1().readout_time);
     EXPECT_EQ(c.width, 640);
     std::filesystem::remove(path);
   }
@@ -65,6 +76,14 @@ TEST(Camera, FileErrors) {
     std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\nwidth: 640\nheight: 480\n";
   }
   EXPECT_THROW(load_camera_file(path), InputError);  // missing cy
+  {
+    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\n";
+  }
+  EXPECT_EQ(load_camera_file(path).readout_time, 0.0);  // no readout_time key: global shutter
+  {
+    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\nreadout_time: -0.01\n";
+  }
+  EXPECT_THROW(load_camera_file(path), InputError);  // negative readout
   EXPECT_THROW(load_camera_file("/nonexistent/cam.yaml"), InputError);
   std::filesystem::remove(path);
 }

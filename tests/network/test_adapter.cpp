@@ -39,6 +39,12 @@ TEST(Adapter, HelloRoundTripKeepsCamera) {
   EXPECT_EQ(back.camera.dist, info.camera.dist);
   EXPECT_EQ(back.camera.width, 640);
   EXPECT_EQ(back.camera.depth_factor, 5000.0);
+  EXPECT_EQ(back.camera.readout_time, info.camera.readout_time);
+  EXPECT_GT(back.camera.readout_time, 0.0);
+  // A peer that does not send the readout time: a global-shutter camera.
+  wire::Hello old = wire::to_hello(info);
+  old.mutable_camera()->clear_readout_time();
+  EXPECT_EQ(wire::from_hello(old, "test").camera.readout_time, 0.0);
 }
 
 TEST(Adapter, BadHellosAreClassified) {
@@ -58,6 +64,9 @@ TEST(Adapter, BadHellosAreClassified) {
   EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
   h = wire::to_hello(info);
   h.mutable_camera()->add_distortion(0.1);
+  EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
+  h = wire::to_hello(info);
+  h.mutable_camera()->set_readout_time(-0.02);
   EXPECT_EQ(code_of([&] { wire::from_hello(h, "t"); }), wire::ERROR_BAD_HELLO);
   h = wire::to_hello(info);
   h.clear_camera();

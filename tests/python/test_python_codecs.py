@@ -122,6 +122,16 @@ class CameraFromName(unittest.TestCase):
             with self.subTest(path=path):
                 self.assertEqual(camera.preset_from_name(path), preset)
 
+    def test_rolling_shutter_readout_as_the_cpp_presets(self):
+        # src/geometry/camera.cpp: the TUM colour cameras read out in 20 ms; synthetic and files
+        # without the key are global shutter.
+        for name in ("tum1", "tum2", "tum2-corrected", "tum3"):
+            self.assertEqual(camera.preset(name).readout_time, 0.020)
+        self.assertEqual(camera.preset("synthetic").readout_time, 0.0)
+        self.assertEqual(camera.Camera().readout_time, 0.0)
+        with self.assertRaises(ValueError):
+            camera.Camera(readout_time=-0.01).validate()
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -48,6 +48,7 @@ int run(int argc, char** argv) {
       .option("overlap", "overlap rate eta of the split, e.g. 0.05 or 5%", "5%")
       .option("out-dir", "multi-client mode: output folder (client_K.txt, fused_G.txt, stats.json)", "")
       .option("camera", "camera preset (tum1, tum2, tum2-corrected, tum3, synthetic) or file; default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1", "")
+      .option("readout", "rolling-shutter readout time of the colour camera in seconds, first to last row (0: global shutter); default: the camera's (TUM presets 0.020, camera files' readout_time key, else 0)", "")
       .option("range", "frames a:b (1-based, inclusive, of the associated RGB-D pairs)", "")
       .option("association", "colour-depth pairing: nearest (every colour frame, a depth image may serve two) | unique (TUM associate.py)", "nearest")
       .option("vocab", "vocabulary file", "")
@@ -78,7 +79,7 @@ int run(int argc, char** argv) {
   ClientInfo info;
   info.id = ClientId(args.get_int("client"));
   info.name = std::filesystem::path(dir).filename().string();
-  info.camera = dataset_camera(dir, args.get("camera")).camera;
+  info.camera = camera_for(args, dir);
   std::vector<RgbdPair> pairs = ds.pairs;
   if (args.has("range")) {
     const auto [a, b] = parse_range(args.get("range"), int(pairs.size()));

@@ -31,9 +31,16 @@ struct ClientJob {
   std::optional<Trajectory> groundtruth;
 };
 
-PinholeCamera camera_for(const CliArgs& args, const std::string& dir) { return dataset_camera(dir, args.get("camera")).camera; }
-
 }  // namespace
+
+PinholeCamera camera_for(const CliArgs& args, const std::string& dir) {
+  PinholeCamera camera = dataset_camera(dir, args.get("camera")).camera;
+  if (args.has("readout")) {
+    camera.readout_time = args.get_double("readout");
+    camera.validate();
+  }
+  return camera;
+}
 
 int run_multi_client(const CliArgs& args) {
   std::vector<ClientJob> jobs;
