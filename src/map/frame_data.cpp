@@ -1,5 +1,4 @@
 #include "map/frame_data.h"
-#include "map/rolling_shutter.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "bow/vocabulary.h"
+#include "map/rolling_shutter.h"
 
 namespace cslam {
 

@@ -24,8 +24,6 @@
 
 namespace cslam {
 
-struct RgbdParams;
-
 // Moves the undistorted keypoints (and the depth and u_right of those with depth > 0) of one
 // frame from their rows' instants to the middle row's instant. `features.keypoints[i].pt.y` (the
 // distorted row) gives each keypoint's instant. Points that would land behind the camera are left
