@@ -42,42 +42,35 @@ struct PoseLinearizationPoint {
   }
 };
 
+// (u, v, u_right) of p_world seen from the pose and its derivative w.r.t. the point (3x3); returns
+// the derivative of (u, v, u_right) w.r.t. the point in camera coordinates, which the pose
+// Jacobian needs. Alone it serves observations from cameras held fixed.
+inline Eigen::Matrix3d project_with_point_jacobian(const StereoIntrinsics& k, const PoseLinearizationPoint& T,
+                                                   const Eigen::Vector3d& pw, Eigen::Vector3d& uvr, Eigen::Matrix3d& J_point) {
+  const Eigen::Vector3d pc = T.R * pw + T.t;
+  const double iz = 1.0 / pc.z(), iz2 = iz * iz;
+  uvr.x() = k.fx * pc.x() * iz + k.cx;
+  uvr.y() = k.fy * pc.y() * iz + k.cy;
+  uvr.z() = uvr.x() - k.bf * iz;
+  Eigen::Matrix3d d_pc;
+  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
+      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
+      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
+  J_point.noalias() = d_pc * T.R;
+  return d_pc;
+}
+
 // (u, v, u_right) of p_world seen from the pose, and its derivatives w.r.t. the pose
 // parameters (3x6) and the point (3x3). Rows beyond the observation's residual count are
 // ignored by the callers.
 inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLinearizationPoint& T, const Eigen::Vector3d& pw,
                                    Eigen::Vector3d& uvr, Matrix36d& J_pose, Eigen::Matrix3d& J_point) {
-  const Eigen::Vector3d pc = T.R * pw + T.t;
-  const double iz = 1.0 / pc.z(), iz2 = iz * iz;
-  uvr.x() = k.fx * pc.x() * iz + k.cx;
-  uvr.y() = k.fy * pc.y() * iz + k.cy;
-  uvr.z() = uvr.x() - k.bf * iz;
-  Eigen::Matrix3d d_pc;
-  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
-      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
-      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
-  J_point.noalias() = d_pc * T.R;
+  const Eigen::Matrix3d d_pc = project_with_point_jacobian(k, T, pw, uvr, J_point);
   // Row b of J_point times -[pw]x is (pw x b)^T.
   Eigen::Matrix3d C;
   for (int r = 0; r < 3; ++r) C.row(r) = pw.cross(J_point.row(r).transpose()).transpose();
   J_pose.leftCols<3>().noalias() = C * T.Jr;
   J_pose.rightCols<3>() = d_pc;
-}
-
-// The same projection and point Jacobian (bit-identical to project_with_jacobians'), without the
-// pose Jacobian: for observations from cameras held fixed.
-inline void project_with_point_jacobian(const StereoIntrinsics& k, const PoseLinearizationPoint& T, const Eigen::Vector3d& pw,
-                                        Eigen::Vector3d& uvr, Eigen::Matrix3d& J_point) {
-  const Eigen::Vector3d pc = T.R * pw + T.t;
-  const double iz = 1.0 / pc.z(), iz2 = iz * iz;
-  uvr.x() = k.fx * pc.x() * iz + k.cx;
-  uvr.y() = k.fy * pc.y() * iz + k.cy;
-  uvr.z() = uvr.x() - k.bf * iz;
-  Eigen::Matrix3d d_pc;
-  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
-      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
-      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
-  J_point.noalias() = d_pc * T.R;
 }
 
 // Huber kernel on a squared whitened error s (Ceres' HuberLoss(delta)): rho(s) = s inside
