@@ -4,10 +4,12 @@
 // compressed with libdeflate, split into IDAT chunks, with extra chunks where a test wants them.
 #include <algorithm>
 #include <cstdlib>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include <gtest/gtest.h>
 #include <libdeflate.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -141,6 +143,32 @@ inline void fix_crcs(Bytes& png) {
     const std::uint32_t crc = libdeflate_crc32(0, png.data() + pos + 4, len + 4);
     for (int k = 0; k < 4; ++k) png[pos + 8 + len + std::size_t(k)] = std::uint8_t(crc >> (24 - 8 * k));
     pos += 12 + len;
+  }
+}
+
+// Random damage to a valid PNG (1-4 bytes changed, every fifth also truncated), every second
+// one with its CRCs fixed up so that the damage reaches the image data: `decodes` must never
+// crash, and whatever it accepts, `reference` (OpenCV) must decode to the pixels `same` checks.
+// Counts what was accepted and refused.
+template <class Decodes, class Reference, class Same>
+void mutate_and_compare(const Bytes& valid, unsigned seed, Decodes decodes, Reference reference, Same same, int& accepted,
+                        int& refused) {
+  std::mt19937 rng(seed);
+  for (int i = 0; i < 3000; ++i) {
+    Bytes b = valid;
+    std::uniform_int_distribution<std::size_t> pos(0, b.size() - 1);
+    for (int k = 0; k < 1 + int(rng() % 4); ++k) b[pos(rng)] = std::uint8_t(rng());
+    if (i % 5 == 0) b.resize(rng() % b.size());
+    if (i % 2 == 0) fix_crcs(b);
+    cv::Mat got;
+    if (decodes(b, got)) {
+      ++accepted;
+      const cv::Mat expected = reference(b);
+      ASSERT_FALSE(expected.empty()) << "accepted what OpenCV refuses, mutation " << i;
+      same(got, expected);
+    } else {
+      ++refused;
+    }
   }
 }
 
