@@ -34,6 +34,7 @@ class PythonClientEndToEnd(unittest.TestCase):
 
     def run_cpp(self, name):
         server = harness.Server(os.path.join(self.dir, name))
+        self.addCleanup(server.stop)  # a failed check must not leave the server waiting for a goodbye
         with open(os.path.join(self.dir, name, "client.log"), "w") as log:
             rc = subprocess.run([harness.program("cslam-client"), "--server", server.endpoint, "--id", "1", "--dataset",
                                  self.robot, "--rate", "max"], stdout=log, stderr=subprocess.STDOUT).returncode
@@ -43,6 +44,7 @@ class PythonClientEndToEnd(unittest.TestCase):
 
     def run_python(self, name):
         server = harness.Server(os.path.join(self.dir, name))
+        self.addCleanup(server.stop)
         cam = camera.load(os.path.join(self.robot, "camera.yaml"))
         acks = []
         sender = FrameSender(server.endpoint, 1, cam, on_ack=acks.append)
