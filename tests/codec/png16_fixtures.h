@@ -3,6 +3,7 @@
 // PNG decoder tests: each row filtered with a chosen filter type by a plain reference filter,
 // compressed with libdeflate, split into IDAT chunks, with extra chunks where a test wants them.
 #include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <random>
 #include <string>
@@ -12,6 +13,7 @@
 #include <gtest/gtest.h>
 #include <libdeflate.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "codec/image_codec.h"
@@ -146,14 +148,98 @@ inline void fix_crcs(Bytes& png) {
   }
 }
 
+// The image sizes the encoder tests sweep: single pixels, single rows and columns, odd widths.
+struct Size2 {
+  int w, h;
+};
+inline const std::vector<Size2> kSizes = {{1, 1}, {1, 9}, {9, 1}, {3, 5}, {17, 6}, {33, 17}, {64, 48}};
+
+// The filter byte of every row of a PNG with `bytes_per_pixel` (all IDATs inflated once more
+// here); empty if the data does not inflate.
+inline std::vector<int> row_filters(const Bytes& png, int w, int h, int bytes_per_pixel) {
+  Bytes z;
+  for (std::size_t pos = 8; pos + 12 <= png.size();) {
+    const std::size_t len = (std::size_t(png[pos]) << 24) | (png[pos + 1] << 16) | (png[pos + 2] << 8) | png[pos + 3];
+    if (std::string(png.begin() + long(pos) + 4, png.begin() + long(pos) + 8) == "IDAT")
+      z.insert(z.end(), png.begin() + long(pos) + 8, png.begin() + long(pos + 8 + len));
+    pos += 12 + len;
+  }
+  const std::size_t stride = 1 + std::size_t(bytes_per_pixel) * std::size_t(w);
+  Bytes raw(std::size_t(h) * stride);
+  libdeflate_decompressor* dec = libdeflate_alloc_decompressor();
+  const libdeflate_result rc = libdeflate_zlib_decompress(dec, z.data(), z.size(), raw.data(), raw.size(), nullptr);
+  libdeflate_free_decompressor(dec);
+  std::vector<int> filters;
+  if (rc != LIBDEFLATE_SUCCESS) return filters;
+  for (int y = 0; y < h; ++y) filters.push_back(raw[std::size_t(y) * stride]);
+  return filters;
+}
+
+// OpenCV's encoder (libpng + zlib) at every level 0-9 with every strategy, and its default, over
+// kSizes and three kinds of content (`synth(w, h, kind, seed)`): `decodes` must give OpenCV's and
+// the original pixels (`same`), and all five filter types must occur among the rows libpng wrote.
+template <class Synth, class Decodes, class Reference, class Same>
+void check_opencv_encoded(int bytes_per_pixel, Synth synth, Decodes decodes, Reference reference, Same same) {
+  std::array<int, 5> filter_rows_seen{};
+  int cases = 0;
+  for (const Size2& s : kSizes)
+    for (const std::string kind : {"random", "smooth", "flat"})
+      for (int level = -1; level <= 9; ++level)
+        for (int strategy = 0; strategy <= 4; ++strategy) {
+          if (level == -1 && strategy > 0) continue;
+          const cv::Mat im = synth(s.w, s.h, kind, unsigned(s.w * 131 + s.h));
+          std::vector<int> params;
+          if (level >= 0) params = {cv::IMWRITE_PNG_COMPRESSION, level, cv::IMWRITE_PNG_STRATEGY, strategy};
+          Bytes png;
+          ASSERT_TRUE(cv::imencode(".png", im, png, params));
+          cv::Mat got;
+          std::string why;
+          ASSERT_TRUE(decodes(png, got, &why)) << s.w << "x" << s.h << " " << kind << " level " << level << ": " << why;
+          same(got, reference(png));
+          same(got, im);
+          ++cases;
+          const std::vector<int> filters = row_filters(png, s.w, s.h, bytes_per_pixel);
+          ASSERT_EQ(filters.size(), std::size_t(s.h));
+          for (int f : filters) ++filter_rows_seen[std::size_t(f % 5)];
+        }
+  EXPECT_EQ(cases, int(kSizes.size()) * 3 * 51);
+  for (int f = 0; f < 5; ++f) EXPECT_GT(filter_rows_seen[std::size_t(f)], 0) << "libpng never chose filter " << f;
+}
+
+// Damage to the container of `good` (a 24-pixel-wide PNG whose first IDAT holds more than 20
+// bytes) that a decoder must refuse: every truncation, a flipped image-data byte (with and
+// without its CRC fixed), a wrong width, a bad IHDR length and absurd chunk lengths.
+template <class Refused>
+void check_damaged_container(const Bytes& good, Refused expect_refused) {
+  for (std::size_t keep = 0; keep < good.size(); ++keep)  // every truncation, IEND's last byte included
+    expect_refused(Bytes(good.begin(), good.begin() + long(keep)), "truncated to " + std::to_string(keep));
+  Bytes b = good;
+  b[8 + 12 + 13 + 8 + 20] ^= 0x10;  // inside the first IDAT: its CRC fails
+  expect_refused(b, "flipped IDAT byte");
+  fix_crcs(b);
+  expect_refused(b, "flipped IDAT byte, CRC fixed (inflate or Adler-32 fails)");
+  b = good;
+  b[19] = 25;  // width 25: the data inflates to too few bytes
+  fix_crcs(b);
+  expect_refused(b, "wrong width");
+  b = good;
+  b[8] = 0, b[11] = 14;  // IHDR length 14
+  expect_refused(b, "IHDR length");
+  for (const std::uint32_t len : {0xffffffffu, 0x7fffffffu, std::uint32_t(good.size())}) {
+    b = good;
+    for (int k = 0; k < 4; ++k) b[33 + std::size_t(k)] = std::uint8_t(len >> (24 - 8 * k));  // first IDAT's length
+    expect_refused(b, "chunk length " + std::to_string(len));
+  }
+}
+
 // Random damage to a valid PNG (1-4 bytes changed, every fifth also truncated), every second
 // one with its CRCs fixed up so that the damage reaches the image data: `decodes` must never
 // crash, and whatever it accepts, `reference` (OpenCV) must decode to the pixels `same` checks.
-// Counts what was accepted and refused.
+// Most mutations must be refused, and some accepted (changes to CRC fields that fix_crcs undoes).
 template <class Decodes, class Reference, class Same>
-void mutate_and_compare(const Bytes& valid, unsigned seed, Decodes decodes, Reference reference, Same same, int& accepted,
-                        int& refused) {
+void mutate_and_compare(const Bytes& valid, unsigned seed, Decodes decodes, Reference reference, Same same) {
   std::mt19937 rng(seed);
+  int accepted = 0, refused = 0;
   for (int i = 0; i < 3000; ++i) {
     Bytes b = valid;
     std::uniform_int_distribution<std::size_t> pos(0, b.size() - 1);
@@ -170,6 +256,8 @@ void mutate_and_compare(const Bytes& valid, unsigned seed, Decodes decodes, Refe
       ++refused;
     }
   }
+  EXPECT_GT(refused, 2000);
+  EXPECT_GT(accepted, 0);
 }
 
 }  // namespace cslam::test

@@ -65,46 +65,11 @@ TEST(Png16Decode, VectorAndScalarUnfilteringAgree) {
     }
 }
 
-struct Size2 { int w, h; };
-const std::vector<Size2> kSizes = {{1, 1}, {1, 9}, {9, 1}, {3, 5}, {17, 6}, {33, 17}, {64, 48}};
-
 // OpenCV's encoder (libpng + zlib) at every level 0-9 with every strategy, and its default.
 TEST(Png16Decode, OpenCvEncodedPngsDecodeIdentically) {
-  std::array<int, 5> filter_rows_seen{};
-  int cases = 0;
-  for (const Size2& s : kSizes)
-    for (const std::string kind : {"random", "smooth", "flat"})
-      for (int level = -1; level <= 9; ++level)
-        for (int strategy = 0; strategy <= 4; ++strategy) {
-          if (level == -1 && strategy > 0) continue;
-          const cv::Mat im = synthetic_depth(s.w, s.h, kind, unsigned(s.w * 131 + s.h));
-          std::vector<int> params;
-          if (level >= 0) params = {cv::IMWRITE_PNG_COMPRESSION, level, cv::IMWRITE_PNG_STRATEGY, strategy};
-          Bytes png;
-          ASSERT_TRUE(cv::imencode(".png", im, png, params));
-          cv::Mat got;
-          std::string why;
-          ASSERT_TRUE(decodes(png, got, &why)) << s.w << "x" << s.h << " " << kind << " level " << level << ": " << why;
-          expect_identical(got, opencv_decode(png));
-          expect_identical(got, im);
-          ++cases;
-          // Which filters libpng chose: inflate the data once more here.
-          std::size_t pos = 8;
-          Bytes z;
-          while (pos + 12 <= png.size()) {
-            const std::size_t len = (std::size_t(png[pos]) << 24) | (png[pos + 1] << 16) | (png[pos + 2] << 8) | png[pos + 3];
-            if (std::string(png.begin() + long(pos) + 4, png.begin() + long(pos) + 8) == "IDAT")
-              z.insert(z.end(), png.begin() + long(pos) + 8, png.begin() + long(pos + 8 + len));
-            pos += 12 + len;
-          }
-          Bytes raw(std::size_t(s.h) * (1 + 2 * std::size_t(s.w)));
-          libdeflate_decompressor* dec = libdeflate_alloc_decompressor();
-          ASSERT_EQ(libdeflate_zlib_decompress(dec, z.data(), z.size(), raw.data(), raw.size(), nullptr), LIBDEFLATE_SUCCESS);
-          libdeflate_free_decompressor(dec);
-          for (int y = 0; y < s.h; ++y) ++filter_rows_seen[raw[std::size_t(y) * (1 + 2 * std::size_t(s.w))] % 5];
-        }
-  EXPECT_EQ(cases, int(kSizes.size()) * 3 * 51);
-  for (int f = 0; f < 5; ++f) EXPECT_GT(filter_rows_seen[std::size_t(f)], 0) << "libpng never chose filter " << f;
+  check_opencv_encoded(
+      2, synthetic_depth, [](const Bytes& png, cv::Mat& got, std::string* why) { return decodes(png, got, why); },
+      opencv_decode, expect_identical);
 }
 
 TEST(Png16Decode, FullSizeDepthImageFromOpenCv) {
@@ -190,25 +155,8 @@ TEST(Png16Decode, DamagedFilesAreRefused) {
   const Bytes good = hand_png(im, {4, 1, 2}, 6, 64);
   cv::Mat out;
   ASSERT_TRUE(decodes(good, out));
-  for (std::size_t keep = 0; keep < good.size(); ++keep)  // every truncation, IEND's last byte included
-    expect_refused(Bytes(good.begin(), good.begin() + long(keep)), "truncated to " + std::to_string(keep));
+  check_damaged_container(good, expect_refused);
   Bytes b = good;
-  b[8 + 12 + 13 + 8 + 20] ^= 0x10;  // inside the first IDAT: its CRC fails
-  expect_refused(b, "flipped IDAT byte");
-  fix_crcs(b);
-  expect_refused(b, "flipped IDAT byte, CRC fixed (inflate or Adler-32 fails)");
-  b = good;
-  b[19] = 25;  // width 25: the data inflates to too few bytes
-  fix_crcs(b);
-  expect_refused(b, "wrong width");
-  b = good;
-  b[8] = 0, b[11] = 14;  // IHDR length 14
-  expect_refused(b, "IHDR length");
-  for (const std::uint32_t len : {0xffffffffu, 0x7fffffffu, std::uint32_t(good.size())}) {
-    b = good;
-    for (int k = 0; k < 4; ++k) b[33 + std::size_t(k)] = std::uint8_t(len >> (24 - 8 * k));  // first IDAT's length
-    expect_refused(b, "chunk length " + std::to_string(len));
-  }
   const Bytes raw = filter_rows(im, {4});
   Bytes bad_filter = raw;
   bad_filter[std::size_t(5) * (1 + 2 * 24)] = 5;
@@ -229,12 +177,8 @@ TEST(Png16Decode, DamagedFilesAreRefused) {
 TEST(Png16Decode, MutatedFilesNeverCrashOrDisagreeWithOpenCv) {
   const cv::Mat im = synthetic_depth(40, 16, "smooth", 4);
   const Bytes valid = hand_png(im, {0, 1, 2, 3, 4}, 6, 200);
-  int accepted = 0, refused = 0;
   mutate_and_compare(
-      valid, 17, [](const Bytes& b, cv::Mat& got) { return decodes(b, got); }, opencv_decode, expect_identical,
-      accepted, refused);
-  EXPECT_GT(refused, 2000);
-  EXPECT_GT(accepted, 0);  // changes to CRC fields that fix_crcs undoes
+      valid, 17, [](const Bytes& b, cv::Mat& got) { return decodes(b, got); }, opencv_decode, expect_identical);
 }
 
 TEST(Png16Decode, ManyThreadsAtOnce) {
