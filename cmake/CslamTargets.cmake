@@ -23,11 +23,18 @@ function(cslam_library name)
   cslam_warnings(cslam_${name})
 endfunction()
 
+# Programs and tests allocate through tcmalloc (cmake/Dependencies.cmake). Nothing references it
+# by name, so the linker must not drop it as unneeded.
+function(cslam_allocator target)
+  target_link_libraries(${target} PRIVATE "-Wl,--push-state,--no-as-needed" PkgConfig::TCMALLOC "-Wl,--pop-state")
+endfunction()
+
 # cslam_program(NAME SOURCES ... DEPS ...): an executable in build/bin.
 function(cslam_program name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPS})
+  cslam_allocator(${name})
   cslam_warnings(${name})
 endfunction()
 
@@ -36,6 +43,7 @@ function(cslam_test name)
   cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;DEPS;LABELS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+  cslam_allocator(${name})
   target_include_directories(${name} PRIVATE ${CMAKE_SOURCE_DIR}/tests)
   target_compile_definitions(${name} PRIVATE
     CSLAM_SOURCE_DIR="${CMAKE_SOURCE_DIR}"

@@ -3,7 +3,6 @@
 #include <iostream>
 #include <sstream>
 
-#include "core/allocator_tuning.h"
 #include "core/error.h"
 
 namespace cslam {
@@ -159,7 +158,6 @@ std::string CliArgs::help() const {
 }
 
 int run_main(const char* program, int argc, char** argv, int (*run)(int, char**)) {
-  keep_freed_memory_for_reuse();
   try {
     return run(argc, argv);
   } catch (const ConfigError& e) {

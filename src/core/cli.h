@@ -47,8 +47,7 @@ class CliArgs {
 };
 
 // The body of every program's main(): runs `run`, prints a one-line error on failure and returns
-// the exit code (configuration/usage errors 2, anything else 1). Sets the heap up for image
-// streams first (core/allocator_tuning.h).
+// the exit code (configuration/usage errors 2, anything else 1).
 int run_main(const char* program, int argc, char** argv, int (*run)(int, char**));
 
 }  // namespace cslam

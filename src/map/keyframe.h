@@ -90,7 +90,8 @@ class KeyFrame {
   // mapping has connected it, the keyframe it was tracked against.
   KeyFrame* anchor() const { return parent ? parent.get() : creation_reference.get(); }
   bool awaiting_connection() const { return !parent && creation_reference; }
-  Eigen::Vector3d center() const { return T_world_cam().translation(); }
+  // T_world_cam().translation() without building the inverse (and normalising its rotation).
+  Eigen::Vector3d center() const { return -(T_cam_world.rotation().conjugate() * T_cam_world.translation()); }
   double timestamp() const { return data->timestamp; }
 
   std::vector<KeyFrame*> best_covisibles(std::size_t n) const;

@@ -32,8 +32,10 @@ inline double lm_damping(double h, double radius) {
 //   bool linearize()            at the current x: cost, gradient, normal equations; false if not finite
 //   double cost() const, gradient_max_norm() const, x_norm() const
 //   bool solve(double radius, double& step_norm, double& model_cost_change)   damped step
-//   double try_step()           cost at x + step (linearised there for acceptance); +inf if not finite
-//   void accept()               x <- x + step, the candidate's linearisation becomes current
+//   double try_step()           cost at x + step (no derivatives: most candidates are rejected or
+//                               end the solve); +inf if not finite
+//   bool accept()               x <- x + step, linearised there; false (nothing changed) if the
+//                               derivatives are not finite, and the step counts as rejected
 template <class Problem>
 LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<bool>* abort = nullptr) {
   constexpr double kFunctionTolerance = 1e-6, kGradientTolerance = 1e-10, kParameterTolerance = 1e-8;
@@ -78,8 +80,7 @@ LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<
         return out;
       }
       const double relative_decrease = (cost - candidate_cost) / model_cost_change;
-      if (std::isfinite(candidate_cost) && relative_decrease > kMinRelativeDecrease) {
-        p.accept();
+      if (std::isfinite(candidate_cost) && relative_decrease > kMinRelativeDecrease && p.accept()) {
         out.final_cost = p.cost();
         radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * relative_decrease - 1.0, 3)));
         decrease_factor = 2.0;

@@ -47,14 +47,30 @@ class PoseProblem {
   }
   double try_step() {
     for (int d = 0; d < 6; ++d) candidate_x_[d] = x_[d] + step_(d);
-    return linearize_at(candidate_x_.data(), next_) ? next_.cost : std::numeric_limits<double>::infinity();
+    const double c = cost_at(candidate_x_.data());
+    return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
   }
-  void accept() {
+  bool accept() {
+    if (!linearize_at(candidate_x_.data(), next_)) return false;
     x_ = candidate_x_;
     std::swap(cur_, next_);
+    return true;
   }
 
  private:
+  // The cost linearize_at computes, summed in the same order, without derivatives.
+  double cost_at(const double* x) const {
+    PoseLinearizationPoint T;
+    T.set_transform(x);
+    double cost = 0;
+    for (size_t i = 0; i < obs_.size(); ++i) {
+      if (!inlier_[i]) continue;
+      const PoseObservation& o = obs_[i];
+      cost += weighted_residual(project_point(k_, T, o.p_world), o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_).cost;
+    }
+    return 0.5 * cost;
+  }
+
   bool linearize_at(const double* x, Linearization& lin) const {
     PoseLinearizationPoint T;
     T.set(x);

@@ -160,16 +160,35 @@ class SchurBaProblem {
     for (size_t v = 0; v < cam_vars_.size(); ++v)
       for (int d = 0; d < 6; ++d) candidate_poses_[cam_vars_[v]][d] += dc_(6 * v + d);
     for (size_t p = 0; p < point_vars_.size(); ++p) candidate_points_[point_vars_[p]] += dp_[p];
-    return linearize_at(candidate_poses_, candidate_points_, next_) ? next_.cost : std::numeric_limits<double>::infinity();
+    const double c = cost_at(candidate_poses_, candidate_points_);
+    return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
   }
 
-  void accept() {
+  bool accept() {
+    if (!linearize_at(candidate_poses_, candidate_points_, next_)) return false;
     std::swap(poses_, candidate_poses_);
     std::swap(points_, candidate_points_);
     std::swap(cur_, next_);
+    return true;
   }
 
  private:
+  // The cost linearize_at computes, summed in the same order, without derivatives.
+  double cost_at(const std::vector<std::array<double, 6>>& poses, const std::vector<Eigen::Vector3d>& points) {
+    for (int c : cams_used_) lp_[c].set_transform(poses[c].data());
+    double cost = 0;
+    for (size_t p = 0; p < point_vars_.size(); ++p) {
+      const Eigen::Vector3d& X = points[point_vars_[p]];
+      for (int e = point_start_[p]; e < point_start_[p + 1]; ++e) {
+        const BaObservation& o = prob_.observations[entries_[e].obs];
+        cost += weighted_residual(project_point(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X), o.uv, o.u_right,
+                                  o.inv_sigma2, robust_, delta_mono_, delta_stereo_)
+                    .cost;
+      }
+    }
+    return 0.5 * cost;
+  }
+
   bool linearize_at(const std::vector<std::array<double, 6>>& poses, const std::vector<Eigen::Vector3d>& points, Linearization& L) {
     for (int c : cams_used_) lp_[c].set(poses[c].data());
     for (auto& m : L.U) m.setZero();

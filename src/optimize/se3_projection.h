@@ -35,12 +35,32 @@ struct PoseLinearizationPoint {
   Eigen::Matrix3d R, Jr;
   Eigen::Vector3d t;
   void set(const double* param) {
-    ceres::AngleAxisToRotationMatrix(param, ceres::ColumnMajorAdapter3x3(R.data()));
+    set_transform(param);
     const Eigen::Vector3d w(param[0], param[1], param[2]);
     Jr = so3_right_jacobian(w);
+  }
+  // R and t only: enough to project (project_point), not to differentiate.
+  void set_transform(const double* param) {
+    ceres::AngleAxisToRotationMatrix(param, ceres::ColumnMajorAdapter3x3(R.data()));
     t = Eigen::Vector3d(param[3], param[4], param[5]);
   }
 };
+
+// (u, v, u_right) of the camera-frame point pc, with iz = 1 / pc.z().
+inline Eigen::Vector3d project_camera_point(const StereoIntrinsics& k, const Eigen::Vector3d& pc, double iz) {
+  Eigen::Vector3d uvr;
+  uvr.x() = k.fx * pc.x() * iz + k.cx;
+  uvr.y() = k.fy * pc.y() * iz + k.cy;
+  uvr.z() = uvr.x() - k.bf * iz;
+  return uvr;
+}
+
+// (u, v, u_right) of p_world seen from the pose (R and t of T set), the same values as the
+// projections with derivatives below.
+inline Eigen::Vector3d project_point(const StereoIntrinsics& k, const PoseLinearizationPoint& T, const Eigen::Vector3d& pw) {
+  const Eigen::Vector3d pc = T.R * pw + T.t;
+  return project_camera_point(k, pc, 1.0 / pc.z());
+}
 
 // (u, v, u_right) of p_world seen from the pose and its derivative w.r.t. the point (3x3); returns
 // the derivative of (u, v, u_right) w.r.t. the point in camera coordinates, which the pose
@@ -49,9 +69,7 @@ inline Eigen::Matrix3d project_with_point_jacobian(const StereoIntrinsics& k, co
                                                    const Eigen::Vector3d& pw, Eigen::Vector3d& uvr, Eigen::Matrix3d& J_point) {
   const Eigen::Vector3d pc = T.R * pw + T.t;
   const double iz = 1.0 / pc.z(), iz2 = iz * iz;
-  uvr.x() = k.fx * pc.x() * iz + k.cx;
-  uvr.y() = k.fy * pc.y() * iz + k.cy;
-  uvr.z() = uvr.x() - k.bf * iz;
+  uvr = project_camera_point(k, pc, iz);
   Eigen::Matrix3d d_pc;
   d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
       0, k.fy * iz, -k.fy * pc.y() * iz2,      //
