@@ -11,7 +11,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/allocator_tuning.h"
 #include "core/bounded_queue.h"
 #include "core/cli.h"
 #include "core/error.h"
@@ -214,7 +213,6 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  cslam::keep_freed_memory_for_reuse();
   cslam::run_opencv_on_calling_threads();
   try {
     return run(argc, argv);
