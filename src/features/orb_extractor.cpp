@@ -3,20 +3,19 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <numeric>
 #include <stdexcept>
 
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "features/patch_moments.h"
 
 namespace cslam {
 
 namespace {
 
 constexpr int kPatchSize = 31;
-constexpr int kHalfPatch = 15;
 
 // A quadtree node: a rectangle and a range [begin, end) of the shared index array.
 struct QuadNode {
@@ -26,18 +25,23 @@ struct QuadNode {
   bool splittable() const { return count() > 1 && (x1 - x0) > 1.0f && (y1 - y0) > 1.0f; }
 };
 
-// Splits `n` into up to four children (only non-empty ones are appended), partitioning idx in place.
-void split_node(const QuadNode& n, std::vector<int>& idx, const std::vector<cv::KeyPoint>& kps,
-                std::vector<QuadNode>& out) {
+// A keypoint as the quadtree reads it, stored in the node ranges themselves (partitioned in place).
+struct QuadPoint {
+  float x, y, response;
+  int index;  // into the input keypoints
+};
+
+// Splits `n` into up to four children (only non-empty ones are appended), partitioning pts in place.
+void split_node(const QuadNode& n, std::vector<QuadPoint>& pts, std::vector<QuadNode>& out) {
   const float xm = 0.5f * (n.x0 + n.x1), ym = 0.5f * (n.y0 + n.y1);
-  auto first = idx.begin() + n.begin, last = idx.begin() + n.end;
-  auto left = [&](int i) { return kps[i].pt.x < xm; };
-  auto top = [&](int i) { return kps[i].pt.y < ym; };
+  auto first = pts.begin() + n.begin, last = pts.begin() + n.end;
+  auto left = [&](const QuadPoint& p) { return p.x < xm; };
+  auto top = [&](const QuadPoint& p) { return p.y < ym; };
   auto mid_x = std::partition(first, last, left);
   auto mid_l = std::partition(first, mid_x, top);
   auto mid_r = std::partition(mid_x, last, top);
   const int b = n.begin;
-  auto pos = [&](std::vector<int>::iterator it) { return int(it - idx.begin()); };
+  auto pos = [&](std::vector<QuadPoint>::iterator it) { return int(it - pts.begin()); };
   const QuadNode children[4] = {{n.x0, n.y0, xm, ym, b, pos(mid_l)},
                                 {n.x0, ym, xm, n.y1, pos(mid_l), pos(mid_x)},
                                 {xm, n.y0, n.x1, ym, pos(mid_x), pos(mid_r)},
@@ -52,8 +56,9 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
                                               int budget) {
   if (budget <= 0 || keypoints.empty()) return {};
   if (int(keypoints.size()) <= budget) return keypoints;
-  std::vector<int> idx(keypoints.size());
-  std::iota(idx.begin(), idx.end(), 0);
+  std::vector<QuadPoint> pts(keypoints.size());
+  for (std::size_t i = 0; i < keypoints.size(); ++i)
+    pts[i] = {keypoints[i].pt.x, keypoints[i].pt.y, keypoints[i].response, int(i)};
 
   // Initial nodes: roughly square, side by side along the longer image axis.
   std::vector<QuadNode> nodes, next;
@@ -61,7 +66,7 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
   const float w = area.width / n_ini;
   {
     std::vector<QuadNode> roots;
-    QuadNode all{area.x, area.y, area.x + area.width, area.y + area.height, 0, int(idx.size())};
+    QuadNode all{area.x, area.y, area.x + area.width, area.y + area.height, 0, int(pts.size())};
     if (n_ini == 1) {
       roots.push_back(all);
     } else {
@@ -69,8 +74,8 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
       int begin = 0;
       for (int c = 0; c < n_ini; ++c) {
         const float x1 = c + 1 == n_ini ? area.x + area.width + 1.0f : area.x + (c + 1) * w;
-        auto mid = std::partition(idx.begin() + begin, idx.end(), [&](int i) { return keypoints[i].pt.x < x1; });
-        const int end = int(mid - idx.begin());
+        auto mid = std::partition(pts.begin() + begin, pts.end(), [&](const QuadPoint& p) { return p.x < x1; });
+        const int end = int(mid - pts.begin());
         if (end > begin) roots.push_back({area.x + c * w, area.y, std::min(x1, area.x + area.width), area.y + area.height, begin, end});
         begin = end;
       }
@@ -85,7 +90,7 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
     if (int(nodes.size()) + 3 * splittable < budget) {
       next.clear();
       for (const QuadNode& n : nodes) {
-        if (n.splittable()) split_node(n, idx, keypoints, next);
+        if (n.splittable()) split_node(n, pts, next);
         else next.push_back(n);
       }
       if (next.size() == nodes.size()) break;  // nothing could be separated
@@ -103,7 +108,7 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
         continue;
       }
       const std::size_t before = next.size();
-      split_node(nodes[i], idx, keypoints, next);
+      split_node(nodes[i], pts, next);
       total += int(next.size() - before) - 1;
     }
     for (; i < nodes.size(); ++i) next.push_back(nodes[i]);
@@ -114,10 +119,10 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
   std::vector<cv::KeyPoint> out;
   out.reserve(nodes.size());
   for (const QuadNode& n : nodes) {
-    int best = idx[n.begin];
+    int best = n.begin;
     for (int k = n.begin + 1; k < n.end; ++k)
-      if (keypoints[idx[k]].response > keypoints[best].response) best = idx[k];
-    out.push_back(keypoints[best]);
+      if (pts[k].response > pts[best].response) best = k;
+    out.push_back(keypoints[pts[best].index]);
   }
   if (int(out.size()) > budget) {
     std::nth_element(out.begin(), out.begin() + budget, out.end(),
@@ -154,30 +159,12 @@ OrbExtractor::OrbExtractor(const OrbConfig& config) : config_(config) {
     per_level *= f;
   }
   features_per_level_.push_back(std::max(0, config.num_features - sum));
-
-  // Circular patch: half-width of each row of a disc of radius 15.
-  umax_.resize(kHalfPatch + 1);
-  for (int v = 0; v <= kHalfPatch; ++v)
-    umax_[v] = int(std::floor(std::sqrt(double(kHalfPatch * kHalfPatch - v * v)) + 0.5));
 }
 
 float OrbExtractor::orientation(const cv::Mat& image, const cv::Point2f& pt) const {
   const int cx = int(std::lround(pt.x)), cy = int(std::lround(pt.y));
-  const std::uint8_t* center = image.ptr<std::uint8_t>(cy) + cx;
-  const int step = int(image.step1());
-  int m10 = 0, m01 = 0;
-  for (int u = -kHalfPatch; u <= kHalfPatch; ++u) m10 += u * center[u];
-  for (int v = 1; v <= kHalfPatch; ++v) {
-    int v_sum = 0;
-    const int d = umax_[v];
-    for (int u = -d; u <= d; ++u) {
-      const int above = center[u - v * step], below = center[u + v * step];
-      v_sum += below - above;
-      m10 += u * (below + above);
-    }
-    m01 += v * v_sum;
-  }
-  return cv::fastAtan2(float(m01), float(m10));  // degrees in [0,360)
+  const PatchMoments m = patch_moments(image.ptr<std::uint8_t>(cy) + cx, int(image.step1()));
+  return cv::fastAtan2(float(m.m01), float(m.m10));  // degrees in [0,360)
 }
 
 std::vector<cv::KeyPoint> OrbExtractor::detect_level(const cv::Mat& image, int budget) const {

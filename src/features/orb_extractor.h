@@ -60,7 +60,6 @@ class OrbExtractor {
   OrbConfig config_;
   std::vector<double> scale_factors_, inv_scale_factors_, level_sigma2_, inv_level_sigma2_;
   std::vector<int> features_per_level_;
-  std::vector<int> umax_;  // half-width of the circular orientation patch per row offset
 };
 
 // Keeps at most `budget` keypoints spread over `area` with a quadtree: nodes holding more than

@@ -7,7 +7,6 @@
 #include <mutex>
 #include <shared_mutex>
 #include <unordered_map>
-#include <unordered_set>
 
 #include "core/log.h"
 #include "match/projection_search.h"
@@ -241,7 +240,7 @@ bool Tracker::track_reference_keyframe(Frame& frame) {
 }
 
 void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
-                               KeyFramePtr& reference) const {
+                               KeyFramePtr& reference) {
   // Keyframes sharing the frame's points, counted in a hash map and then visited in id order.
   std::unordered_map<KeyFrame*, int> count;
   count.reserve(64);
@@ -276,16 +275,13 @@ void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& loc
   for (KeyFrame* kf : chosen)
     if (auto p = map_->shared(kf)) local_kfs.push_back(p);
   if (best_kf) reference = map_->shared(best_kf);
-  std::size_t total = 0;
-  for (const auto& kf : local_kfs) total += kf->map_points.size();
-  std::unordered_set<const MapPoint*> seen;
-  seen.reserve(total);
+  local_points_seen_.clear();
   local_points.clear();
   // Deduplicate before reading the point: keyframes share most points, and each first read of a
   // point is a cache miss.
   for (const auto& kf : local_kfs)
     for (const auto& mp : kf->map_points)
-      if (mp && seen.insert(mp.get()).second && !mp->bad) local_points.push_back(mp);
+      if (mp && local_points_seen_.insert(mp.get()) && !mp->bad) local_points.push_back(mp);
 }
 
 bool Tracker::track_local_map(Frame& frame) {

@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 
+#include "core/pointer_set.h"
 #include "map/frame.h"
 #include "map/map.h"
 #include "optimize/pose_optimizer.h"
@@ -93,7 +94,7 @@ class Tracker {
   bool track_local_map(Frame& frame);
   void update_last_frame();
   void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
-                        KeyFramePtr& reference) const;
+                        KeyFramePtr& reference);
   int optimize_frame_pose(Frame& frame) const;
   bool need_new_keyframe(const Frame& frame) const;
   KeyFramePtr create_keyframe(Frame& frame);
@@ -113,6 +114,7 @@ class Tracker {
   std::uint32_t frames_since_keyframe_ = 0, frames_since_reloc_ = 1000000;
   int last_inliers_ = 0;
   std::uint64_t tracked_change_index_ = 0;  // map change index when the frame was tracked
+  PointerSet local_points_seen_;             // update_local_map's scratch, reused frame to frame
 };
 
 }  // namespace cslam
