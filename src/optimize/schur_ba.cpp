@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -207,23 +208,25 @@ class SchurBaProblem {
         if (v >= 0) project_with_jacobians(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jc, Jp);
         else project_with_point_jacobian(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jp);
         const WeightedResidual wr = weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
-        const bool stereo = wr.stereo;
-        const Eigen::Vector3d& r = wr.r;
-        const double w = wr.weight;
         cost += wr.cost;
-        if (!stereo) {
-          Jc.row(2).setZero();
-          Jp.row(2).setZero();
-        }
-        const Eigen::Matrix3d wJpT = w * Jp.transpose();
-        V.noalias() += wJpT * Jp;
-        gp.noalias() += wJpT * r;
-        if (v >= 0) {
-          const Matrix63d wJcT = w * Jc.transpose();
-          L.U[v].noalias() += wJcT * Jc;
-          L.gc[v].noalias() += wJcT * r;
-          L.W[e].noalias() = wJcT * Jp;
-        }
+        // The rows of the observation's residual only (2 for a monocular one).
+        auto accumulate = [&](auto num_rows) {
+          constexpr int R = decltype(num_rows)::value;
+          const auto Jp_r = Jp.template topRows<R>();
+          const auto r_r = wr.r.template head<R>();
+          const Eigen::Matrix<double, 3, R> wJpT = wr.weight * Jp_r.transpose();
+          V.noalias() += wJpT * Jp_r;
+          gp.noalias() += wJpT * r_r;
+          if (v >= 0) {
+            const auto Jc_r = Jc.template topRows<R>();
+            const Eigen::Matrix<double, 6, R> wJcT = wr.weight * Jc_r.transpose();
+            L.U[v].noalias() += wJcT * Jc_r;
+            L.gc[v].noalias() += wJcT * r_r;
+            L.W[e].noalias() = wJcT * Jp_r;
+          }
+        };
+        if (wr.stereo) accumulate(std::integral_constant<int, 3>{});
+        else accumulate(std::integral_constant<int, 2>{});
       }
       L.V[p] = V;
       L.gp[p] = gp;
