@@ -35,6 +35,9 @@ struct BaConfig {
   int first_iterations = 5;    // with the Huber kernel
   int second_iterations = 10;  // after dropping outliers, no kernel (0: single stage)
   double chi2_mono = 5.991, chi2_stereo = 7.815;
+  // A stage ends after an accepted step that lowered its cost by at most this fraction (lm_driver.h;
+  // 0: Ceres' termination rules alone). Schur path only.
+  double min_step_decrease = 1e-4;
   int threads = 1;  // Ceres threads (sparse path only; the Schur solver is single-threaded)
 };
 

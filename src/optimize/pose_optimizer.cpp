@@ -147,7 +147,7 @@ PoseOptimizationResult optimize_pose(const SE3& initial, const std::vector<PoseO
     if (used < 3) break;
     const std::array<double, 6> x_before = x;
     PoseProblem problem(obs, res.inlier, k, round < cfg.robust_rounds, cfg, x);
-    const LmOutcome lm = levenberg_marquardt(problem, cfg.iterations_per_round);
+    const LmOutcome lm = levenberg_marquardt(problem, cfg.iterations_per_round, nullptr, cfg.min_step_decrease);
     if (!lm.usable) x = x_before;  // as Ceres: an unusable solve leaves the parameters
     res.final_cost = lm.final_cost;
     res.converged = lm.converged;

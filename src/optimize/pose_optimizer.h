@@ -23,6 +23,9 @@ struct PoseOptimizationConfig {
   int iterations_per_round = 10;
   double chi2_mono = 5.991, chi2_stereo = 7.815;
   int robust_rounds = 2;  // rounds with the Huber kernel
+  // A round ends after an accepted step that lowered its cost by at most this fraction
+  // (lm_driver.h; 0: Ceres' termination rules alone).
+  double min_step_decrease = 1e-4;
 };
 
 struct PoseOptimizationResult {

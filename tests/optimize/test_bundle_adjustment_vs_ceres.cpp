@@ -54,7 +54,8 @@ std::vector<Eigen::Matrix3d> point_information(const BaProblem& p, const BaResul
 using Solver = BaResult (*)(const BaProblem&, const BaConfig&, const std::atomic<bool>*);
 
 void compare_with_reference(Solver solver) {
-  const BaConfig cfg;
+  BaConfig cfg;
+  cfg.min_step_decrease = 0;  // step for step with Ceres: its termination rules alone
   const Case cases[] = {{3, 2, 80, 0.0, 1.0}, {6, 4, 300, 0.05, 0.8}, {10, 5, 600, 0.1, 0.5}, {20, 8, 1500, 0.05, 0.9}, {8, 2, 400, 0.1, 0.3}};
   std::mt19937 rng(77);
   double worst_pose = 0, worst_point = 0;
@@ -158,4 +159,35 @@ TEST(BundleAdjustmentVsCeres, AllKeyframesFixedAndUnobservedPoints) {
   EXPECT_EQ(fast.points.back(), s.problem.points.back());
   for (size_t c = 0; c < s.problem.cameras.size(); ++c)
     EXPECT_EQ(fast.T_cam_world[c].translation(), ref.T_cam_world[c].translation());
+}
+
+// The default early end (a stage stops after a step that lowered its cost by <= 1e-4 of it):
+// fewer iterations, the same inliers and a solution that the remaining iterations would hardly move.
+TEST(BundleAdjustmentVsCeres, EarlyEndAfterATinyStepStaysAtTheFullSolution) {
+  const Case cases[] = {{6, 4, 300, 0.05, 0.8}, {10, 5, 600, 0.1, 0.5}, {20, 8, 1500, 0.05, 0.9}};
+  std::mt19937 rng(91);
+  BaConfig full;
+  full.min_step_decrease = 0;
+  const BaConfig early;
+  ASSERT_GT(early.min_step_decrease, 0.0);
+  int iterations_full = 0, iterations_early = 0;
+  for (const Case& c : cases)
+    for (int rep = 0; rep < 3; ++rep) {
+      const test::BaSynthetic s = test::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
+      const BaResult a = bundle_adjust(s.problem, early), b = bundle_adjust(s.problem, full);
+      iterations_early += a.iterations;
+      iterations_full += b.iterations;
+      EXPECT_LE(a.iterations, b.iterations);
+      EXPECT_NEAR(a.final_cost, b.final_cost, 1e-4 * b.final_cost) << "case " << c.free_cams << " rep " << rep;
+      int differing = 0;
+      for (size_t i = 0; i < s.problem.observations.size(); ++i)
+        if (a.inlier[i] != b.inlier[i] && !borderline(s.problem, a, b, i, full)) ++differing;
+      EXPECT_EQ(differing, 0);
+      for (int k = 0; k < c.free_cams; ++k) {
+        EXPECT_LT((a.T_cam_world[k].translation() - b.T_cam_world[k].translation()).norm(), 1e-4);
+        EXPECT_LT((a.T_cam_world[k].translation() - s.true_poses[k].translation()).norm(), 0.01);
+      }
+    }
+  EXPECT_LT(iterations_early, iterations_full);
+  std::printf("iterations: %d with the early end, %d without\n", iterations_early, iterations_full);
 }

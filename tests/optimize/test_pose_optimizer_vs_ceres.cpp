@@ -27,7 +27,8 @@ struct Case {
 
 TEST(PoseOptimizerVsCeres, SameInliersAndPosesOnRandomProblems) {
   const auto k = test::tum_like_intrinsics();
-  const PoseOptimizationConfig cfg;
+  PoseOptimizationConfig cfg;
+  cfg.min_step_decrease = 0;  // step for step with Ceres: its termination rules alone
   const Case cases[] = {{30, 0.0, 1.0}, {80, 0.1, 0.8}, {150, 0.2, 0.5}, {300, 0.3, 0.9}, {500, 0.15, 0.0}, {250, 0.05, 1.0}};
   std::mt19937 rng(2024);
   int problems = 0, borderline_count = 0;
@@ -92,4 +93,26 @@ TEST(PoseOptimizerVsCeres, RejectsEveryGrossOutlier) {
   EXPECT_GT(outliers, 40);
   EXPECT_EQ(kept_outliers, 0);
   EXPECT_LT(lost_inliers, 15);
+}
+
+// The default early end (a round stops after a step that lowered its cost by <= 1e-4 of it): the
+// same inliers and, up to a sliver of the cost, the same pose.
+TEST(PoseOptimizerVsCeres, EarlyEndAfterATinyStepStaysAtTheFullSolution) {
+  const auto k = test::tum_like_intrinsics();
+  PoseOptimizationConfig full;
+  full.min_step_decrease = 0;
+  const PoseOptimizationConfig early;
+  ASSERT_GT(early.min_step_decrease, 0.0);
+  std::mt19937 rng(515);
+  for (int rep = 0; rep < 40; ++rep) {
+    const test::PoseProblem p = test::random_pose_problem(rng, 50 + 10 * rep, 0.1 + 0.005 * rep, rep % 2 ? 0.8 : 0.2);
+    const auto a = optimize_pose(p.start, p.obs, k, early), b = optimize_pose(p.start, p.obs, k, full);
+    EXPECT_NEAR(a.final_cost, b.final_cost, 1e-4 * std::max(1.0, b.final_cost)) << "rep " << rep;
+    EXPECT_LT((a.T_cam_world.translation() - b.T_cam_world.translation()).norm(), 1e-4) << "rep " << rep;
+    EXPECT_LT(a.T_cam_world.rotation().angularDistance(b.T_cam_world.rotation()), 1e-5) << "rep " << rep;
+    int differing = 0;
+    for (size_t i = 0; i < p.obs.size(); ++i)
+      if (a.inlier[i] != b.inlier[i] && !borderline(a.T_cam_world, b.T_cam_world, p.obs[i], k, full)) ++differing;
+    EXPECT_EQ(differing, 0) << "rep " << rep;
+  }
 }
