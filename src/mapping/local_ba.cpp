@@ -40,11 +40,11 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
     for (KeyFrame* n : kf->best_covisibles(std::size_t(std::max(0, config_.local_ba_max_keyframes - 1))))
       if (!n->bad) add_camera(n, false);
     const size_t num_local = cameras.size();
-    std::unordered_map<MapPoint*, int> point_index;
+    ba_points_seen_.clear();
     for (size_t c = 0; c < num_local; ++c)
       for (const auto& mp : cameras[c]->map_points)
-        if (mp && !mp->bad && !point_index.count(mp.get())) {
-          point_index[mp.get()] = int(points.size());
+        if (mp && !ba_points_seen_.contains(mp.get()) && !mp->bad) {
+          ba_points_seen_.insert(mp.get());
           points.push_back(mp);
           prob.points.push_back(mp->position);
         }

@@ -10,6 +10,7 @@
 #include <string>
 #include <thread>
 
+#include "core/pointer_set.h"
 #include "eval/stats.h"
 #include "map/map.h"
 #include "mapping/triangulation.h"
@@ -94,6 +95,7 @@ class LocalMapper : public KeyFrameSink {
   std::uint64_t inserted_ = 0, points_done_ = 0, processed_ = 0;
   bool stop_requested_ = false;
   std::list<MapPointPtr> recent_points_;
+  PointerSet ba_points_seen_;  // local_bundle_adjustment's scratch, reused keyframe to keyframe
   KeyFrameProcessedCallback on_processed_;
   mutable std::mutex stats_mutex_;
   LocalMapperStats stats_;
