@@ -208,21 +208,33 @@ void LocalMapper::cull_keyframes(KeyFrame* kf) {
   for (KeyFrame* cand : kf->covisibles()) {
     if (cand->bad || cand == map_->origin().get() || cand == kf) continue;
     const FrameData& f = *cand->data;
-    int points = 0, redundant = 0;
-    for (size_t i = 0; i < cand->map_points.size(); ++i) {
+    auto counted = [&](size_t i) {
       const auto& mp = cand->map_points[i];
-      if (!mp || mp->bad || !f.is_close(int(i))) continue;
-      ++points;
-      if (mp->num_obs <= 3) continue;
-      const int level = f.features.keypoints[i].octave;
-      int seen_by = 0;
-      for (const auto& [other, idx] : mp->observations) {
-        if (other == cand) continue;
-        if (other->data->features.keypoints[idx].octave <= level + 1 && ++seen_by >= 3) break;
+      return mp && !mp->bad && f.is_close(int(i));
+    };
+    int points = 0;
+    for (size_t i = 0; i < cand->map_points.size(); ++i) points += counted(i) ? 1 : 0;
+    // Culled when more than redundant_ratio of the points are redundant; the count stops as soon
+    // as the points not (yet) found redundant rule that out (most candidates are kept).
+    const double needed = config_.redundant_ratio * points;
+    int redundant = 0, other = 0;
+    for (size_t i = 0; i < cand->map_points.size() && points - other > needed; ++i) {
+      if (!counted(i)) continue;
+      const MapPoint& mp = *cand->map_points[i];
+      bool is_redundant = false;
+      if (mp.num_obs > 3) {
+        const int level = f.features.keypoints[i].octave;
+        int seen_by = 0;
+        for (const auto& [okf, idx] : mp.observations) {
+          if (okf == cand) continue;
+          if (okf->data->features.keypoints[idx].octave <= level + 1 && ++seen_by >= 3) break;
+        }
+        is_redundant = seen_by >= 3;
       }
-      if (seen_by >= 3) ++redundant;
+      if (is_redundant) ++redundant;
+      else ++other;
     }
-    if (points > 0 && redundant > config_.redundant_ratio * points) {
+    if (points > 0 && redundant > needed) {
       map_->set_keyframe_bad(cand);
       ++culled;
     }
