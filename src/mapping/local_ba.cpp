@@ -43,8 +43,7 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
     ba_points_seen_.clear();
     for (size_t c = 0; c < num_local; ++c)
       for (const auto& mp : cameras[c]->map_points)
-        if (mp && !ba_points_seen_.contains(mp.get()) && !mp->bad) {
-          ba_points_seen_.insert(mp.get());
+        if (mp && ba_points_seen_.insert(mp.get()) && !mp->bad) {
           points.push_back(mp);
           prob.points.push_back(mp->position);
         }

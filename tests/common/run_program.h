@@ -16,9 +16,9 @@ struct RunResult {
   std::string output;  // stdout and stderr
 };
 
-// Runs build/bin/<program> <args> through the shell; captures its output and exit status.
-inline RunResult run_program(const std::string& program, const std::string& args) {
-  const std::string cmd = std::string(CSLAM_BIN_DIR) + "/" + program + " " + args + " 2>&1";
+// Runs a shell command; captures its output (stdout and stderr) and exit status.
+inline RunResult run_command(const std::string& command) {
+  const std::string cmd = command + " 2>&1";
   RunResult r;
   FILE* pipe = popen(cmd.c_str(), "r");
   if (!pipe) return r;
@@ -27,6 +27,11 @@ inline RunResult run_program(const std::string& program, const std::string& args
   const int status = pclose(pipe);
   r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// Runs build/bin/<program> <args> through the shell; captures its output and exit status.
+inline RunResult run_program(const std::string& program, const std::string& args) {
+  return run_command(std::string(CSLAM_BIN_DIR) + "/" + program + " " + args);
 }
 
 // A fresh folder under the system temp dir, removed when the object goes away.
