@@ -1,5 +1,6 @@
 #include "optimize/schur_ba.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <type_traits>
@@ -7,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
+#include "optimize/schur_kernels.h"
 #include "optimize/se3_projection.h"
 
 namespace cslam {
@@ -88,7 +90,9 @@ class SchurBaProblem {
     dc_.resize(6 * F);
     Vinv_.resize(P);
     dp_.resize(P);
-    T_.resize(entries_.size());
+    int most = 0;
+    for (size_t p = 0; p + 1 < free_start_.size(); ++p) most = std::max(most, free_start_[p + 1] - free_start_[p]);
+    T_.resize(size_t(most));
     candidate_poses_ = poses_;
     candidate_points_ = points_;
   }
@@ -119,16 +123,19 @@ class SchurBaProblem {
       for (int d = 0; d < 3; ++d) Vd(d, d) += lm_damping(L.V[p](d, d), radius);
       Vinv_[p] = Vd.inverse();
       const int begin = free_start_[p], end = free_start_[p + 1];
+      pair_T_.clear();
+      pair_W_.clear();
+      pair_cam_.clear();
       for (int i = begin; i < end; ++i) {
         const int e = free_entries_[i], a = entries_[e].cam_var;
-        T_[e].noalias() = L.W[e] * Vinv_[p];
-        rhs_.segment<6>(6 * a).noalias() += T_[e] * L.gp[p];
-        for (int j = begin; j < end; ++j) {
-          const int f = free_entries_[j], b = entries_[f].cam_var;
-          if (b > a) continue;
-          S_.block<6, 6>(6 * a, 6 * b).noalias() -= T_[e] * L.W[f].transpose();
-        }
+        Matrix63d& T = T_[size_t(i - begin)];
+        T.noalias() = L.W[e] * Vinv_[p];
+        rhs_.segment<6>(6 * a).noalias() += T * L.gp[p];
+        pair_T_.push_back(T.data());
+        pair_W_.push_back(L.W[e].data());
+        pair_cam_.push_back(a);
       }
+      pair_products_(pair_T_.data(), pair_W_.data(), pair_cam_.data(), end - begin, S_.data(), S_.outerStride());
     }
     llt_.compute(S_);
     if (llt_.info() != Eigen::Success) return false;
@@ -253,9 +260,13 @@ class SchurBaProblem {
   Eigen::LLT<Eigen::MatrixXd> llt_;
   std::vector<Eigen::Matrix3d> Vinv_;
   std::vector<Eigen::Vector3d> dp_;
-  std::vector<Matrix63d> T_;
+  std::vector<Matrix63d> T_;  // W V^-1 of one point's free entries (scratch)
   std::vector<std::array<double, 6>> candidate_poses_;
   std::vector<Eigen::Vector3d> candidate_points_;
+  // One point's free entries for the pair-product kernel.
+  const schur_kernels::PairProductsFn pair_products_ = schur_kernels::pair_products();
+  std::vector<const double*> pair_T_, pair_W_;
+  std::vector<int> pair_cam_;
 };
 
 }  // namespace
