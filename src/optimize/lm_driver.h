@@ -40,6 +40,8 @@ inline double lm_damping(double h, double radius) {
 //                               end the solve); +inf if not finite
 //   bool accept()               x <- x + step, linearised there; false (nothing changed) if the
 //                               derivatives are not finite, and the step counts as rejected
+//   void commit()               x <- x + step without derivatives: the accepted step that ends
+//                               the solve (early end, last iteration) needs none there
 template <class Problem>
 LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<bool>* abort = nullptr,
                               double min_step_decrease = 0.0) {
@@ -85,16 +87,25 @@ LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<
         return out;
       }
       const double relative_decrease = (cost - candidate_cost) / model_cost_change;
-      if (std::isfinite(candidate_cost) && relative_decrease > kMinRelativeDecrease && p.accept()) {
+      const bool acceptable = std::isfinite(candidate_cost) && relative_decrease > kMinRelativeDecrease;
+      // An accepted step that ends the solve (too small a decrease, or the last iteration) is
+      // taken without linearising there: nothing reads those derivatives. try_step's cost is
+      // the one linearising would compute.
+      const bool small = cost - candidate_cost <= min_step_decrease * cost;
+      if (acceptable && (small || iteration == max_iterations)) {
+        p.commit();
+        out.final_cost = candidate_cost;
+        radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * relative_decrease - 1.0, 3)));
+        if (small) {
+          ++out.iterations;  // this step counts, as every completed iteration does
+          out.converged = true;
+          return out;
+        }
+      } else if (acceptable && p.accept()) {
         out.final_cost = p.cost();
         radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * relative_decrease - 1.0, 3)));
         decrease_factor = 2.0;
         if (p.gradient_max_norm() <= kGradientTolerance) {
-          out.converged = true;
-          return out;
-        }
-        if (cost - candidate_cost <= min_step_decrease * cost) {
-          ++out.iterations;  // this step counts, as every completed iteration does
           out.converged = true;
           return out;
         }

@@ -56,6 +56,7 @@ class PoseProblem {
     std::swap(cur_, next_);
     return true;
   }
+  void commit() { x_ = candidate_x_; }  // cur_ still describes the previous x: the solve ends here
 
  private:
   // The cost linearize_at computes, summed in the same order, without derivatives.

@@ -179,6 +179,10 @@ class SchurBaProblem {
     std::swap(cur_, next_);
     return true;
   }
+  void commit() {  // cur_ still describes the previous x: the solve ends here
+    std::swap(poses_, candidate_poses_);
+    std::swap(points_, candidate_points_);
+  }
 
  private:
   // The cost linearize_at computes, summed in the same order, without derivatives.
