@@ -228,10 +228,17 @@ std::vector<cv::KeyPoint> OrbExtractor::detect_level(const cv::Mat& image, int b
           detect(area, config_.min_fast_threshold, [&](int k) { return k >= first && k < last; });
         c = end;
       }
-    // The raster order of a single pass: the quadtree's choices depend on the order.
-    std::sort(kps.begin(), kps.end(), [](const cv::KeyPoint& p, const cv::KeyPoint& q) {
-      return p.pt.y != q.pt.y ? p.pt.y < q.pt.y : p.pt.x < q.pt.x;
-    });
+    // The raster order of a single pass: the quadtree's choices depend on the order. Corners
+    // sit on whole pixels, one corner per pixel: bucketed by row, then each row by x.
+    std::vector<int> row_start(std::size_t(H) + 1, 0);
+    for (const cv::KeyPoint& kp : kps) ++row_start[std::size_t(kp.pt.y) + 1];
+    for (int y = 0; y < H; ++y) row_start[std::size_t(y) + 1] += row_start[std::size_t(y)];
+    found.resize(kps.size());
+    for (const cv::KeyPoint& kp : kps) found[std::size_t(row_start[std::size_t(kp.pt.y)]++)] = kp;
+    for (int y = 0, begin = 0; y < H; begin = row_start[std::size_t(y)], ++y)
+      std::sort(found.begin() + begin, found.begin() + row_start[std::size_t(y)],
+                [](const cv::KeyPoint& p, const cv::KeyPoint& q) { return p.pt.x < q.pt.x; });
+    kps.swap(found);
   }
   return distribute_quadtree(kps, cv::Rect2f(float(b), float(b), float(inner_w), float(inner_h)), budget);
 }

@@ -1,8 +1,8 @@
 #include "match/projection_search.h"
 
 #include <cmath>
-#include <unordered_set>
 
+#include "core/pointer_set.h"
 #include "features/matching.h"
 
 namespace cslam {
@@ -86,14 +86,14 @@ int search_by_projection(Frame& cur, const Frame& last, double th, bool check_or
 
 int search_local_points(Frame& cur, const std::vector<MapPointPtr>& points, double th) {
   const FrameData& f = *cur.data;
-  std::unordered_set<const MapPoint*> in_frame;
-  in_frame.reserve(cur.map_points.size());
+  PointerSet in_frame;
+  in_frame.clear(cur.map_points.size());
   for (const auto& mp : cur.map_points)
     if (mp) in_frame.insert(mp.get());
   std::vector<int> cands;
   int n = 0;
   for (const auto& mp : points) {
-    if (!mp || mp->bad || in_frame.count(mp.get())) continue;
+    if (!mp || mp->bad || in_frame.contains(mp.get())) continue;
     const ProjectedPoint p = project_map_point(*mp, cur.T_cam_world, f);
     if (!p.visible) continue;
     ++mp->visible;

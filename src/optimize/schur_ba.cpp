@@ -163,11 +163,11 @@ class SchurBaProblem {
   }
 
   double try_step() {
-    candidate_poses_ = poses_;
-    candidate_points_ = points_;
+    // The candidates equal x outside the variables: copied at construction, and swapped with x
+    // on every accepted step.
     for (size_t v = 0; v < cam_vars_.size(); ++v)
-      for (int d = 0; d < 6; ++d) candidate_poses_[cam_vars_[v]][d] += dc_(6 * v + d);
-    for (size_t p = 0; p < point_vars_.size(); ++p) candidate_points_[point_vars_[p]] += dp_[p];
+      for (int d = 0; d < 6; ++d) candidate_poses_[cam_vars_[v]][d] = poses_[cam_vars_[v]][d] + dc_(6 * v + d);
+    for (size_t p = 0; p < point_vars_.size(); ++p) candidate_points_[point_vars_[p]] = points_[point_vars_[p]] + dp_[p];
     const double c = cost_at(candidate_poses_, candidate_points_);
     return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
   }
