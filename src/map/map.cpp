@@ -4,6 +4,8 @@
 #include <chrono>
 #include <limits>
 
+#include <boost/container/small_vector.hpp>
+
 namespace cslam {
 
 MapWriteLock::MapWriteLock(Map& map, bool record_wait) : lock_(map.mutex, std::defer_lock) {
@@ -231,15 +233,17 @@ void Map::update_map_point(MapPoint* mp) const {
   // the set of observations alone (keyframe descriptors never change).
   if (mp->descriptor_version == mp->observations_version) return;
   mp->descriptor_version = mp->observations_version;
-  std::vector<const Descriptor*> descs;
-  descs.reserve(mp->observations.size());
+  // Scratch on the stack up to 32 observations: this runs for every point whose observations
+  // changed, thousands per keyframe.
+  boost::container::small_vector<const Descriptor*, 32> descs;
   for (const auto& [kf, idx] : mp->observations) descs.push_back(&kf->data->features.descriptors[idx]);
   const size_t n = descs.size();
   if (n == 1) {
     mp->descriptor = *descs[0];
     return;
   }
-  std::vector<int> d(n * n, 0), row(n);
+  boost::container::small_vector<int, 32 * 32> d(n * n, 0);
+  boost::container::small_vector<int, 32> row(n);
   for (size_t i = 0; i < n; ++i)
     for (size_t j = i + 1; j < n; ++j) d[i * n + j] = d[j * n + i] = hamming_distance(*descs[i], *descs[j]);
   int best_median = std::numeric_limits<int>::max();

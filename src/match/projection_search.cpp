@@ -84,7 +84,7 @@ int search_by_projection(Frame& cur, const Frame& last, double th, bool check_or
   return n;
 }
 
-int search_local_points(Frame& cur, const std::vector<MapPointPtr>& points, double th) {
+int search_local_points(Frame& cur, const std::vector<const MapPointPtr*>& points, double th) {
   const FrameData& f = *cur.data;
   PointerSet in_frame;
   in_frame.clear(cur.map_points.size());
@@ -92,7 +92,8 @@ int search_local_points(Frame& cur, const std::vector<MapPointPtr>& points, doub
     if (mp) in_frame.insert(mp.get());
   std::vector<int> cands;
   int n = 0;
-  for (const auto& mp : points) {
+  for (const MapPointPtr* slot : points) {
+    const MapPointPtr& mp = *slot;
     if (!mp || mp->bad || in_frame.contains(mp.get())) continue;
     const ProjectedPoint p = project_map_point(*mp, cur.T_cam_world, f);
     if (!p.visible) continue;

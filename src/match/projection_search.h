@@ -24,8 +24,10 @@ ProjectedPoint project_map_point(const MapPoint& mp, const SE3& T_cam_world, con
 int search_by_projection(Frame& current, const Frame& last, double radius, bool check_orientation);
 
 // Matches local map points (not yet matched in `current`) by projection. Increments `visible`
-// of every point in the frustum. Returns the number of new matches.
-int search_local_points(Frame& current, const std::vector<MapPointPtr>& points, double radius);
+// of every point in the frustum. Returns the number of new matches. `points` are the local
+// keyframes' slots holding them: the caller holds the map's shared lock, so no slot changes, and
+// a point's reference count is touched only when it is matched.
+int search_local_points(Frame& current, const std::vector<const MapPointPtr*>& points, double radius);
 
 // Matches a keyframe's map points to a frame's keypoints under the same vocabulary nodes.
 // Result: per frame keypoint, the matched point (null if none). Returns the number of matches.

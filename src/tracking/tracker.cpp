@@ -239,7 +239,7 @@ bool Tracker::track_reference_keyframe(Frame& frame) {
   return drop_outliers_count_map_points(frame) >= config_.min_pose_inliers;
 }
 
-void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
+void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<const MapPointPtr*>& local_points,
                                KeyFramePtr& reference) {
   // Keyframes sharing the frame's points, counted in a hash map and then visited in id order.
   std::unordered_map<KeyFrame*, int> count;
@@ -281,12 +281,12 @@ void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& loc
   // point is a cache miss.
   for (const auto& kf : local_kfs)
     for (const auto& mp : kf->map_points)
-      if (mp && local_points_seen_.insert(mp.get()) && !mp->bad) local_points.push_back(mp);
+      if (mp && local_points_seen_.insert(mp.get()) && !mp->bad) local_points.push_back(&mp);
 }
 
 bool Tracker::track_local_map(Frame& frame) {
   std::vector<KeyFramePtr> local_kfs;
-  std::vector<MapPointPtr> local_points;
+  std::vector<const MapPointPtr*> local_points;
   KeyFramePtr ref;
   update_local_map(frame, local_kfs, local_points, ref);
   if (ref) reference_kf_ = ref;

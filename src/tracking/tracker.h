@@ -93,7 +93,8 @@ class Tracker {
   bool relocalize(Frame& frame);
   bool track_local_map(Frame& frame);
   void update_last_frame();
-  void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<MapPointPtr>& local_points,
+  // Local keyframes and the slots of their points (valid while the map's shared lock is held).
+  void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<const MapPointPtr*>& local_points,
                         KeyFramePtr& reference);
   int optimize_frame_pose(Frame& frame) const;
   bool need_new_keyframe(const Frame& frame) const;
