@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "features/fast_corners.h"
 #include "features/patch_moments.h"
 
 namespace cslam {
@@ -195,7 +196,7 @@ std::vector<cv::KeyPoint> OrbExtractor::detect_level(const cv::Mat& image, int b
   std::vector<cv::KeyPoint> kps, found;
   auto detect = [&](const cv::Rect& area, int threshold, const auto& keep) {
     found.clear();
-    cv::FAST(image(area), found, threshold, true);
+    detect_fast_corners(image(area), threshold, found);  // cv::FAST's corners, faster where dense
     for (cv::KeyPoint& kp : found) {
       kp.pt.x += float(area.x);
       kp.pt.y += float(area.y);

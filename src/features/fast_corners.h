@@ -1,0 +1,31 @@
+#pragma once
+// FAST-9 corners (Rosten & Drummond 2006: 9 contiguous pixels of the radius-3, 16-pixel circle
+// all brighter or all darker than the centre by more than the threshold) with non-maximum
+// suppression, giving exactly the corners, responses and order of
+// cv::FAST(image, keypoints, threshold, true) (TYPE_9_16).
+//
+// Why not cv::FAST: it scores each corner on its own, in scalar code, and the score is most of
+// its time wherever corners are dense (ORB's fallback threshold of 7 over weak cells finds a
+// corner at most pixels). Here the score of every pixel of a 16-pixel block that may hold a
+// corner is computed at once:
+//   score = max over the 16 arcs of 9 contiguous circle pixels of the smallest difference
+//           to the centre along the arc (darker and brighter side), minus 1,
+// the highest threshold at which the pixel is still a corner, so a pixel is a corner exactly
+// when score >= threshold. Non-maximum suppression keeps a corner whose score is above all eight
+// neighbours' (0 for a non-corner).
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace cslam {
+
+// Corners of an 8-bit single-channel image (a view into a larger image is fine: only its own
+// pixels are read). Corners lie at least 3 pixels inside the image; in raster order, as
+// cv::KeyPoint(x, y, 7, -1, score).
+void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints);
+
+// The plain per-pixel score (-1 and below: no corner at any threshold); the vector code's second
+// opinion in tests.
+int fast_corner_score(const cv::Mat& image, int x, int y);
+
+}  // namespace cslam
