@@ -71,10 +71,10 @@ __attribute__((target("avx2"))) inline void max_arc_min9_avx2(const __m256i x[16
   }
 }
 
-// The 32 pixels from column x (those from x + first_lane on are new: their corners are recorded;
-// the scores of the others are rewritten with the same values).
-__attribute__((target("avx2"))) void score_block_avx2(const std::uint8_t* row, int x, int first_lane, const Circle& circle,
-                                                      int threshold, std::uint8_t* scores, std::vector<int>& columns) {
+// The scores of the 32 pixels from column x into scores[x ..] (0: no corner), or nothing when the
+// block cannot hold a corner (the caller has zeroed the row).
+__attribute__((target("avx2"))) void score_block_avx2(const std::uint8_t* row, int x, const Circle& circle, int threshold,
+                                                      std::uint8_t* scores) {
   const __m256i t = _mm256_set1_epi8(char(threshold)), zero = _mm256_setzero_si256();
   const std::uint8_t* p = row + x;
   const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
@@ -100,18 +100,13 @@ __attribute__((target("avx2"))) void score_block_avx2(const std::uint8_t* row, i
   max_arc_min9_avx2(darker, s);
   max_arc_min9_avx2(brighter, s);
   const __m256i corner = _mm256_xor_si256(_mm256_cmpeq_epi8(_mm256_subs_epu8(s, t), zero), _mm256_set1_epi8(-1));
-  unsigned bits = unsigned(_mm256_movemask_epi8(corner));
-  if (bits == 0) return;
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(scores + x), _mm256_and_si256(_mm256_sub_epi8(s, _mm256_set1_epi8(1)), corner));
-  bits &= ~0u << first_lane;
-  for (; bits; bits &= bits - 1) columns.push_back(x + __builtin_ctz(bits));
 }
 #endif
 
 #if defined(__SSE2__)
 // As score_block_avx2, 16 pixels.
-void score_block_sse2(const std::uint8_t* row, int x, int first_lane, const Circle& circle, int threshold,
-                      std::uint8_t* scores, std::vector<int>& columns) {
+void score_block_sse2(const std::uint8_t* row, int x, const Circle& circle, int threshold, std::uint8_t* scores) {
   // Saturating differences: with s the arc maximum over both sides, the score is s - 1 wherever
   // s > threshold, and a side whose differences are not all positive along an arc contributes 0
   // there instead of a negative value, which only matters below the threshold.
@@ -141,46 +136,66 @@ void score_block_sse2(const std::uint8_t* row, int x, int first_lane, const Circ
   }
   const __m128i s = _mm_max_epu8(max_arc_min9(darker), max_arc_min9(brighter));
   const __m128i corner = _mm_xor_si128(_mm_cmpeq_epi8(_mm_subs_epu8(s, t), zero), _mm_set1_epi8(-1));
-  unsigned bits = unsigned(_mm_movemask_epi8(corner));
-  if (bits == 0) return;
   _mm_storeu_si128(reinterpret_cast<__m128i*>(scores + x), _mm_and_si128(_mm_sub_epi8(s, _mm_set1_epi8(1)), corner));
-  bits &= ~0u << first_lane;
-  for (; bits; bits &= bits - 1) columns.push_back(x + __builtin_ctz(bits));
 }
 #endif
 
-// Scores of row y's corners into `scores` (zero elsewhere, which the caller has set) and their
-// columns, ascending, into `columns`.
-void score_row(const cv::Mat& image, int y, const Circle& circle, int threshold, bool avx2, std::uint8_t* scores,
-               std::vector<int>& columns) {
+// Scores of row y's pixels into `scores` (0 where no corner; the caller has zeroed the row).
+void score_row(const cv::Mat& image, int y, const Circle& circle, int threshold, FastCornersPath path,
+               std::uint8_t* scores) {
   const std::uint8_t* row = image.ptr<std::uint8_t>(y);
   const int end = image.cols - 3;
   int x = 3;
-  // Whole blocks, then one block ending at the last column, overlapping the done ones (their
-  // scores come out the same); the scalar loop only for rows narrower than a block.
+  // Whole blocks, then one block ending at the last column, overlapping done ones (whose scores
+  // come out the same); pixel by pixel only rows narrower than a block.
 #if defined(CSLAM_FAST_AVX2)
-  if (avx2 && end - x >= 32) {
-    for (; x + 32 <= end; x += 32) score_block_avx2(row, x, 0, circle, threshold, scores, columns);
-    if (x < end) score_block_avx2(row, end - 32, x - (end - 32), circle, threshold, scores, columns);
+  if (path == FastCornersPath::kAvx2 && end - x >= 32) {
+    for (; x + 32 <= end; x += 32) score_block_avx2(row, x, circle, threshold, scores);
+    if (x < end) score_block_avx2(row, end - 32, circle, threshold, scores);
     return;
   }
-#else
-  (void)avx2;
 #endif
 #if defined(__SSE2__)
-  if (end - x >= 16) {
-    for (; x + 16 <= end; x += 16) score_block_sse2(row, x, 0, circle, threshold, scores, columns);
-    if (x < end) score_block_sse2(row, end - 16, x - (end - 16), circle, threshold, scores, columns);
+  if (path != FastCornersPath::kScalar && end - x >= 16) {
+    for (; x + 16 <= end; x += 16) score_block_sse2(row, x, circle, threshold, scores);
+    if (x < end) score_block_sse2(row, end - 16, circle, threshold, scores);
     return;
   }
 #endif
   for (; x < end; ++x) {
     const int s = score_at(row + x, circle);
-    if (s >= threshold) {
-      scores[x] = std::uint8_t(s);
-      columns.push_back(x);
-    }
+    if (s >= threshold) scores[x] = std::uint8_t(s);
   }
+}
+
+// Appends row y's corners that score above all eight neighbours (rows above, cur, below; padded
+// with zeros to at least width + 16) in column order.
+void suppress_row(const std::uint8_t* above, const std::uint8_t* cur, const std::uint8_t* below, int width, int y,
+                  bool vector, std::vector<cv::KeyPoint>& keypoints) {
+  const int end = width - 3;
+  auto emit = [&](int x) { keypoints.emplace_back(float(x), float(y), 7.f, -1.f, float(cur[x])); };
+#if defined(__SSE2__)
+  if (vector) {
+    for (int x = 3; x < end; x += 16) {
+      auto at = [&](const std::uint8_t* r, int dx) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(r + x + dx)); };
+      __m128i m = _mm_max_epu8(_mm_max_epu8(at(above, -1), at(above, 0)), _mm_max_epu8(at(above, 1), at(cur, -1)));
+      m = _mm_max_epu8(m, _mm_max_epu8(_mm_max_epu8(at(cur, 1), at(below, -1)), _mm_max_epu8(at(below, 0), at(below, 1))));
+      // cur > every neighbour (so cur > 0: a corner); lanes past the last column dropped.
+      const __m128i above_all = _mm_cmpeq_epi8(_mm_subs_epu8(at(cur, 0), m), _mm_setzero_si128());
+      unsigned bits = ~unsigned(_mm_movemask_epi8(above_all)) & 0xffffu;
+      if (end - x < 16) bits &= (1u << (end - x)) - 1;
+      for (; bits; bits &= bits - 1) emit(x + __builtin_ctz(bits));
+    }
+    return;
+  }
+#endif
+  for (int x = 3; x < end; ++x) {
+    const int s = cur[x];
+    if (s > above[x - 1] && s > above[x] && s > above[x + 1] && s > cur[x - 1] && s > cur[x + 1] && s > below[x - 1] &&
+        s > below[x] && s > below[x + 1])
+      emit(x);
+  }
+  (void)vector;
 }
 
 }  // namespace
@@ -192,37 +207,41 @@ int fast_corner_score(const cv::Mat& image, int x, int y) {
   return score_at(image.ptr<std::uint8_t>(y) + x, Circle(std::ptrdiff_t(image.step[0])));
 }
 
+FastCornersPath fast_corners_best_path() {
+#if defined(CSLAM_FAST_AVX2)
+  if (__builtin_cpu_supports("avx2")) return FastCornersPath::kAvx2;
+#endif
+#if defined(__SSE2__)
+  return FastCornersPath::kSse2;
+#else
+  return FastCornersPath::kScalar;
+#endif
+}
+
 void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints) {
+  detect_fast_corners(image, threshold, keypoints, fast_corners_best_path());
+}
+
+void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints, FastCornersPath path) {
   keypoints.clear();
   if (image.type() != CV_8UC1) throw std::invalid_argument("detect_fast_corners: image must be CV_8UC1");
+  if (path == FastCornersPath::kAvx2 && fast_corners_best_path() != FastCornersPath::kAvx2)
+    throw std::invalid_argument("detect_fast_corners: this CPU cannot run the AVX2 path");
   threshold = std::clamp(threshold, 0, 255);
   const int W = image.cols, H = image.rows;
   if (W < 7 || H < 7) return;
   const Circle circle(std::ptrdiff_t(image.step[0]));
-#if defined(CSLAM_FAST_AVX2)
-  const bool avx2 = __builtin_cpu_supports("avx2");
-#else
-  const bool avx2 = false;
-#endif
-  // Scores of three rows (y % 3), zero where no corner, and their corners' columns.
-  std::vector<std::uint8_t> scores(3 * std::size_t(W), 0);
-  std::vector<int> columns[3];
-  auto row_scores = [&](int y) { return scores.data() + std::size_t(y % 3) * std::size_t(W); };
-  // Row y is scored once rows y - 1 and y + 1 are; corners lie in rows 3 .. H - 4.
+  // Scores of three rows (row y in slot y % 3), zero where no corner, padded for the 16-wide
+  // suppression reads; rows 0 .. 2 and H - 3 .. H - 1 hold no corner.
+  const std::size_t stride = std::size_t(W) + 16;
+  std::vector<std::uint8_t> scores(3 * stride, 0);
+  auto row_scores = [&](int y) { return scores.data() + std::size_t(y % 3) * stride; };
+  // Row y - 1 is suppressed once row y is scored.
   for (int y = 3; y <= H - 3; ++y) {
-    std::uint8_t* next = row_scores(y);
-    std::fill(next, next + W, std::uint8_t(0));
-    columns[y % 3].clear();
-    if (y <= H - 4) score_row(image, y, circle, threshold, avx2, next, columns[y % 3]);
-    if (y == 3) continue;
-    const std::uint8_t* above = y >= 5 ? row_scores(y - 2) : nullptr;  // rows before 3: no corners
-    const std::uint8_t* cur = row_scores(y - 1);
-    for (int x : columns[(y - 1) % 3]) {
-      const int s = cur[x];
-      const bool above_lower = !above || (s > above[x - 1] && s > above[x] && s > above[x + 1]);
-      if (above_lower && s > cur[x - 1] && s > cur[x + 1] && s > next[x - 1] && s > next[x] && s > next[x + 1])
-        keypoints.emplace_back(float(x), float(y - 1), 7.f, -1.f, float(s));
-    }
+    std::uint8_t* below = row_scores(y);
+    std::fill(below, below + W, std::uint8_t(0));
+    if (y <= H - 4) score_row(image, y, circle, threshold, path, below);
+    if (y >= 4) suppress_row(row_scores(y - 2), row_scores(y - 1), below, W, y - 1, path != FastCornersPath::kScalar, keypoints);
   }
 }
 

@@ -6,8 +6,8 @@
 //
 // Why not cv::FAST: it scores each corner on its own, in scalar code, and the score is most of
 // its time wherever corners are dense (ORB's fallback threshold of 7 over weak cells finds a
-// corner at most pixels). Here the score of every pixel of a 16-pixel block that may hold a
-// corner is computed at once:
+// corner at most pixels). Here the score of every pixel of a 32- (AVX2) or 16-pixel (SSE2) block
+// that may hold a corner is computed at once, and the suppression runs 16 pixels at a time:
 //   score = max over the 16 arcs of 9 contiguous circle pixels of the smallest difference
 //           to the centre along the arc (darker and brighter side), minus 1,
 // the highest threshold at which the pixel is still a corner, so a pixel is a corner exactly
@@ -23,6 +23,12 @@ namespace cslam {
 // pixels are read). Corners lie at least 3 pixels inside the image; in raster order, as
 // cv::KeyPoint(x, y, 7, -1, score).
 void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints);
+
+// The implementations, all with the same result: AVX2 (32 pixels a step, when the CPU has it),
+// SSE2 (16) and pixel by pixel. The fastest available runs by default; tests run each.
+enum class FastCornersPath { kAvx2, kSse2, kScalar };
+FastCornersPath fast_corners_best_path();
+void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints, FastCornersPath path);
 
 // The plain per-pixel score (-1 and below: no corner at any threshold); the vector code's second
 // opinion in tests.

@@ -1,5 +1,6 @@
 // detect_fast_corners against cv::FAST(image, keypoints, threshold, true): the same keypoints
-// (position, response, size, angle) in the same order, over procedural scenes, noise of several
+// (position, response, size, angle) in the same order, from each implementation (AVX2 where the
+// CPU has it, SSE2, pixel by pixel), over procedural scenes, noise of several
 // strengths (dense corners at low thresholds), flat and saturated images, narrow images, views
 // into larger images and every threshold ORB uses and more; the per-pixel score against the
 // definition (the highest threshold at which cv::FAST still reports the pixel without
@@ -16,17 +17,26 @@
 
 namespace {
 
+std::vector<cslam::FastCornersPath> paths() {
+  std::vector<cslam::FastCornersPath> out{cslam::FastCornersPath::kSse2, cslam::FastCornersPath::kScalar};
+  if (cslam::fast_corners_best_path() == cslam::FastCornersPath::kAvx2) out.push_back(cslam::FastCornersPath::kAvx2);
+  return out;
+}
+
 void expect_same_as_opencv(const cv::Mat& image, int threshold, const std::string& what) {
-  std::vector<cv::KeyPoint> expected, got;
+  std::vector<cv::KeyPoint> expected;
   cv::FAST(image, expected, threshold, true);
-  cslam::detect_fast_corners(image, threshold, got);
-  ASSERT_EQ(got.size(), expected.size()) << what << " threshold " << threshold;
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    ASSERT_EQ(got[i].pt, expected[i].pt) << what << " threshold " << threshold << " keypoint " << i;
-    ASSERT_EQ(got[i].response, expected[i].response) << what << " at " << got[i].pt;
-    ASSERT_EQ(got[i].size, expected[i].size);
-    ASSERT_EQ(got[i].angle, expected[i].angle);
-    ASSERT_EQ(got[i].octave, expected[i].octave);
+  for (cslam::FastCornersPath path : paths()) {
+    std::vector<cv::KeyPoint> got;
+    cslam::detect_fast_corners(image, threshold, got, path);
+    ASSERT_EQ(got.size(), expected.size()) << what << " threshold " << threshold << " path " << int(path);
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      ASSERT_EQ(got[i].pt, expected[i].pt) << what << " threshold " << threshold << " keypoint " << i;
+      ASSERT_EQ(got[i].response, expected[i].response) << what << " at " << got[i].pt;
+      ASSERT_EQ(got[i].size, expected[i].size);
+      ASSERT_EQ(got[i].angle, expected[i].angle);
+      ASSERT_EQ(got[i].octave, expected[i].octave);
+    }
   }
 }
 
@@ -107,6 +117,18 @@ TEST(FastCorners, ScoreIsTheHighestThresholdStillDetected) {
       }
     }
   EXPECT_GT(corners, 100);
+}
+
+TEST(FastCorners, DefaultIsTheFastestPath) {
+  const cv::Mat scene = cslam::procedural_image(2);
+  std::vector<cv::KeyPoint> by_default, fastest;
+  cslam::detect_fast_corners(scene, 7, by_default);
+  cslam::detect_fast_corners(scene, 7, fastest, cslam::fast_corners_best_path());
+  ASSERT_EQ(by_default.size(), fastest.size());
+  EXPECT_GT(by_default.size(), 1000u);
+#if defined(__x86_64__)
+  EXPECT_NE(cslam::fast_corners_best_path(), cslam::FastCornersPath::kScalar);
+#endif
 }
 
 TEST(FastCorners, RejectsOtherImageTypes) {
