@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <stdexcept>
 
+#include "core/cpu_features.h"
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -209,7 +211,7 @@ int fast_corner_score(const cv::Mat& image, int x, int y) {
 
 FastCornersPath fast_corners_best_path() {
 #if defined(CSLAM_FAST_AVX2)
-  if (__builtin_cpu_supports("avx2")) return FastCornersPath::kAvx2;
+  if (cpu_has_avx2()) return FastCornersPath::kAvx2;
 #endif
 #if defined(__SSE2__)
   return FastCornersPath::kSse2;

@@ -2,6 +2,8 @@
 
 #include <Eigen/Core>
 
+#include "core/cpu_features.h"
+
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
@@ -26,8 +28,6 @@ void pair_products_portable(const double* const* T, const double* const* W, cons
 }
 
 #if defined(__x86_64__)
-
-bool avx2_fma_available() { return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"); }
 
 // Block column c gets -= T(:,0) W(c,0) + T(:,1) W(c,1) + T(:,2) W(c,2): rows 0-3 in one 256-bit
 // register, rows 4-5 in one 128-bit register, three fused multiply-subtracts each.
@@ -60,8 +60,6 @@ __attribute__((target("avx2,fma"))) void pair_products_avx2(const double* const*
 
 #else
 
-bool avx2_fma_available() { return false; }
-
 void pair_products_avx2(const double* const* T, const double* const* W, const int* cam, int m, double* S,
                         std::ptrdiff_t ld) {
   pair_products_portable(T, W, cam, m, S, ld);
@@ -70,7 +68,7 @@ void pair_products_avx2(const double* const* T, const double* const* W, const in
 #endif
 
 PairProductsFn pair_products() {
-  static const PairProductsFn chosen = avx2_fma_available() ? &pair_products_avx2 : &pair_products_portable;
+  static const PairProductsFn chosen = cpu_has_avx2_fma() ? &pair_products_avx2 : &pair_products_portable;
   return chosen;
 }
 

@@ -19,10 +19,8 @@ using PairProductsFn = void (*)(const double* const* T, const double* const* W, 
 void pair_products_portable(const double* const* T, const double* const* W, const int* cam, int m, double* S,
                             std::ptrdiff_t ld);
 
-// True when this CPU (and OS) can run pair_products_avx2.
-bool avx2_fma_available();
-
-// Defined on x86-64 only; call it only when avx2_fma_available().
+// Call it only when cpu_has_avx2_fma() (core/cpu_features.h); elsewhere than x86-64 it is the
+// portable one.
 void pair_products_avx2(const double* const* T, const double* const* W, const int* cam, int m, double* S,
                         std::ptrdiff_t ld);
 

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/cpu_features.h"
 #include "optimize/schur_kernels.h"
 
 namespace sk = cslam::schur_kernels;
@@ -91,11 +92,11 @@ void expect_matches_reference(sk::PairProductsFn fn) {
 TEST(SchurKernels, PortableMatchesReference) { expect_matches_reference(&sk::pair_products_portable); }
 
 TEST(SchurKernels, Avx2MatchesReference) {
-  if (!sk::avx2_fma_available()) GTEST_SKIP() << "this CPU has no AVX2+FMA";
+  if (!cslam::cpu_has_avx2_fma()) GTEST_SKIP() << "this CPU has no AVX2+FMA";
   expect_matches_reference(&sk::pair_products_avx2);
 }
 
 TEST(SchurKernels, DispatchPicksTheFastestAvailable) {
-  EXPECT_EQ(sk::pair_products() == &sk::pair_products_avx2, sk::avx2_fma_available());
-  EXPECT_STREQ(sk::pair_products_isa(), sk::avx2_fma_available() ? "avx2-fma" : "portable");
+  EXPECT_EQ(sk::pair_products() == &sk::pair_products_avx2, cslam::cpu_has_avx2_fma());
+  EXPECT_STREQ(sk::pair_products_isa(), cslam::cpu_has_avx2_fma() ? "avx2-fma" : "portable");
 }
