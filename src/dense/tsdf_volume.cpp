@@ -36,6 +36,8 @@ TsdfVolume::TsdfVolume(TsdfConfig config) : config_(config) {
   if (config_.stride < 1 || config_.every < 1 || config_.threads < 1) throw ConfigError("tsdf: stride, every and threads must be >= 1");
 }
 
+Eigen::Vector3i TsdfVolume::block_origin(std::uint64_t key) { return key_to_block(key) * kB; }
+
 TsdfVolume::Block& TsdfVolume::block_at(std::uint64_t key) { return blocks_[key]; }
 
 const TsdfVoxel* TsdfVolume::voxel(const Eigen::Vector3i& v) const {

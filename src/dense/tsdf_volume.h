@@ -51,9 +51,26 @@ class TsdfVolume {
   const TsdfConfig& config() const { return config_; }
   // Voxel at global voxel coordinates, or nullptr if its block is not allocated.
   const TsdfVoxel* voxel(const Eigen::Vector3i& v) const;
+  // Calls f(voxel_index, voxel) for every observed voxel (weight > 0) of every allocated block,
+  // in no particular order. The voxel's centre is (voxel_index + 0.5) * voxel_size in the
+  // volume's frame; its signed distance in metres is voxel.sdf * truncation.
+  template <typename F>
+  void for_each_observed_voxel(F&& f) const {
+    for (const auto& [key, block] : blocks_) {
+      const Eigen::Vector3i origin = block_origin(key);
+      for (int z = 0; z < kBlockSide; ++z)
+        for (int y = 0; y < kBlockSide; ++y)
+          for (int x = 0; x < kBlockSide; ++x) {
+            const TsdfVoxel& v = block.voxels[std::size_t((z * kBlockSide + y) * kBlockSide + x)];
+            if (v.weight > 0) f(Eigen::Vector3i(origin.x() + x, origin.y() + y, origin.z() + z), v);
+          }
+    }
+  }
 
  private:
   Block& block_at(std::uint64_t key);
+  // Global voxel index of a block's first voxel.
+  static Eigen::Vector3i block_origin(std::uint64_t key);
 
   TsdfConfig config_;
   std::unordered_map<std::uint64_t, Block> blocks_;
