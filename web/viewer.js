@@ -1,41 +1,156 @@
-// cslam live viewer: polls the JSON API of cslam-server and draws clients, trajectories, cameras,
-// map points and fusion events. three.js is loaded from the server (/vendor, installed by npm ci);
-// without it the client table and the events still work.
-const token = new URLSearchParams(location.hash.slice(1)).get('token');
-const headers = token ? { Authorization: `Bearer ${token}` } : {};
-const PALETTE = [0xe6194b, 0x3cb44b, 0x4363d8, 0xf58231, 0x911eb4, 0x42d4f4, 0xf032e6, 0x9a6324];
-const colour = (id) => PALETTE[(id - 1 + PALETTE.length) % PALETTE.length];
-const hex = (c) => '#' + c.toString(16).padStart(6, '0');
-const $ = (id) => document.getElementById(id);
+// cslam live viewer: polls the JSON API of cslam-server and draws, per fused group, the live dense
+// map (per-submap meshes, see dense.js), the robots as camera frusta, trajectories, the sparse map
+// and the occupancy grid, with fusion and loop events highlighted. three.js is loaded from the
+// server (/vendor, installed by npm ci); without it the client table and the events still work.
+// URL hash options: token=..., dense_ms, status_ms, budget (triangles), lod_near / lod_far (metres).
+import { api, connection, traffic } from './net.js';
+import { createView, drawTrajectories, drawPoints, Robots, frame } from './scene.js';
+import { DenseLayer } from './dense.js';
+import { OccupancyLayer } from './occupancy.js';
+import { $, renderStatus, renderEvents, renderDenseInfo, showConnection, setupDownloads, setupReconstruction } from './panel.js';
 
-async function api(path, options = {}) {
-  const res = await fetch(path, { ...options, headers });
-  if (!res.ok) throw new Error(`${path}: ${res.status} ${(await res.text()).slice(0, 200)}`);
-  return res;
+const opts = new URLSearchParams(location.hash.slice(1));
+const num = (k, d) => (opts.has(k) && Number.isFinite(Number(opts.get(k))) ? Number(opts.get(k)) : d);
+const config = { statusMs: num('status_ms', 500), denseMs: num('dense_ms', 1000), sparseMs: 1000, occupancyMs: 5000,
+  denseStatusMs: 5000, triangleBudget: num('budget', 3e6), lodNear: num('lod_near', 8), lodFar: num('lod_far', 20) };
+const app = { view: null, dense: null, occupancy: null, robots: null, groups: new Map(), visibleGroup: null,
+  uptime: -1, eventsSeen: -1, denseStatus: undefined, sparseBox: null, clientPoses: new Map(), restarts: 0 };
+const shown = (name) => $(`show-${name}`).checked;
+
+// Status `groups`: [[G, [clients]], ...] or {"G": [clients]}.
+function parseGroups(g) {
+  const entries = Array.isArray(g) ? g : Object.entries(g || {});
+  return new Map(entries.map(([G, clients]) => [Number(G), clients]));
 }
 
-// ---- client table, events ----
-let uptime = 0;
-function renderStatus(s) {
-  uptime = s.uptime_s;
-  $('server').textContent = `${s.server} ${s.version} · up ${s.uptime_s.toFixed(0)} s · ${s.clients.length} client(s) · ${s.fusion_events} event(s)`;
-  $('clients').tBodies[0].innerHTML = s.clients.map((c) => `
-    <tr data-client="${c.id}"><td><span class="swatch" style="background:${hex(colour(c.id))}"></span>${c.id}</td>
-    <td>${c.name}</td><td class="connection">${c.connection}</td><td class="${c.tracking}">${c.tracking}</td>
-    <td>${c.frames_received}</td><td>${c.frames_processed}</td><td>${c.frames_dropped}</td><td>${c.fps.toFixed(1)}</td>
-    <td>${c.keyframes}</td><td>${c.map_points}</td><td>${c.group}</td></tr>`).join('');
+function toast(text) {
+  $('toast').textContent = text;
+  clearTimeout(toast.timer);
+  toast.timer = setTimeout(() => { $('toast').textContent = ''; }, 5000);
 }
 
-function renderEvents(events) {
-  const span = Math.max(uptime, ...events.map((e) => e.time_s), 1);
-  $('timeline').innerHTML = events.map((e) =>
-    `<div class="event ${e.kind}" style="left:${(98 * e.time_s / span).toFixed(2)}%" title="${e.kind} ${e.clients.join('+')} at ${e.time_s.toFixed(1)} s"></div>`).join('');
-  $('events').innerHTML = events.length ? events.map((e) =>
-    `${e.time_s.toFixed(1)} s: ${e.kind} of clients ${e.clients.join(' + ')} → group ${e.group}, ${e.inliers} inliers, ${e.duration_ms.toFixed(0)} ms`).join('<br>') : 'none yet';
+function updateGroupSelect() {
+  const sel = $('group'), want = ['all', ...[...app.groups.keys()].map(String)];
+  if ([...sel.options].map((o) => o.value).join() === want.join()) return;
+  const keep = sel.value;
+  sel.innerHTML = want.map((v) => `<option value="${v}">${v === 'all' ? 'all' : `group ${v} (clients ${app.groups.get(Number(v)).join(', ')})`}</option>`).join('');
+  sel.value = want.includes(keep) ? keep : 'all';
 }
 
-// ---- 3D view ----
-let view = null;  // { THREE, renderer, scene, camera, groups }
+const largestGroup = () => [...app.groups.entries()].sort((a, b) => b[1].length - a[1].length || a[0] - b[0])[0]?.[0] ?? null;
+const downloadGroup = () => app.visibleGroup ?? largestGroup();
+
+async function pollStatus() {
+  const s = await (await api('/api/status')).json();
+  if (s.uptime_s < app.uptime) serverRestarted();
+  app.uptime = s.uptime_s;
+  renderStatus(s);
+  app.groups = parseGroups(s.groups);
+  app.clients = s.clients;
+  updateGroupSelect();
+  $('download-group').textContent = downloadGroup() === null ? 'no group yet' : `group ${downloadGroup()}`;
+  if (!app.robots) return;
+  // Live poses: from /api/status when it carries them, else one small request per client.
+  const clients = await Promise.all(s.clients.map(async (c) => {
+    if (c.pose) return c;
+    const j = await (await api(`/api/clients/${c.id}`)).json().catch(() => ({}));
+    return { ...c, pose: j.pose };
+  }));
+  app.robots.update(clients.filter((c) => c.pose && c.frames_processed > 0), app.visibleGroup);
+}
+
+function serverRestarted() {
+  app.restarts += 1;
+  app.eventsSeen = -1;
+  app.dense?.serverRestarted();
+  showConnection(true, 'the server restarted: reloading the map');
+}
+
+async function pollEvents() {
+  const { events } = await (await api('/api/fusion/events')).json();
+  renderEvents(events, app.uptime);
+  if (app.eventsSeen >= 0 && events.length > app.eventsSeen) {
+    for (const e of events.slice(app.eventsSeen)) {
+      app.dense?.flashClients(e.group, e.clients);
+      toast(`${e.kind}: clients ${e.clients.join(' + ')} → group ${e.group}`);
+    }
+  }
+  app.eventsSeen = events.length;
+}
+
+async function pollSparse() {
+  if (!app.view || !(shown('sparse') || shown('trajectories'))) return;
+  const [t, p] = await Promise.all([api('/api/trajectories?client=all&format=json').then((r) => r.json()),
+    shown('sparse') ? api('/api/map/points?format=bin').then((r) => r.arrayBuffer()) : null]);
+  const groupOf = (client) => app.clients?.find((c) => c.id === client)?.group;
+  app.sparseBox = drawTrajectories(app.view, t.trajectories, app.visibleGroup);
+  const pts = drawPoints(app.view, p, groupOf, app.visibleGroup);
+  if (!app.dense || app.dense.entries.size === 0) app.sparseBox.union(pts);
+}
+
+async function pollDenseStatus() {
+  try {
+    app.denseStatus = await (await api('/api/dense/status')).json();
+  } catch (e) {
+    if (e.status !== 404) throw e;
+    app.denseStatus = null;  // a server without the dense map routes
+  }
+}
+
+async function pollDense() {
+  if (!app.dense) return;
+  if (app.denseStatus === null || app.denseStatus?.enabled === false) {
+    if (app.dense.entries.size) app.dense.clear();
+  } else {
+    try {
+      await app.dense.poll();
+    } catch (e) {
+      if (e.status !== 404) throw e;
+    }
+  }
+  const box = app.dense.bounds();
+  if (app.sparseBox) box.union(app.sparseBox);
+  frame(app.view, box);
+  app.dense.updateLod();
+  renderDenseInfo(app.denseStatus, app.dense.state(), traffic);
+}
+
+async function pollOccupancy() {
+  if (!app.occupancy || !shown('occupancy') || !app.denseStatus?.enabled) return;
+  await app.occupancy.poll([...app.groups.keys()]);
+}
+
+async function poll(fn, ms) {
+  for (;;) {
+    try { await fn(); } catch (e) { app.lastError = `${fn.name}: ${e.message}`; }
+    await new Promise((r) => setTimeout(r, ms));
+  }
+}
+
+function setupControls() {
+  for (const name of ['dense', 'sparse', 'trajectories', 'occupancy', 'robots']) {
+    $(`show-${name}`).addEventListener('change', () => {
+      if (app.view) app.view.layers[name].visible = shown(name);
+      if (name === 'occupancy' && shown(name)) pollOccupancy().catch(() => {});
+    });
+  }
+  $('group').addEventListener('change', () => {
+    app.visibleGroup = $('group').value === 'all' ? null : Number($('group').value);
+    app.dense?.setVisibleGroup(app.visibleGroup);
+    app.occupancy?.setVisibleGroup(app.visibleGroup);
+    if (app.view) app.view.orbit.user = false;  // frame the selection
+    pollSparse().catch(() => {});
+  });
+  connection.listeners.push((c) => {
+    if (c.ok) {
+      showConnection(true, 'connection to the server restored');
+      app.dense?.reconnected();
+    } else {
+      showConnection(false, `connection to the server lost (${c.lastError}); retrying…`);
+    }
+  });
+}
+
 async function initView() {
   let THREE;
   try {
@@ -44,136 +159,70 @@ async function initView() {
     $('view-msg').textContent = '3D view unavailable: three.js is not installed on the server (run scripts/install-web.sh)';
     return;
   }
-  const el = $('view');
-  let renderer;
   try {
-    renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    app.view = createView(THREE, $('view'));
   } catch (e) {
-    $('view-msg').textContent = '3D view unavailable: no WebGL in this browser';
+    $('view-msg').textContent = `3D view unavailable: no WebGL in this browser (${e.message})`;
     return;
   }
-  renderer.setPixelRatio(window.devicePixelRatio);
-  renderer.setSize(el.clientWidth, el.clientHeight);
-  renderer.setClearColor(0x111827);
-  el.appendChild(renderer.domElement);
   $('view-msg').style.display = 'none';
-  const scene = new THREE.Scene();
-  const camera = new THREE.PerspectiveCamera(50, el.clientWidth / el.clientHeight, 0.01, 1000);
-  camera.up.set(0, -1, 0);  // camera frames: y points down
-  scene.add(new THREE.AxesHelper(0.3));
-  const content = new THREE.Group();
-  scene.add(content);
-  view = { THREE, renderer, scene, camera, content, orbit: { yaw: 0.6, pitch: 0.7, dist: 0, target: new THREE.Vector3(), user: false } };
-  let drag = null;
-  el.addEventListener('pointerdown', (e) => { drag = { x: e.clientX, y: e.clientY }; view.orbit.user = true; });
-  window.addEventListener('pointerup', () => { drag = null; });
-  window.addEventListener('pointermove', (e) => {
-    if (!drag) return;
-    view.orbit.yaw -= (e.clientX - drag.x) * 0.01;
-    view.orbit.pitch = Math.max(-1.5, Math.min(1.5, view.orbit.pitch + (e.clientY - drag.y) * 0.01));
-    drag = { x: e.clientX, y: e.clientY };
-  });
-  el.addEventListener('wheel', (e) => { e.preventDefault(); view.orbit.user = true; view.orbit.dist *= e.deltaY > 0 ? 1.1 : 0.9; }, { passive: false });
-  const frame = () => {
-    const o = view.orbit;
-    const d = Math.max(o.dist, 0.5);
-    camera.position.set(o.target.x + d * Math.cos(o.pitch) * Math.sin(o.yaw), o.target.y - d * Math.sin(o.pitch),
-      o.target.z + d * Math.cos(o.pitch) * Math.cos(o.yaw));
-    camera.lookAt(o.target);
-    renderer.render(scene, camera);
-    requestAnimationFrame(frame);
-  };
-  frame();
+  for (const name of Object.keys(app.view.layers)) app.view.layers[name].visible = shown(name);
+  app.dense = new DenseLayer(app.view, api, config);
+  app.occupancy = new OccupancyLayer(app.view, api);
+  app.robots = new Robots(app.view);
 }
 
-function updateView(trajectories, points) {
-  if (!view) return;
-  const { THREE, content } = view;
-  content.children.forEach((c) => c.geometry && c.geometry.dispose());
-  content.clear();
-  const box = new THREE.Box3();
-  for (const t of trajectories) {
-    if (t.poses.length === 0) continue;
-    const xyz = t.poses.flatMap((p) => [p[1], p[2], p[3]]);
-    const g = new THREE.BufferGeometry();
-    g.setAttribute('position', new THREE.Float32BufferAttribute(xyz, 3));
-    content.add(new THREE.Line(g, new THREE.LineBasicMaterial({ color: colour(t.client) })));
-    const last = t.poses[t.poses.length - 1];
-    const cam = new THREE.Mesh(new THREE.SphereGeometry(0.03, 12, 8), new THREE.MeshBasicMaterial({ color: colour(t.client) }));
-    cam.position.set(last[1], last[2], last[3]);
-    content.add(cam);
-    g.computeBoundingBox();
-    box.union(g.boundingBox);
-  }
-  if (points && points.byteLength >= 16) {
-    const n = points.byteLength / 16, dv = new DataView(points);
-    const pos = new Float32Array(3 * n), col = new Float32Array(3 * n);
-    for (let i = 0; i < n; i++) {
-      for (let k = 0; k < 3; k++) pos[3 * i + k] = dv.getFloat32(16 * i + 4 * k, true);
-      const c = new THREE.Color(colour(dv.getUint8(16 * i + 15)));
-      col.set([c.r, c.g, c.b], 3 * i);
+// For tests and measurements: the dense layer's state and what the scene graph holds.
+window.cslamViewer = {
+  config,
+  denseState: () => ({ enabled: app.denseStatus?.enabled ?? false, ...(app.dense?.state() || { groups: {} }),
+    bytesDownloaded: traffic.total, bytesPerMinute: traffic.perMinute(), bytesByCategory: { ...traffic.byCategory }, requestsByCategory: { ...traffic.counts },
+    notModified: { ...traffic.notModified },
+    connection: { ok: connection.ok, failures: connection.failures }, restarts: app.restarts, frames: app.view?.frames ?? 0 }),
+  sceneMeshes: () => {
+    const out = {};
+    app.view?.layers.dense.traverseVisible((o) => {
+      if (!o.isMesh || !o.name.startsWith('submap-mesh-')) return;
+      const G = o.parent.parent.name.replace('dense-group-', '');
+      const g = (out[G] ||= { meshes: 0, triangles: 0 });
+      g.meshes += 1;
+      g.triangles += o.geometry.index.count / 3;
+    });
+    return out;
+  },
+  // The dense map's (or one group's) bounding box on the canvas, in canvas pixels.
+  screenRect: (group = null) => {
+    if (!app.view || !app.dense) return null;
+    const { THREE, camera, renderer } = app.view, box = new THREE.Box3(), s = new THREE.Sphere();
+    for (const e of app.dense.entries.values()) {
+      if (!e.mesh || (group !== null && e.group !== group)) continue;
+      s.copy(e.mesh.geometry.boundingSphere).applyMatrix4(e.obj.matrixWorld);
+      box.union(s.getBoundingBox(new THREE.Box3()));
+    }  // (a sphere's box: loose, but always contains the mesh)
+    if (box.isEmpty()) return null;
+    const { width: W, height: H } = renderer.domElement;
+    let x0 = W, y0 = H, x1 = 0, y1 = 0;
+    for (let i = 0; i < 8; i++) {
+      const p = new THREE.Vector3(i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y, i & 4 ? box.max.z : box.min.z).project(camera);
+      const x = (p.x + 1) / 2 * W, y = (1 - p.y) / 2 * H;
+      x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y);
     }
-    const g = new THREE.BufferGeometry();
-    g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
-    g.setAttribute('color', new THREE.BufferAttribute(col, 3));
-    g.computeBoundingBox();
-    box.union(g.boundingBox);
-    content.add(new THREE.Points(g, new THREE.PointsMaterial({ size: 2.5, sizeAttenuation: false, vertexColors: true })));
-  }
-  if (!box.isEmpty() && !view.orbit.user) {  // keep the trajectories framed until the user moves the view
-    box.getCenter(view.orbit.target);
-    view.orbit.dist = 1.6 * Math.max(box.getSize(new THREE.Vector3()).length(), 1.5);
-  }
-}
+    const c = (v, m) => Math.round(Math.max(0, Math.min(m, v)));
+    return { x0: c(x0, W), y0: c(y0, H), x1: c(x1, W), y1: c(y1, H), width: W, height: H };
+  },
+  robots: () => [...(app.robots?.byId || [])].map(([id, o]) => ({ id, position: o.position.toArray(), quaternion: o.quaternion.toArray(), ...o.userData })),
+  occupancy: () => app.occupancy?.state() ?? null,
+  view: () => app.view,
+};
 
-// ---- reconstruction ----
-async function startReconstruction() {
-  $('recon-start').disabled = true;
-  $('recon-links').hidden = true;
-  try {
-    const { job } = await (await api('/api/reconstruction', { method: 'POST' })).json();
-    for (;;) {
-      const s = await (await api(`/api/reconstruction/${job}`)).json();
-      $('recon-state').textContent = `job ${job}: ${s.state} ${(100 * s.progress).toFixed(0)}% ${s.message}`;
-      if (s.state === 'done') {
-        $('dl-cloud').href = s.cloud_url;
-        $('dl-mesh').href = s.mesh_url || '';
-        $('dl-mesh').hidden = !s.mesh_url;
-        $('recon-links').hidden = false;
-        break;
-      }
-      if (s.state !== 'running' && s.state !== 'queued') break;
-      await new Promise((r) => setTimeout(r, 500));
-    }
-  } catch (e) {
-    $('recon-state').textContent = String(e.message);
-  }
-  $('recon-start').disabled = false;
-}
-// With a token the links cannot carry the header: download through fetch.
-for (const id of ['dl-cloud', 'dl-mesh']) {
-  $(id).addEventListener('click', async (e) => {
-    if (!token) return;
-    e.preventDefault();
-    const blob = await (await api($(id).getAttribute('href'))).blob();
-    const a = Object.assign(document.createElement('a'), { href: URL.createObjectURL(blob), download: $(id).textContent });
-    a.click();
-  });
-}
-$('recon-start').addEventListener('click', startReconstruction);
-
-// ---- polling ----
-async function poll(fn, ms) {
-  for (;;) {
-    try { await fn(); } catch (e) { $('server').textContent = `error: ${e.message}`; }
-    await new Promise((r) => setTimeout(r, ms));
-  }
-}
-poll(async () => renderStatus(await (await api('/api/status')).json()), 500);
-poll(async () => renderEvents((await (await api('/api/fusion/events')).json()).events), 1000);
-initView().then(() => poll(async () => {
-  if (!view) return;
-  const [t, p] = await Promise.all([api('/api/trajectories?client=all&format=json').then((r) => r.json()),
-    api('/api/map/points?format=bin').then((r) => r.arrayBuffer())]);
-  updateView(t.trajectories, p);
-}, 1000));
+setupControls();
+setupDownloads(downloadGroup);
+setupReconstruction();
+poll(pollStatus, config.statusMs);
+poll(pollEvents, 1000);
+poll(pollDenseStatus, config.denseStatusMs);
+initView().then(() => {
+  poll(pollSparse, config.sparseMs);
+  poll(pollDense, config.denseMs);
+  poll(pollOccupancy, config.occupancyMs);
+});
