@@ -50,6 +50,8 @@ class HttpServer {
   bool start();
   // Live network counters for /api/status and /metrics (set before start()).
   void set_network_status(const NetStatusBoard* board) { cache_.set_network(board); }
+  // Another component's part of /api/status and /metrics (StatusCache::set_extra; before start()).
+  void set_status_extra(StatusCache::StatusExtra extra) { cache_.set_extra(std::move(extra)); }
   void stop();  // idempotent; joins every thread (reconstruction jobs are cancelled)
   int port() const { return port_; }
   const GuardStats* guard_stats() const { return guard_ ? &guard_->stats() : nullptr; }

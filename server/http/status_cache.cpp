@@ -2,6 +2,8 @@
 
 #include "server/http/http_guard.h"
 
+#include "core/log.h"
+
 #include <sstream>
 
 namespace cslam::http {
@@ -208,6 +210,35 @@ void StatusCache::loop() {
   }
 }
 
+void StatusCache::apply_extra(CachedState& next) {
+  if (!extra_) return;
+  // The contribution works on copies: a throw half-way leaves the published status untouched.
+  nlohmann::json status = next.status;
+  std::string metrics = next.metrics;
+  std::string error;
+  try {
+    extra_(status, metrics);
+    // A hook may put bytes that are not UTF-8 into the status: fail here, not in every reply.
+    (void)status.dump();
+  } catch (const std::exception& e) {
+    error = e.what();
+  } catch (...) {
+    error = "unknown exception";
+  }
+  if (error.empty()) {
+    next.status = std::move(status);
+    next.metrics = std::move(metrics);
+  } else {
+    ++extra_errors_;
+    if (error != last_extra_error_) logger("http")->error("status: a status/metrics contribution failed: {}", error);
+    last_extra_error_ = error;
+  }
+  next.status["status_extra_errors"] = extra_errors_;
+  next.metrics += "# HELP cslam_status_extra_errors_total Refreshes whose status/metrics contribution threw.\n"
+                  "# TYPE cslam_status_extra_errors_total counter\n"
+                  "cslam_status_extra_errors_total " + std::to_string(extra_errors_) + "\n";
+}
+
 void StatusCache::refresh() {
   auto next = std::make_shared<CachedState>();
   const SystemSnapshot snap = system_.snapshot();
@@ -264,11 +295,12 @@ void StatusCache::refresh() {
                   {"groups", next->groups},
                   {"fusion_events", fusions}};
   if (net) next->status["network"] = network_json(*net);
-  next->status_body = next->status.dump();
   next->events_body = nlohmann::json{{"events", std::move(events)}}.dump();
   next->metrics = metrics_text(snap, fps_of, fusions);
   if (net) next->metrics += network_metrics_text(*net);
   if (guard_) next->metrics += guard_metrics_text(*guard_);
+  apply_extra(*next);
+  next->status_body = next->status.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 
   const auto previous = get();
   if (now - last_points_t_ >= config_.points_refresh_s) {

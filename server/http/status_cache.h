@@ -6,6 +6,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -69,6 +70,13 @@ class StatusCache {
   void set_network(const NetStatusBoard* board) { network_ = board; }
   // The HTTP guard's counters (refusals by reason) for /metrics (set before start(); may be null).
   void set_guard_stats(const GuardStats* stats) { guard_ = stats; }
+  // Another component's contribution to /api/status and /metrics, called on every refresh (from
+  // the refresh thread, no SLAM lock held): it may add keys to `status` (e.g. status["dense"]) and
+  // append Prometheus lines to `metrics`. An exception from it is caught, logged (once per
+  // message change) and counted in cslam_status_extra_errors_total; the refresh goes on without
+  // its part. Set before start().
+  using StatusExtra = std::function<void(nlohmann::json& status, std::string& metrics)>;
+  void set_extra(StatusExtra extra) { extra_ = std::move(extra); }
   void start();        // starts the refresh thread (refresh() once first)
   void stop();         // idempotent
   void refresh();      // one refresh step (also usable without the thread, in tests)
@@ -81,6 +89,7 @@ class StatusCache {
   const CacheConfig config_;
   const NetStatusBoard* network_ = nullptr;
   const GuardStats* guard_ = nullptr;
+  StatusExtra extra_;
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   mutable std::mutex mutex_;  // guards state_ (pointer swap only) and stop_
   std::condition_variable wake_;
@@ -92,6 +101,9 @@ class StatusCache {
   std::map<ClientId, double> last_input_change_;
   double last_points_t_ = -1e9;
   std::uint64_t generation_ = 0;
+  std::uint64_t extra_errors_ = 0;
+  std::string last_extra_error_;
+  void apply_extra(CachedState& next);
 };
 
 }  // namespace cslam::http

@@ -192,6 +192,50 @@ TEST_F(HttpApiTest, PostBeyondLoopbackNeedsAToken) {
   EXPECT_EQ(status->status, 200);  // reads stay open without a token
 }
 
+TEST_F(HttpApiTest, StatusExtraAddsToStatusAndMetrics) {
+  HttpConfig c;
+  c.port = 0;
+  c.web_root = std::string(CSLAM_SOURCE_DIR) + "/web";
+  HttpServer server(system_, c);
+  server.set_status_extra([](json& status, std::string& metrics) {
+    status["dense"] = {{"volumes", 2}};
+    metrics += "cslam_dense_volumes 2\n";
+  });
+  ASSERT_TRUE(server.start());
+  auto cli = client(server);
+  const auto r = cli.Get("/api/status");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200);
+  EXPECT_EQ(json::parse(r->body).at("dense").at("volumes"), 2);
+  const auto m = cli.Get("/metrics");
+  ASSERT_TRUE(m);
+  EXPECT_NE(m->body.find("cslam_dense_volumes 2\n"), std::string::npos);
+  EXPECT_NE(m->body.find("cslam_status_extra_errors_total 0"), std::string::npos);
+}
+
+TEST_F(HttpApiTest, ThrowingStatusExtraIsCountedAndStatusStillServed) {
+  StatusCache cache(system_, {});
+  int calls = 0;
+  cache.set_extra([&calls](json& status, std::string& metrics) {
+    ++calls;
+    status["dense"] = "half-written";
+    metrics += "cslam_half 1\n";
+    if (calls == 1) throw std::runtime_error("dense board gone");
+    status["bad"] = std::string("\xff\xfe");  // not UTF-8: refused as well, never in a reply
+  });
+  cache.refresh();
+  auto s = cache.get();
+  EXPECT_FALSE(s->status.contains("dense"));  // the contribution's partial edits are dropped
+  EXPECT_EQ(s->metrics.find("cslam_half"), std::string::npos);
+  EXPECT_NE(s->metrics.find("cslam_status_extra_errors_total 1"), std::string::npos);
+  EXPECT_EQ(json::parse(s->status_body).at("clients").size(), 2u);
+  cache.refresh();
+  s = cache.get();
+  EXPECT_FALSE(s->status.contains("bad"));
+  EXPECT_NE(s->metrics.find("cslam_status_extra_errors_total 2"), std::string::npos);
+  EXPECT_EQ(json::parse(s->status_body).at("status_extra_errors"), 2);
+}
+
 TEST(HttpConfigTest, BadPortIsAConfigError) {
   CliArgs cli("t", "t");
   declare_options(cli);
