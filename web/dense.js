@@ -29,6 +29,7 @@ export class DenseLayer {
     this.errors = [];  // the last few, for the page and the tests
     this.errorCount = 0;
     this.flashing = new Set();
+    this.quality = 1;  // share of the triangle budget in use (adapted to the frame time)
     this.material = new T.MeshBasicMaterial({ vertexColors: true, side: T.DoubleSide });
     this.flashMaterial = new T.MeshBasicMaterial({ color: 0xfacc15, side: T.DoubleSide });
     this.missingGeometry = new T.OctahedronGeometry(0.08);
@@ -73,6 +74,7 @@ export class DenseLayer {
           if (s.version !== e.version) geometryChanges += 1;
           else if (s.pose_version !== e.pose_version) this.poseOnlyUpdates += 1;
         }
+        if (s.triangles === 0 && e.loadedVersion !== s.version) this.empty(e, s.version);
         const was = e.T;
         Object.assign(e, { version: s.version, pose_version: s.pose_version, client: s.client ?? s.id >> 16,
           triangles: s.triangles ?? 0, vertices: s.vertices ?? 0, keyframes: s.keyframes ?? 0, mesh_url: s.mesh_url });
@@ -124,6 +126,7 @@ export class DenseLayer {
     e.obj.position.set(tx, ty, tz);
     e.obj.quaternion.set(qx, qy, qz, qw).normalize();
     e.obj.updateMatrixWorld(true);
+    this.view.invalidate();
   }
 
   build(e, p, lod) {
@@ -148,7 +151,17 @@ export class DenseLayer {
     e.loadedLod = lod;
     e.drawnTriangles = p.triangles;
     e.state = 'loaded';
+    this.view.invalidate();
     if (p.version !== e.version) e.retryAt = performance.now() + 1000;  // the index moved on meanwhile
+  }
+
+  // A submap without a surface (yet): nothing drawn, nothing to download.
+  empty(e, version) {
+    this.disposeMesh(e);
+    if (e.marker) { e.marker.removeFromParent(); e.marker = null; }
+    e.loadedVersion = version;
+    e.drawnTriangles = 0;
+    e.state = 'empty';
   }
 
   failed(e, err) {
@@ -157,6 +170,7 @@ export class DenseLayer {
       e.marker = new this.THREE.Mesh(this.missingGeometry, this.missingMaterial);
       e.marker.name = `submap-missing-${e.id}`;
       e.obj.add(e.marker);
+      this.view.invalidate();
     }
     this.error(e.id, e.lastError || String(err));
   }
@@ -172,6 +186,7 @@ export class DenseLayer {
     e.mesh.geometry.dispose();
     e.mesh.removeFromParent();
     e.mesh = null;
+    this.view.invalidate();
   }
 
   remove(e) {
@@ -180,6 +195,7 @@ export class DenseLayer {
     this.disposeMesh(e);
     e.obj.removeFromParent();
     this.entries.delete(e.id);
+    this.view.invalidate();
     this.flashing.delete(e);
   }
 
@@ -203,6 +219,7 @@ export class DenseLayer {
   setVisibleGroup(G) {
     this.visibleGroup = G;
     for (const [g, node] of this.groups) node.visible = G === null || g === G;
+    this.view.invalidate();
   }
 
   lodFor(d, current) {
@@ -228,18 +245,29 @@ export class DenseLayer {
       e.desiredLod = this.lodFor(e.distance, e.loadedLod);
       visible.push(e);
     }
-    const est = (e, lod) => e.triangles / 4 ** lod;
+    const est = (e, lod) => e.triangles / 4 ** lod, budget = this.budget();
     let total = visible.reduce((s, e) => s + est(e, e.desiredLod), 0);
     visible.sort((a, b) => b.distance - a.distance);
-    for (let pass = 0; pass < 2 && total > this.o.triangleBudget; pass++) {
+    for (let pass = 0; pass < 2 && total > budget; pass++) {
       for (const e of visible) {
-        if (total <= this.o.triangleBudget) break;
+        if (total <= budget) break;
         if (e.desiredLod >= 2) continue;
         total -= est(e, e.desiredLod) - est(e, e.desiredLod + 1);
         e.desiredLod += 1;
       }
     }
     this.loader.pump(visible);
+  }
+
+  // The triangle budget, scaled down while frames are slow (> 80 ms apart while the view moves) and
+  // back up while they are fast (< 35 ms).
+  budget() {
+    const v = this.view;
+    if (performance.now() - v.frameMsAt < 2000) {
+      if (v.frameMs > 80) this.quality = Math.max(0.05, this.quality * 0.8);
+      else if (v.frameMs < 35) this.quality = Math.min(1, this.quality * 1.1);
+    }
+    return this.o.triangleBudget * this.quality;
   }
 
   // The visible map's bounds (a submap not loaded yet counts as a 1 m cube around its origin).
@@ -263,12 +291,14 @@ export class DenseLayer {
     for (const e of this.entries.values()) if (e.group === group && clients.includes(e.client)) this.flash(e);
   }
 
-  animate(t) {
+  animate(t) {  // a frame hook: true while something flashes
+    const busy = this.flashing.size > 0;
     for (const e of this.flashing) {
       const on = t < e.flashUntil && Math.floor(t / 180) % 2 === 0;
       if (e.mesh) e.mesh.material = on ? this.flashMaterial : this.material;
       if (t >= e.flashUntil) this.flashing.delete(e);
     }
+    return busy;
   }
 
   state() {
@@ -283,7 +313,7 @@ export class DenseLayer {
         position: e.obj.position.toArray(), quaternion: e.obj.quaternion.toArray() });
     }
     const l = this.loader;
-    return { version: this.version, groups, meshDownloads: l.requests, meshLoaded: l.loaded, meshBytes: l.bytes,
+    return { version: this.version, groups, triangleBudget: Math.round(this.o.triangleBudget * this.quality), meshDownloads: l.requests, meshLoaded: l.loaded, meshBytes: l.bytes,
       meshFailures: l.failures, inFlight: l.inFlight.size, poseOnlyUpdates: this.poseOnlyUpdates,
       poseUpdates: this.poseUpdates, indexFetches: this.indexFetches, index304: this.index304, indexBytes: this.indexBytes,
       errors: this.errorCount, lastErrors: this.errors.slice(-5) };

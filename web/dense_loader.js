@@ -17,8 +17,9 @@ export function meshUrl(entry, lod) {
   return lod > 0 ? `${entry.mesh_url}${entry.mesh_url.includes('?') ? '&' : '?'}lod=${lod}` : entry.mesh_url;
 }
 
-// What an entry needs: 0 nothing, 1 a LOD change, 2 new geometry, 3 nothing drawn yet.
+// What an entry needs: 0 nothing (or an empty submap), 1 a LOD change, 2 new geometry, 3 nothing drawn yet.
 export function urgency(e) {
+  if (e.triangles === 0) return 0;  // no surface yet: nothing to fetch
   if (e.loadedVersion < 0) return 3;
   if (e.loadedVersion !== e.version) return 2;
   if (e.loadedLod !== e.desiredLod) return 1;

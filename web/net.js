@@ -66,7 +66,7 @@ export class Traffic {
 
 export const traffic = new Traffic();
 
-// Connection state: lost after a network error or a 5xx, ok again after any answer.
+// Connection state: lost after a network error (or a gateway error), ok again after any answer.
 export const connection = { ok: true, since: performance.now(), failures: 0, lastError: '', listeners: [] };
 function setConnection(ok, error) {
   if (!ok) { connection.failures += 1; connection.lastError = error; }
@@ -89,7 +89,8 @@ export async function api(path, { etag, method, signal } = {}) {
     if (e.name !== 'AbortError') setConnection(false, `${path}: ${e.message}`);
     throw e;
   }
-  setConnection(res.status < 500, `${path}: ${res.status}`);
+  // A 502/504 is a proxy saying the server is gone; other answers prove the server is reachable.
+  setConnection(res.status !== 502 && res.status !== 504, `${path}: ${res.status}`);
   if (res.ok || res.status === 304) return res;
   throw new HttpError(path, res.status, (await res.text()).slice(0, 200));
 }

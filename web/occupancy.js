@@ -63,6 +63,7 @@ export class OccupancyLayer {
     obj.userData = { group: G, width: W, height: H, resolution: r };
     this.layer.add(obj);
     this.byGroup.set(G, { obj, etag });
+    this.view.invalidate();
   }
 
   drop(G) {
@@ -71,10 +72,12 @@ export class OccupancyLayer {
     cur.obj.traverse((o) => { o.geometry?.dispose(); o.material?.map?.dispose(); o.material?.dispose(); });
     cur.obj.removeFromParent();
     this.byGroup.delete(G);
+    this.view.invalidate();
   }
 
   setVisibleGroup(G) {
     for (const [g, { obj }] of this.byGroup) obj.visible = G === null || g === G;
+    this.view.invalidate();
   }
 
   state() {

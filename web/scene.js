@@ -6,11 +6,28 @@ export const PALETTE = [0xe6194b, 0x3cb44b, 0x4363d8, 0xf58231, 0x911eb4, 0x42d4
 export const colour = (id) => PALETTE[(id - 1 + PALETTE.length) % PALETTE.length];
 export const BACKGROUND = 0x111827;
 
-export function createView(THREE, el) {
+// The renderer's name if WebGL runs in software (SwiftShader, llvmpipe), else ''.
+export function softwareRenderer() {
+  try {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    const ext = gl.getExtension('WEBGL_debug_renderer_info');
+    const name = String(gl.getParameter(ext ? ext.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
+    gl.getExtension('WEBGL_lose_context')?.loseContext();
+    return /swiftshader|llvmpipe|software/i.test(name) ? name : '';
+  } catch (e) {
+    return '';
+  }
+}
+
+// Renders on demand: when view.invalidate() was called, the camera moved, a hook asks for it
+// (returns true), or a second has passed. view.frameMs: time between consecutive renders (EMA),
+// i.e. the frame time while something moves.
+export function createView(THREE, el, { antialias } = {}) {
   THREE.ColorManagement.enabled = false;  // vertex colours are the cameras' sRGB bytes: draw them as they are
-  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  const software = softwareRenderer();
+  const renderer = new THREE.WebGLRenderer({ antialias: antialias ?? !software, preserveDrawingBuffer: true });
   renderer.outputColorSpace = THREE.LinearSRGBColorSpace;
-  renderer.setPixelRatio(window.devicePixelRatio);
+  renderer.setPixelRatio(software ? 1 : window.devicePixelRatio);
   renderer.setSize(el.clientWidth, el.clientHeight);
   renderer.setClearColor(BACKGROUND);
   el.appendChild(renderer.domElement);
@@ -24,18 +41,31 @@ export function createView(THREE, el) {
     layers[name].name = name;
     scene.add(layers[name]);
   }
-  const view = { THREE, renderer, scene, camera, layers, hooks: [], frames: 0, el,
-    orbit: { yaw: 0.6, pitch: 0.7, dist: 3, target: new THREE.Vector3(), user: false } };
+  const view = { THREE, renderer, scene, camera, layers, hooks: [], frames: 0, renders: 0, frameMs: 16, frameMsAt: 0,
+    software, el, dirty: true, orbit: { yaw: 0.6, pitch: 0.7, dist: 3, target: new THREE.Vector3(), user: false } };
+  view.invalidate = () => { view.dirty = true; };
   attachOrbit(view);
   new ResizeObserver(() => {
     renderer.setSize(el.clientWidth, el.clientHeight);
     camera.aspect = el.clientWidth / Math.max(1, el.clientHeight);
     camera.updateProjectionMatrix();
+    view.invalidate();
   }).observe(el);
+  const lastMatrix = new THREE.Matrix4();
+  let lastRender = -1e9, previousRendered = false;
   const frame = (t) => {
     placeCamera(view);
-    for (const h of view.hooks) h(t);
-    renderer.render(scene, camera);
+    let render = view.dirty || !camera.matrixWorld.equals(lastMatrix) || t - lastRender > 1000;
+    for (const h of view.hooks) if (h(t)) render = true;
+    if (render) {
+      if (previousRendered) { view.frameMs = 0.8 * view.frameMs + 0.2 * (t - lastRender); view.frameMsAt = t; }
+      view.dirty = false;
+      renderer.render(scene, camera);
+      lastMatrix.copy(camera.matrixWorld);
+      lastRender = t;
+      view.renders += 1;
+    }
+    previousRendered = render;
     view.frames += 1;
     requestAnimationFrame(frame);
   };
@@ -95,6 +125,7 @@ export function drawTrajectories(view, trajectories, visibleGroup) {
   const { THREE } = view;
   const layer = view.layers.trajectories;
   disposeChildren(layer);
+  view.invalidate();
   const box = new THREE.Box3();
   for (const t of trajectories) {
     if (t.poses.length === 0 || (visibleGroup !== null && t.group !== visibleGroup)) continue;
@@ -111,6 +142,7 @@ export function drawPoints(view, points, groupOfClient, visibleGroup) {
   const { THREE } = view;
   const layer = view.layers.sparse;
   disposeChildren(layer);
+  view.invalidate();
   const box = new THREE.Box3();
   if (!points || points.byteLength < 16) return box;
   const n = points.byteLength >> 4, dv = new DataView(points);
@@ -161,13 +193,16 @@ export class Robots {
       live.add(c.id);
       const obj = this.byId.get(c.id) || this.frustum(c.id);
       this.byId.set(c.id, obj);
+      const key = JSON.stringify([c.pose.position, c.pose.quaternion, c.tracking, c.group, visibleGroup]);
+      if (obj.userData.key === key) continue;
+      this.view.invalidate();
       obj.position.fromArray(c.pose.position);
       obj.quaternion.fromArray(c.pose.quaternion);
       obj.visible = visibleGroup === null || c.group === visibleGroup;
       const lost = c.tracking === 'lost', idle = c.tracking === 'not_initialized';
       obj.material.color.setHex(lost ? 0xff2020 : idle ? 0x808080 : colour(c.id));
       obj.scale.setScalar(lost ? 1.6 : 1);
-      obj.userData = { tracking: c.tracking, group: c.group };
+      obj.userData = { tracking: c.tracking, group: c.group, key };
     }
     for (const [id, obj] of this.byId) {
       if (live.has(id)) continue;
@@ -175,6 +210,7 @@ export class Robots {
       obj.material.dispose();
       obj.removeFromParent();
       this.byId.delete(id);
+      this.view.invalidate();
     }
   }
 }

@@ -2,7 +2,8 @@
 // map (per-submap meshes, see dense.js), the robots as camera frusta, trajectories, the sparse map
 // and the occupancy grid, with fusion and loop events highlighted. three.js is loaded from the
 // server (/vendor, installed by npm ci); without it the client table and the events still work.
-// URL hash options: token=..., dense_ms, status_ms, budget (triangles), lod_near / lod_far (metres).
+// URL hash options: token=..., dense_ms, status_ms, sparse_ms, budget (triangles), lod_near / lod_far (metres),
+// aa=0|1 (multisampling; default: on unless WebGL runs in software).
 import { api, connection, traffic } from './net.js';
 import { createView, drawTrajectories, drawPoints, Robots, frame } from './scene.js';
 import { DenseLayer } from './dense.js';
@@ -11,7 +12,7 @@ import { $, renderStatus, renderEvents, renderDenseInfo, showConnection, setupDo
 
 const opts = new URLSearchParams(location.hash.slice(1));
 const num = (k, d) => (opts.has(k) && Number.isFinite(Number(opts.get(k))) ? Number(opts.get(k)) : d);
-const config = { statusMs: num('status_ms', 500), denseMs: num('dense_ms', 1000), sparseMs: 1000, occupancyMs: 5000,
+const config = { statusMs: num('status_ms', 500), denseMs: num('dense_ms', 1000), sparseMs: num('sparse_ms', 2000), occupancyMs: 5000,
   denseStatusMs: 5000, triangleBudget: num('budget', 3e6), lodNear: num('lod_near', 8), lodFar: num('lod_far', 20) };
 const app = { view: null, dense: null, occupancy: null, robots: null, groups: new Map(), visibleGroup: null,
   uptime: -1, eventsSeen: -1, denseStatus: undefined, sparseBox: null, clientPoses: new Map(), restarts: 0 };
@@ -50,10 +51,13 @@ async function pollStatus() {
   updateGroupSelect();
   $('download-group').textContent = downloadGroup() === null ? 'no group yet' : `group ${downloadGroup()}`;
   if (!app.robots) return;
-  // Live poses: from /api/status when it carries them, else one small request per client.
+  // Live poses: from /api/status when it carries them, else one small request per client (1 Hz).
+  const now = performance.now(), fetchPoses = now - (app.posesFetched || 0) >= 1000;
+  if (fetchPoses && s.clients.some((c) => !c.pose)) app.posesFetched = now;
   const clients = await Promise.all(s.clients.map(async (c) => {
-    if (c.pose) return c;
+    if (c.pose || !fetchPoses) return { ...c, pose: c.pose || app.clientPoses.get(c.id) };
     const j = await (await api(`/api/clients/${c.id}`)).json().catch(() => ({}));
+    if (j.pose) app.clientPoses.set(c.id, j.pose);
     return { ...c, pose: j.pose };
   }));
   app.robots.update(clients.filter((c) => c.pose && c.frames_processed > 0), app.visibleGroup);
@@ -99,13 +103,14 @@ async function pollDenseStatus() {
 
 async function pollDense() {
   if (!app.dense) return;
-  if (app.denseStatus === null || app.denseStatus?.enabled === false) {
+  if (app.denseStatus === undefined) return;  // not known yet
+  if (app.denseStatus === null || app.denseStatus.enabled === false) {
     if (app.dense.entries.size) app.dense.clear();
   } else {
     try {
       await app.dense.poll();
     } catch (e) {
-      if (e.status !== 404) throw e;
+      if (e.status !== 404 && e.status !== 503) throw e;
     }
   }
   const box = app.dense.bounds();
@@ -130,7 +135,7 @@ async function poll(fn, ms) {
 function setupControls() {
   for (const name of ['dense', 'sparse', 'trajectories', 'occupancy', 'robots']) {
     $(`show-${name}`).addEventListener('change', () => {
-      if (app.view) app.view.layers[name].visible = shown(name);
+      if (app.view) { app.view.layers[name].visible = shown(name); app.view.invalidate(); }
       if (name === 'occupancy' && shown(name)) pollOccupancy().catch(() => {});
     });
   }
@@ -160,7 +165,7 @@ async function initView() {
     return;
   }
   try {
-    app.view = createView(THREE, $('view'));
+    app.view = createView(THREE, $('view'), { antialias: opts.has('aa') ? num('aa', 1) !== 0 : undefined });
   } catch (e) {
     $('view-msg').textContent = `3D view unavailable: no WebGL in this browser (${e.message})`;
     return;
@@ -213,6 +218,15 @@ window.cslamViewer = {
   robots: () => [...(app.robots?.byId || [])].map(([id, o]) => ({ id, position: o.position.toArray(), quaternion: o.quaternion.toArray(), ...o.userData })),
   occupancy: () => app.occupancy?.state() ?? null,
   view: () => app.view,
+  // Keeps the camera orbiting (every frame renders), for frame-rate measurements.
+  spin: (on = true) => {
+    app.spinning = on;
+    if (on && !app.spinHook && app.view) {
+      app.spinHook = true;
+      app.view.hooks.push(() => { if (app.spinning) app.view.orbit.yaw += 0.01; return app.spinning; });
+    }
+  },
+  renderStats: () => ({ frames: app.view?.frames ?? 0, renders: app.view?.renders ?? 0, frameMs: app.view?.frameMs ?? 0, software: app.view?.software ?? '' }),
 };
 
 setupControls();
