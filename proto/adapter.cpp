@@ -169,6 +169,16 @@ void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std:
                         std::to_string(kMaxDepthTimeOffset) + " s");
 }
 
+EncodedRgbd take_encoded(RgbdFrame& frame) {
+  EncodedRgbd e;
+  if (!rgb_codec_from_wire(frame.rgb().encoding(), &e.rgb_codec) ||
+      !depth_codec_from_wire(frame.depth().encoding(), &e.depth_codec))
+    throw std::invalid_argument("take_encoded: a frame with unknown encodings");
+  e.rgb = std::move(*frame.mutable_rgb()->mutable_data());
+  e.depth = std::move(*frame.mutable_depth()->mutable_data());
+  return e;
+}
+
 cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source) {
   check_frame(frame, camera, source);
   RgbCodec rgb_codec;

@@ -50,6 +50,10 @@ void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std:
 // Throws WireError: ERROR_UNKNOWN_ENCODING, ERROR_SIZE_MISMATCH or ERROR_CORRUPT_IMAGE.
 cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source);
 
+// Moves a frame's image bytes out of the message (after from_wire_frame accepted it) into the
+// form the keyframe store keeps: the received payload, never re-encoded.
+EncodedRgbd take_encoded(RgbdFrame& frame);
+
 // Parses one ZeroMQ message body; throws WireError(ERROR_MALFORMED) on bytes that are not a
 // ClientMessage with a body.
 ClientMessage parse_client_message(const void* data, std::size_t size, const std::string& source);

@@ -83,6 +83,7 @@ DecodeResult DecodePool::process(DecodeJob& job) {
   try {
     RgbdFrame decoded = wire::from_wire_frame(*job.frame, job.camera, job.source);
     decoded.client = job.client;
+    decoded.encoded = std::make_shared<const EncodedRgbd>(wire::take_encoded(*job.frame));
     if (!submit_(std::move(decoded))) {
       r.outcome = DecodeResult::Outcome::kShuttingDown;
       r.code = wire::ERROR_SHUTTING_DOWN;

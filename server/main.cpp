@@ -1,12 +1,17 @@
 // cslam-server: receives RGB-D frames from client robots over ZeroMQ (protobuf messages, see
 // proto/cslam.proto and docs/network.md) and runs one SLAM pipeline per client.
+#include <atomic>
 #include <csignal>
+#include <cstdlib>
+#include <memory>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 
 #include <zmq.hpp>
 
+#include "server/dense/dense_products.h"
+#include "server/dense/dense_service.h"
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -16,6 +21,7 @@
 #include "server/receiver.h"
 #include "server/state_store.h"
 #include "server/http/map_routes.h"
+#include "server/http/dense_routes.h"
 #include "mapping/local_mapper.h"
 #include "system/collaborative_system.h"
 
@@ -53,6 +59,45 @@ void require_writable_dir(const std::string& option, const std::string& dir) {
     throw cslam::ConfigError("cslam-server: " + option + " '" + dir + "' is not writable: " + reason);
 }
 
+cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, const std::string& state_dir) {
+  cslam::server::DenseServiceConfig c;
+  c.enabled = !cli.flag_set("no-dense");
+  const double max_mb = cli.get_double("dense-store-max-mb");
+  if (!(max_mb >= 1)) throw cslam::ConfigError("cslam-server: --dense-store-max-mb must be at least 1");
+  c.store.max_bytes = std::uint64_t(max_mb * 1024 * 1024);
+  const double voxel = cli.get_double("dense-voxel");
+  if (!(voxel >= 0.005 && voxel <= 0.2)) throw cslam::ConfigError("cslam-server: --dense-voxel must be within [0.005, 0.2] m");
+  c.map.tsdf.voxel_size = float(voxel);
+  c.map.tsdf.truncation = float(4 * voxel);
+  c.map.keyframes_per_submap = cli.get_int("dense-submap-keyframes");
+  if (!state_dir.empty()) {
+    c.store.dir = state_dir + "/dense";
+  } else {  // a private folder for this run, removed at exit
+    std::string tmpl = (std::filesystem::temp_directory_path() / "cslam-dense-XXXXXX").string();
+    if (!mkdtemp(tmpl.data())) throw cslam::ConfigError("cslam-server: cannot create a temporary folder for the keyframe store");
+    c.store.dir = tmpl;
+    c.store_is_temporary = true;
+  }
+  c.validate();
+  return c;
+}
+
+// The dense map, or none (logged) when it is off or its store cannot be used: SLAM runs either way.
+std::unique_ptr<cslam::server::DenseService> start_dense(const cslam::server::DenseServiceConfig& config,
+                                                         const cslam::CollaborativeSystem& system) {
+  if (!config.enabled) return nullptr;
+  try {
+    auto dense = std::make_unique<cslam::server::DenseService>(config, system);
+    dense->start();
+    cslam::logger("server")->info("live dense map on (voxel {} m, keyframe store {})", config.map.tsdf.voxel_size,
+                                  config.store.dir);
+    return dense;
+  } catch (const std::exception& e) {
+    cslam::logger("server")->error("live dense map off: {}", e.what());
+    return nullptr;
+  }
+}
+
 int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-server", "Receives RGB-D frames from cslam clients over ZeroMQ and runs collaborative SLAM.");
   cli.option("bind", "ZeroMQ endpoint to bind (tcp://127.0.0.1:* picks a free port; beyond loopback needs "
@@ -81,7 +126,11 @@ int run(int argc, char** argv) {
       .option("tracking-wait", "after a new keyframe, a client's tracking waits until local mapping has created and fused its points (new-points), fully processed it (keyframe: repeatable runs, more latency) or not at all (none)", "new-points")
       .option("state-dir", "folder of map snapshots: loaded at start, written periodically and at exit (empty: off)", "")
       .option("snapshot-interval", "seconds between background map snapshots (0: only on demand and at exit)", "10")
-      .flag("state-reset", "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)");
+      .flag("state-reset", "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)")
+      .flag("no-dense", "do not keep keyframe images nor build the live dense map")
+      .option("dense-store-max-mb", "keyframe image store budget (MB); beyond it new keyframes' images are refused (counted)", "4096")
+      .option("dense-voxel", "voxel size of the live dense map (m)", "0.02")
+      .option("dense-submap-keyframes", "keyframes per dense submap", "8");
   cslam::http::declare_options(cli);
   if (!cli.parse(argc, argv)) return 0;
   cslam::set_log_level(cli.get("log-level"));
@@ -130,6 +179,8 @@ int run(int argc, char** argv) {
   state_config.reset = cli.flag_set("state-reset");
   if (state_config.interval_s < 0) throw cslam::ConfigError("cslam-server: --snapshot-interval must be >= 0");
 
+  cslam::server::DenseServiceConfig dense_config = dense_config_from(cli, state_config.dir);
+
   // Declaration order is destruction order in reverse: the system (and its workers) stops before
   // the done channel they report to, the sockets close before their context.
   cslam::server::WakePipe stop;
@@ -143,10 +194,21 @@ int run(int argc, char** argv) {
     sc.fusion.threaded = false;
   }
   sc.on_frame_done = [&done](const cslam::FrameDone& d) { done.push(d); };
+  // Keyframes reach the dense map once it exists (after the snapshot is loaded).
+  std::atomic<cslam::server::DenseService*> dense_sink{nullptr};
+  sc.on_keyframe = [&dense_sink](const cslam::ClientInfo& c, const cslam::KeyFrameId& id, const cslam::RgbdFrame& f) {
+    if (auto* d = dense_sink.load()) d->on_keyframe(c, id, f);
+  };
   cslam::CollaborativeSystem system(sc);
   // Loads the newest snapshot (refuses to start on a bad one unless --state-reset).
   cslam::server::StateStore state(state_config, system);
   for (const auto& r : state.load()) rc.restored_sessions.emplace_back(r.info, r.last_seq);
+  std::unique_ptr<cslam::server::DenseService> dense = start_dense(dense_config, system);
+  dense_sink = dense.get();
+  struct SinkReset {  // destroyed before the dense map: no SLAM worker reaches it afterwards
+    std::atomic<cslam::server::DenseService*>& sink;
+    ~SinkReset() { sink = nullptr; }
+  } sink_reset{dense_sink};
   zmq::context_t context(1);
   cslam::server::Receiver receiver(context, rc, system, done, stop);
   cslam::http::NetStatusBoard net_status;
@@ -155,6 +217,7 @@ int run(int argc, char** argv) {
   cslam::http::HttpServer http(system, http_config);  // reads snapshots only
   http.set_network_status(&net_status);
   cslam::http::add_map_routes(http.routes_server(), state, http_config.token);
+  cslam::http::add_dense_routes(http.routes_server(), dense.get());
   http.start();
   state.start();
   install_signal_handlers(&stop);
@@ -170,6 +233,11 @@ int run(int argc, char** argv) {
   log->info("finishing queued frames");
   state.stop();
   system.finish();
+  if (dense) {
+    log->info("finishing the dense map");
+    dense->finish();
+    for (const std::string& f : cslam::server::write_dense_outputs(*dense->view(), out_dir)) log->info("wrote {}", f);
+  }
   if (!state_config.dir.empty() && state.write()) log->info("final map snapshot written to {}", state_config.dir);
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system.write_outputs(out_dir);

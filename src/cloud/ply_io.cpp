@@ -49,7 +49,7 @@ void put(std::string& buf, T v) {
   buf.append(b, sizeof(T));
 }
 
-void write_vertices(std::ofstream& out, const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb8>& colors,
+void write_vertices(std::ostream& out, const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb8>& colors,
                     const std::vector<Eigen::Vector3f>& normals) {
   std::string buf;
   const size_t stride = 12 + (normals.empty() ? 0 : 12) + (colors.empty() ? 0 : 3);
@@ -74,6 +74,24 @@ std::string vertex_header(size_t n, bool normals, bool colors) {
   if (normals) h << "property float nx\nproperty float ny\nproperty float nz\n";
   if (colors) h << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   return h.str();
+}
+
+void write_ply_body(std::ostream& out, const ColoredCloud& cloud) {
+  out << vertex_header(cloud.size(), cloud.has_normals(), cloud.has_colors()) << "end_header\n";
+  write_vertices(out, cloud.points, cloud.colors, cloud.normals);
+}
+
+void write_ply_mesh_body(std::ostream& out, const TriangleMesh& mesh) {
+  out << vertex_header(mesh.vertices.size(), false, !mesh.colors.empty()) << "element face " << mesh.triangles.size()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  write_vertices(out, mesh.vertices, mesh.colors, {});
+  std::string buf;
+  buf.reserve(13 * mesh.triangles.size());
+  for (const auto& t : mesh.triangles) {
+    put<std::uint8_t>(buf, 3);
+    for (auto v : t) put<std::int32_t>(buf, std::int32_t(v));
+  }
+  out.write(buf.data(), std::streamsize(buf.size()));
 }
 
 // ---------------------------------------------------------------- reading
@@ -298,8 +316,7 @@ void write_ply(const std::string& path, const ColoredCloud& cloud) {
   if (cloud.has_colors() && cloud.colors.size() != cloud.size()) throw std::invalid_argument("write_ply: colour count differs from point count");
   if (cloud.has_normals() && cloud.normals.size() != cloud.size()) throw std::invalid_argument("write_ply: normal count differs from point count");
   AtomicFile f(path);
-  f.stream() << vertex_header(cloud.size(), cloud.has_normals(), cloud.has_colors()) << "end_header\n";
-  write_vertices(f.stream(), cloud.points, cloud.colors, cloud.normals);
+  write_ply_body(f.stream(), cloud);
   f.commit();
 }
 
@@ -307,17 +324,22 @@ void write_ply_mesh(const std::string& path, const TriangleMesh& mesh) {
   if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("refusing to write an empty mesh to " + path);
   if (!mesh.colors.empty() && mesh.colors.size() != mesh.vertices.size()) throw std::invalid_argument("write_ply_mesh: colour count differs from vertex count");
   AtomicFile f(path);
-  f.stream() << vertex_header(mesh.vertices.size(), false, !mesh.colors.empty()) << "element face " << mesh.triangles.size()
-             << "\nproperty list uchar int vertex_indices\nend_header\n";
-  write_vertices(f.stream(), mesh.vertices, mesh.colors, {});
-  std::string buf;
-  buf.reserve(13 * mesh.triangles.size());
-  for (const auto& t : mesh.triangles) {
-    put<std::uint8_t>(buf, 3);
-    for (auto v : t) put<std::int32_t>(buf, std::int32_t(v));
-  }
-  f.stream().write(buf.data(), std::streamsize(buf.size()));
+  write_ply_mesh_body(f.stream(), mesh);
   f.commit();
+}
+
+std::string ply_bytes(const ColoredCloud& cloud) {
+  if (cloud.empty()) throw std::invalid_argument("refusing to encode an empty point cloud as PLY");
+  std::ostringstream out;
+  write_ply_body(out, cloud);
+  return std::move(out).str();
+}
+
+std::string ply_mesh_bytes(const TriangleMesh& mesh) {
+  if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("refusing to encode an empty mesh as PLY");
+  std::ostringstream out;
+  write_ply_mesh_body(out, mesh);
+  return std::move(out).str();
 }
 
 ColoredCloud read_ply(const std::string& path) { return read_ply_file(path, false).cloud; }

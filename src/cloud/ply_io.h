@@ -16,6 +16,10 @@ namespace cslam {
 void write_ply(const std::string& path, const ColoredCloud& cloud);
 void write_ply_mesh(const std::string& path, const TriangleMesh& mesh);
 
+// The same bytes in memory (HTTP downloads); throw std::invalid_argument on an empty input.
+std::string ply_bytes(const ColoredCloud& cloud);
+std::string ply_mesh_bytes(const TriangleMesh& mesh);
+
 // Throws InputError naming the file on any malformed or unsupported content.
 ColoredCloud read_ply(const std::string& path);
 TriangleMesh read_ply_mesh(const std::string& path);

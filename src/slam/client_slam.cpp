@@ -110,6 +110,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   }
   r.track_ms = sw.ms();
   r.new_keyframe = t.new_keyframe;
+  r.keyframe = t.keyframe;
   r.inliers = t.inliers;
   r.outcome = t.ok ? FrameOutcome::kTracked
                    : (t.state == TrackState::kNotInitialized ? FrameOutcome::kNotInitialized : FrameOutcome::kLost);

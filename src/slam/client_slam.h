@@ -23,6 +23,7 @@ struct ProcessResult {
   FrameOutcome outcome = FrameOutcome::kRejected;
   std::string reject_reason;
   bool new_keyframe = false;
+  std::optional<KeyFrameId> keyframe;  // the keyframe this frame became (also a new map's first)
   int inliers = 0;
   int features = 0;
   double extract_ms = 0, track_ms = 0;

@@ -1,5 +1,6 @@
 #include "system/collaborative_system.h"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -244,8 +245,34 @@ Trajectory CollaborativeSystem::keyframe_trajectory(ClientId client) const {
   return it == impl_->clients.end() ? Trajectory{} : it->second->keyframe_trajectory();
 }
 
-namespace {
-}  // namespace
+std::vector<KeyframePose> CollaborativeSystem::keyframe_poses() const {
+  struct MapOf {
+    std::shared_ptr<Map> map;
+    int group;
+  };
+  std::vector<MapOf> maps;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    for (const auto& [id, p] : impl_->clients) {
+      if (!p->slam()) continue;
+      const auto main = p->slam()->main_map();
+      for (const auto& m : p->slam()->maps()) {
+        const int fused = impl_->fusion ? impl_->fusion->group_of(m.get()) : -1;
+        // An unfused main map is labelled like the client's group in the status (id * 100).
+        const int own = int(id) * 100 + (m == main ? 0 : m->index());
+        maps.push_back({m, fused >= 0 ? fused : own});
+      }
+    }
+  }
+  std::vector<KeyframePose> out;
+  for (const auto& [m, group] : maps) {
+    std::shared_lock<std::shared_mutex> lock(m->mutex);
+    for (const auto& kf : m->keyframes())
+      if (!kf->bad) out.push_back({kf->id, group, m->index(), kf->T_world_cam()});
+  }
+  std::sort(out.begin(), out.end(), [](const KeyframePose& a, const KeyframePose& b) { return a.id < b.id; });
+  return out;
+}
 
 void CollaborativeSystem::write_outputs(const std::string& dir) const {
   std::filesystem::create_directories(dir);

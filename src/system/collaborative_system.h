@@ -10,6 +10,7 @@
 
 #include "fusion/fusion_event.h"
 #include "io/trajectory_io.h"
+#include "map/keyframe_pose.h"
 #include "system/rgbd_frame.h"
 #include "system/system_config.h"
 
@@ -90,6 +91,9 @@ class CollaborativeSystem {
   std::vector<ViewerPoint> map_points(int group, std::size_t max_points = 50000) const;
   // Keyframe poses of one client in its group's frame.
   Trajectory keyframe_trajectory(ClientId client) const;
+  // Every live keyframe of every client's maps with its current pose, sorted by id; each map is
+  // read under its shared lock once (one consistent view per map).
+  std::vector<KeyframePose> keyframe_poses() const;
   // Writes client_K.txt (each in its group's frame), fused_G.txt (all frames of a group of two or
   // more clients, time-ordered), keyframes_K.txt and stats.json into dir (created if needed).
   void write_outputs(const std::string& dir) const;

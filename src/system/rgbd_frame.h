@@ -2,10 +2,12 @@
 // The unit of input to the SLAM system: one registered RGB-D image pair from one client.
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include <opencv2/core.hpp>
 
+#include "codec/encoded_rgbd.h"
 #include "core/ids.h"
 #include "geometry/camera.h"
 
@@ -34,6 +36,9 @@ struct RgbdFrame {
   bool live = false;
   // When the system got the frame (stamped by submit() if left at the epoch); pose latency.
   std::chrono::steady_clock::time_point received{};
+  // The images as the robot sent them (the server's frames; null offline): what the keyframe
+  // store keeps, so the dense map is built from the received bytes, never a re-encoding.
+  std::shared_ptr<const EncodedRgbd> encoded;
 };
 
 }  // namespace cslam

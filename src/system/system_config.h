@@ -9,6 +9,7 @@
 #include "geometry/se3.h"
 #include "fusion/fusion_manager.h"
 #include "slam/slam_config.h"
+#include "system/rgbd_frame.h"
 
 namespace cslam {
 
@@ -49,6 +50,10 @@ struct SystemConfig {
   // or rejected), e.g. so the network layer can hand the client a credit and its pose back.
   // Must be cheap and must not call back into the system.
   std::function<void(const FrameDone& done)> on_frame_done;
+  // Called from a client's worker thread when a frame became a keyframe (a new map's first
+  // keyframe too), with that frame: the dense map keeps its images. Must be cheap (queue and
+  // return) and must not call back into the system.
+  std::function<void(const ClientInfo& client, const KeyFrameId& keyframe, const RgbdFrame& frame)> on_keyframe;
 };
 
 }  // namespace cslam

@@ -37,6 +37,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
   if (state_ == TrackState::kNotInitialized) {
     ok = initialize(frame);
     result.initialized_map = ok;
+    if (ok) result.keyframe = reference_kf_->id;
     if (!ok) {
       result.state = state_;
       return result;
@@ -73,7 +74,11 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       }
       ++frames_since_keyframe_;
       ++frames_since_reloc_;
-      if (need_new_keyframe(frame)) result.new_keyframe = create_keyframe(frame) != nullptr;
+      if (need_new_keyframe(frame))
+        if (const KeyFramePtr kf = create_keyframe(frame)) {
+          result.new_keyframe = true;
+          result.keyframe = kf->id;
+        }
     } else {
       has_velocity_ = false;
     }

@@ -61,6 +61,8 @@ struct TrackResult {
   bool new_keyframe = false;
   bool relocalized = false;
   bool initialized_map = false;
+  // The keyframe this frame became (new_keyframe or initialized_map).
+  std::optional<KeyFrameId> keyframe;
   int inliers = 0;
   SE3 T_cam_world;
   KeyFramePtr reference;

@@ -11,10 +11,21 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
+#include "io/trajectory_io.h"
 
 namespace cslam {
 
 namespace {
+
+// The rigid transform that took a trajectory to its aligned copy (cslam-eval ate --aligned):
+// aligned_i = T * estimate_i for every pose; taken from the first pose pair with equal stamps.
+SE3 alignment_between(const std::string& estimate_path, const std::string& aligned_path) {
+  const Trajectory est = read_tum_trajectory(estimate_path), aligned = read_tum_trajectory(aligned_path);
+  for (const auto& a : aligned)
+    for (const auto& e : est)
+      if (e.timestamp == a.timestamp) return a.T_world_cam * e.T_world_cam.inverse();
+  throw InputError(aligned_path, "no pose with the same time stamp as in " + estimate_path);
+}
 
 nlohmann::json distance_json(const DistanceStats& s) {
   return {{"n", s.n}, {"mean", s.mean}, {"median", s.median}, {"p95", s.p95}, {"max", s.max}, {"rmse", s.rmse}};
@@ -31,12 +42,23 @@ int cmd_cloud(int argc, char** argv) {
       .positional("TEST", "cloud to evaluate, PLY")
       .flag("match-bbox", "first translate TEST so the bounding-box centres coincide and scale it about that centre so the "
                           "bounding-box diagonals are equal (the paper's CloudCompare step)")
+      .option("move-from", "with --move-to: move TEST by the rigid transform that takes this trajectory (TUM) to the "
+                           "--move-to one (e.g. a SLAM trajectory and its copy aligned by cslam-eval ate --aligned)", "")
+      .option("move-to", "the aligned trajectory for --move-from", "")
       .option("threads", "threads for the nearest-neighbour queries", "2")
       .flag("json", "print JSON instead of a table");
   if (!args.parse(argc, argv, 2)) return 0;
   const std::string ref_path = args.positionals()[0], test_path = args.positionals()[1];
   const ColoredCloud ref = read_ply(ref_path);
-  const ColoredCloud test = read_ply(test_path);
+  ColoredCloud test = read_ply(test_path);
+  if (args.get("move-from").empty() != args.get("move-to").empty())
+    throw ConfigError("cslam-eval cloud: --move-from and --move-to go together");
+  if (!args.get("move-from").empty()) {
+    const SE3 T = alignment_between(args.get("move-from"), args.get("move-to"));
+    const Eigen::Matrix3f R = T.R().cast<float>();
+    const Eigen::Vector3f t = T.translation().cast<float>();
+    for (auto& p : test.points) p = R * p + t;
+  }
   if (ref.empty()) throw InputError(ref_path, "cloud has no points");
   if (test.empty()) throw InputError(test_path, "cloud has no points");
   CloudCompareConfig cfg;

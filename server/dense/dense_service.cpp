@@ -1,0 +1,220 @@
+#include "server/dense/dense_service.h"
+
+#include <algorithm>
+#include <ctime>
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "core/stopwatch.h"
+#include "core/thread_priority.h"
+
+namespace cslam::server {
+
+namespace {
+
+auto log() { return logger("dense"); }
+
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
+}
+
+constexpr std::size_t kTimingWindow = 512;
+
+}  // namespace
+
+void DenseServiceConfig::validate() const {
+  map.validate();
+  store.validate();
+  if (!(step_interval_s > 0) || queue_capacity < 1 || max_integrations_per_step < 1 || max_reintegrations_per_step < 0)
+    throw ConfigError("dense map: step interval, queue capacity and integrations per step must be positive");
+}
+
+DenseService::DenseService(DenseServiceConfig config, const CollaborativeSystem& system)
+    : config_((config.validate(), std::move(config))), system_(system), store_(config_.store), map_(config_.map) {}
+
+DenseService::~DenseService() {
+  finish();
+  if (config_.store_is_temporary) {
+    std::error_code ec;
+    std::filesystem::remove_all(config_.store.dir, ec);
+  }
+}
+
+double DenseService::uptime_s() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+void DenseService::start() {
+  // The snapshot is the truth: stored keyframes its maps do not hold (written after it, or by an
+  // earlier run) are dropped; the others are integrated again with the restored poses.
+  std::set<KeyFrameId> held;
+  for (const KeyframePose& p : system_.keyframe_poses()) held.insert(p.id);
+  std::size_t restored = 0, dropped = 0;
+  for (const KeyFrameId id : store_.ids()) {
+    if (!held.count(id)) {
+      store_.erase(id);
+      ++dropped;
+      continue;
+    }
+    if (!cameras_.count(id.client))
+      if (const auto camera = store_.camera(id.client)) {
+        cameras_[id.client] = *camera;
+        map_.set_camera(id.client, *camera);
+      }
+    map_.add_keyframe(id, std::nullopt, -1e9);
+    ++restored;
+  }
+  if (restored + dropped > 0)
+    log()->info("keyframe store {}: {} keyframes to integrate again, {} not in the snapshot dropped", store_.path(),
+                restored, dropped);
+  thread_ = std::thread([this] { run(); });
+}
+
+void DenseService::on_keyframe(const ClientInfo& client, const KeyFrameId& id, const RgbdFrame& frame) {
+  Job job;
+  job.client = client;
+  job.record.id = id;
+  job.record.timestamp = frame.timestamp;
+  job.record.depth_time_offset = frame.depth_time_offset;
+  if (frame.encoded) job.record.images = *frame.encoded;
+  job.images = DenseImages{frame.bgr, frame.depth};  // shared, not copied: the frame is done with them
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++stats_.keyframes_received;
+    if (stop_ || queue_.size() >= config_.queue_capacity) {
+      ++stats_.queue_dropped;
+      return;
+    }
+    queue_.push_back(std::move(job));
+  }
+  wake_.notify_one();
+}
+
+void DenseService::finish() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (finished_) return;
+    finished_ = true;
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void DenseService::run() {
+  lower_current_thread_priority();
+  std::unique_lock<std::mutex> lock(mutex_);
+  for (;;) {
+    wake_.wait_for(lock, std::chrono::duration<double>(config_.step_interval_s),
+                   [&] { return stop_ || !queue_.empty(); });
+    std::deque<Job> jobs;
+    jobs.swap(queue_);
+    const bool stopping = stop_;
+    lock.unlock();
+    store_jobs(jobs);
+    step(stopping);
+    lock.lock();
+    if (stopping && queue_.empty()) break;
+  }
+}
+
+void DenseService::store_jobs(std::deque<Job>& jobs) {
+  const double now = uptime_s();
+  for (Job& job : jobs) {
+    const ClientId c = job.client.id;
+    const auto known = cameras_.find(c);
+    if (known == cameras_.end() || !RayTable(known->second).matches(job.client.camera)) {
+      cameras_[c] = job.client.camera;
+      store_.put_camera(c, job.client.camera);
+      map_.set_camera(c, job.client.camera);
+    }
+    if (job.record.images.rgb.empty()) {  // frames that did not come over the network: lossless copy
+      CodecOptions lossless;
+      lossless.rgb = RgbCodec::kPng;
+      const Bytes rgb = encode_rgb(job.images->bgr, lossless), depth = encode_depth(job.images->depth, lossless);
+      job.record.images = {RgbCodec::kPng, std::string(rgb.begin(), rgb.end()), lossless.depth,
+                           std::string(depth.begin(), depth.end())};
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++stats_.encoded_here;
+    }
+    const PutStatus status = store_.put(job.record);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (status == PutStatus::kStored || status == PutStatus::kAlreadyStored) ++stats_.stored;
+      else if (status == PutStatus::kFull) ++stats_.store_refused_full;
+      else ++stats_.store_errors;
+    }
+    // Integrated from the decoded images at hand even when the store refused them (they are
+    // then missing only for a later re-integration, counted there).
+    map_.add_keyframe(job.record.id, std::move(job.images), now);
+  }
+}
+
+std::optional<DenseImages> DenseService::load(KeyFrameId id) {
+  try {
+    const auto record = store_.get(id);
+    const auto camera = cameras_.find(id.client);
+    if (!record || camera == cameras_.end()) return std::nullopt;
+    std::ostringstream source;
+    source << "stored keyframe " << id;
+    auto [bgr, depth] = decode_rgbd(record->images, camera->second.width, camera->second.height, source.str());
+    return DenseImages{std::move(bgr), std::move(depth)};
+  } catch (const InputError& e) {
+    log()->warn("{}", e.what());
+    return std::nullopt;
+  }
+}
+
+void DenseService::step(bool final) {
+  const Stopwatch timer;
+  const double cpu0 = thread_cpu_ms();
+  const std::vector<KeyframePose> poses = system_.keyframe_poses();
+  const DenseImageLoader loader = [this](KeyFrameId id) { return load(id); };
+  const DenseStepResult r =
+      final ? map_.flush(poses, loader)
+            : map_.step(poses, uptime_s(), loader, {config_.max_integrations_per_step, config_.max_reintegrations_per_step});
+  for (const KeyFrameId id : r.culled) store_.erase(id);
+  const auto view = map_.view();
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++stats_.steps;
+  stats_.integrated += std::uint64_t(r.integrated);
+  stats_.reintegrated += std::uint64_t(r.reintegrated);
+  stats_.moved += std::uint64_t(r.moved);
+  stats_.missing_images += std::uint64_t(r.missing_images);
+  stats_.culled += r.culled.size();
+  for (double ms : r.integrate_ms) {
+    if (stats_.integrate_ms.size() >= kTimingWindow) stats_.integrate_ms.erase(stats_.integrate_ms.begin());
+    stats_.integrate_ms.push_back(ms);
+  }
+  if (r.moved > 0 || r.reintegrated > 0) stats_.last_correction_s = uptime_s();
+  stats_.pending = map_.pending();
+  stats_.submaps = view->submaps.size();
+  stats_.last_step_ms = timer.ms();
+  stats_.integrate_cpu_ms += thread_cpu_ms() - cpu0;
+  if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_log_).count() >= config_.log_interval_s) {
+    last_log_ = std::chrono::steady_clock::now();
+    log()->info("dense: {} submaps, {} keyframes integrated ({} pending, {} queued), {} re-integrations, store {} "
+                "keyframes {:.1f} MB{}",
+                stats_.submaps, stats_.integrated, stats_.pending, queue_.size(), stats_.reintegrated,
+                store_.stats().keyframes, double(store_.stats().payload_bytes) / 1e6,
+                store_.stats().last_error.empty() ? "" : " (store error: " + store_.stats().last_error + ")");
+  }
+}
+
+DenseServiceStats DenseService::stats() const {
+  DenseServiceStats s;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    s = stats_;
+    s.queue = queue_.size();
+  }
+  s.store = store_.stats();
+  return s;
+}
+
+}  // namespace cslam::server

@@ -1,0 +1,97 @@
+#pragma once
+// The server's live dense map: keyframes' images as received go into the keyframe store, and one
+// worker thread keeps a LiveDenseMap (TSDF submaps) in step with the SLAM maps' current keyframe
+// poses. SLAM workers only queue (on_keyframe); the worker stores, integrates, follows
+// corrections and publishes an immutable view for HTTP. Bounded everywhere: the queue (keyframes
+// beyond it are counted and left to the store-less path: never silently), the store
+// (--dense-store-max-mb: new keyframes' images refused when full, counted), the work per step.
+#include <condition_variable>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dense/live_dense_map.h"
+#include "server/dense/keyframe_store.h"
+#include "system/collaborative_system.h"
+
+namespace cslam::server {
+
+struct DenseServiceConfig {
+  bool enabled = true;
+  LiveDenseConfig map;
+  KeyframeStoreConfig store;        // dir: --state-dir/dense, or a private temporary folder
+  bool store_is_temporary = false;  // removed at exit
+  double step_interval_s = 0.25;    // poses are re-read at least this often
+  std::size_t queue_capacity = 64;  // keyframes waiting for the worker
+  int max_integrations_per_step = 4;
+  int max_reintegrations_per_step = 1;
+  double log_interval_s = 5;
+  void validate() const;  // throws ConfigError
+};
+
+struct DenseServiceStats {
+  std::uint64_t keyframes_received = 0, queue_dropped = 0, encoded_here = 0;
+  std::uint64_t stored = 0, store_refused_full = 0, store_errors = 0, culled = 0;
+  std::uint64_t integrated = 0, reintegrated = 0, moved = 0, missing_images = 0, steps = 0;
+  std::size_t queue = 0, pending = 0, submaps = 0;
+  std::vector<double> integrate_ms;  // the last few hundred keyframes
+  double last_step_ms = 0, integrate_cpu_ms = 0;
+  // When the last correction (a submap moved or was rebuilt) was applied, seconds since start.
+  double last_correction_s = -1;
+  KeyframeStoreStats store;
+};
+
+class DenseService {
+ public:
+  // Opens the store (throws InputError/ConfigError with a clear message if it cannot be used).
+  DenseService(DenseServiceConfig config, const CollaborativeSystem& system);
+  ~DenseService();  // stop()
+  DenseService(const DenseService&) = delete;
+  DenseService& operator=(const DenseService&) = delete;
+
+  // Keeps only the stored keyframes the SLAM maps hold now (the restored snapshot) and queues
+  // them for integration; starts the worker.
+  void start();
+  // SystemConfig::on_keyframe (SLAM worker threads): queue and return.
+  void on_keyframe(const ClientInfo& client, const KeyFrameId& id, const RgbdFrame& frame);
+  // Stops the worker after storing what is queued and integrating every pending keyframe with
+  // the final poses. Idempotent.
+  void finish();
+
+  std::shared_ptr<const DenseMapView> view() const { return map_.view(); }
+  DenseServiceStats stats() const;
+  const DenseServiceConfig& config() const { return config_; }
+  double uptime_s() const;
+
+ private:
+  struct Job {
+    ClientInfo client;
+    KeyframeRecord record;
+    std::optional<DenseImages> images;
+  };
+  void run();
+  void store_jobs(std::deque<Job>& jobs);
+  void step(bool final);
+  std::optional<DenseImages> load(KeyFrameId id);
+  void log_progress();
+
+  const DenseServiceConfig config_;
+  const CollaborativeSystem& system_;
+  KeyframeStore store_;
+  LiveDenseMap map_;  // the worker's alone
+  std::map<ClientId, PinholeCamera> cameras_;  // the worker's alone
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point last_log_ = start_;
+
+  mutable std::mutex mutex_;  // queue_, stop_, stats_
+  std::condition_variable wake_;
+  std::deque<Job> queue_;
+  bool stop_ = false, finished_ = false;
+  DenseServiceStats stats_;
+  std::thread thread_;
+};
+
+}  // namespace cslam::server

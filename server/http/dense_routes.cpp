@@ -1,0 +1,221 @@
+#include "server/http/dense_routes.h"
+
+#include <charconv>
+#include <memory>
+#include <mutex>
+
+#include "cloud/ply_io.h"
+#include "dense/mesh_lod.h"
+#include "server/dense/dense_products.h"
+#include "server/dense/dense_service.h"
+// After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
+#include "server/http/json_reply.h"
+
+namespace cslam::http {
+namespace {
+
+using server::DenseService;
+using server::encode_csm1;
+using server::largest_group;
+using server::submaps_by_group;
+
+// Products of one view version, at most kMaxEntries kept (the oldest dropped).
+class ProductCache {
+ public:
+  template <typename Make>
+  std::shared_ptr<const std::string> get(const std::string& key, std::uint64_t version, Make make) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (const auto& e : entries_)
+        if (e.key == key && e.version == version) return e.bytes;
+    }
+    auto bytes = std::make_shared<const std::string>(make());  // outside the lock: may take a while
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (entries_.size() >= kMaxEntries) entries_.erase(entries_.begin());
+    entries_.push_back(Entry{key, version, bytes});
+    return bytes;
+  }
+
+ private:
+  static constexpr std::size_t kMaxEntries = 8;
+  struct Entry {
+    std::string key;
+    std::uint64_t version;
+    std::shared_ptr<const std::string> bytes;
+  };
+  std::mutex mutex_;
+  std::vector<Entry> entries_;
+};
+
+std::optional<long> strict_long(const std::string& v) {
+  long x = 0;
+  const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+  if (ec != std::errc() || end != v.data() + v.size() || v.empty()) return std::nullopt;
+  return x;
+}
+
+// The group a request names (?group=G), or the largest one; nullopt after replying with an error.
+std::optional<int> requested_group(const httplib::Request& req, httplib::Response& res, const DenseMapView& view) {
+  if (!req.has_param("group")) {
+    const int g = largest_group(view);
+    if (g < 0) json_error(res, 404, "the dense map has no submap yet");
+    return g < 0 ? std::nullopt : std::optional<int>(g);
+  }
+  const auto g = strict_long(req.get_param_value("group"));
+  if (!g || *g < -1 || *g > (1L << 30)) {
+    json_error(res, 400, "parameter group must be an integer group id, got '" + req.get_param_value("group") + "'");
+    return std::nullopt;
+  }
+  const auto groups = submaps_by_group(view);
+  if (!groups.count(int(*g))) {
+    json_error(res, 404, "the dense map has no submap in group " + std::to_string(*g));
+    return std::nullopt;
+  }
+  return int(*g);
+}
+
+nlohmann::json pose_json(const SE3& T) {
+  const auto& t = T.translation();
+  const auto& q = T.rotation();
+  return {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()};
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::size_t(p * double(v.size() - 1) + 0.5)];
+}
+
+bool not_modified(const httplib::Request& req, httplib::Response& res, const std::string& etag) {
+  res.set_header("ETag", etag);
+  res.set_header("Cache-Control", "no-cache");
+  if (req.get_header_value("If-None-Match") != etag) return false;
+  res.status = 304;
+  return true;
+}
+
+void status_route(httplib::Server& s, const DenseService* dense) {
+  s.Get("/api/dense/status", [dense](const httplib::Request&, httplib::Response& res) {
+    if (!dense) return json_reply(res, {{"enabled", false}});
+    const auto st = dense->stats();
+    const auto view = dense->view();
+    json_reply(res, {{"enabled", true},
+                     {"version", view->version},
+                     {"submaps", view->submaps.size()},
+                     {"keyframes_received", st.keyframes_received},
+                     {"keyframes_integrated", st.integrated},
+                     {"queue", st.queue},
+                     {"queue_dropped", st.queue_dropped},
+                     {"pending", st.pending},
+                     {"reintegrated", st.reintegrated},
+                     {"submaps_moved", st.moved},
+                     {"culled", st.culled},
+                     {"missing_images", st.missing_images},
+                     {"integrate_ms", {{"p50", percentile(st.integrate_ms, 0.5)}, {"max", percentile(st.integrate_ms, 1.0)}}},
+                     {"cpu_ms", st.integrate_cpu_ms},
+                     {"last_correction_s", st.last_correction_s},
+                     {"store", {{"keyframes", st.store.keyframes}, {"payload_bytes", st.store.payload_bytes},
+                                {"file_bytes", st.store.file_bytes}, {"max_bytes", st.store.max_bytes},
+                                {"refused_full", st.store.refused_full}, {"errors", st.store.errors},
+                                {"last_error", st.store.last_error}}}});
+  });
+}
+
+void index_route(httplib::Server& s, const DenseService* dense) {
+  s.Get("/api/dense/submaps", [dense](const httplib::Request& req, httplib::Response& res) {
+    if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
+    const auto view = dense->view();
+    std::optional<long> only;
+    if (req.has_param("group")) {
+      only = strict_long(req.get_param_value("group"));
+      if (!only) return json_error(res, 400, "parameter group must be an integer, got '" + req.get_param_value("group") + "'");
+    }
+    const std::string etag = "\"" + std::to_string(view->version) + (only ? "-" + std::to_string(*only) : "") + "\"";
+    if (not_modified(req, res, etag)) return;
+    nlohmann::json groups = nlohmann::json::array();
+    for (const auto& [group, submaps] : submaps_by_group(*view)) {
+      if (only && group != *only) continue;
+      nlohmann::json list = nlohmann::json::array();
+      std::vector<int> clients;
+      for (const SubmapView* sm : submaps) {
+        if (std::find(clients.begin(), clients.end(), int(sm->client)) == clients.end()) clients.push_back(sm->client);
+        list.push_back({{"id", sm->id}, {"client", sm->client}, {"version", sm->version},
+                        {"pose_version", sm->pose_version}, {"T_world_submap", pose_json(sm->T_world_submap)},
+                        {"keyframes", sm->keyframes.size()},
+                        {"vertices", sm->mesh ? sm->mesh->vertices.size() : std::size_t(0)},
+                        {"triangles", sm->mesh ? sm->mesh->triangles.size() : std::size_t(0)},
+                        {"mesh_url", "/api/dense/submaps/" + std::to_string(sm->id) + "/mesh.bin"}});
+      }
+      groups.push_back({{"group", group}, {"clients", clients}, {"submaps", std::move(list)}});
+    }
+    const nlohmann::json body = {{"version", view->version}, {"groups", std::move(groups)}};
+    res.set_content(body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace), "application/json");
+  });
+}
+
+void mesh_route(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache> cache) {
+  s.Get(R"(/api/dense/submaps/(\d+)/mesh\.bin)", [dense, cache](const httplib::Request& req, httplib::Response& res) {
+    if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
+    const auto id = strict_long(req.matches[1]);
+    long lod = 0;
+    if (req.has_param("lod")) {
+      const auto l = strict_long(req.get_param_value("lod"));
+      if (!l || *l < 0 || *l > 2) return json_error(res, 400, "parameter lod must be 0, 1 or 2");
+      lod = *l;
+    }
+    const auto view = dense->view();
+    const SubmapView* sm = nullptr;
+    for (const auto& v : view->submaps)
+      if (id && long(v.id) == *id) sm = &v;
+    if (!sm) return json_error(res, 404, "no submap " + std::string(req.matches[1]) + " (removed, or not yet)");
+    if (!sm->mesh) return json_error(res, 404, "submap " + std::string(req.matches[1]) + " has no mesh yet");
+    const std::string etag = "\"" + std::to_string(sm->version) + "-" + std::to_string(lod) + "\"";
+    if (not_modified(req, res, etag)) return;
+    const std::string key = "csm-" + std::to_string(sm->id) + "-" + std::to_string(lod);
+    const auto bytes = cache->get(key, sm->version, [&] {
+      if (lod == 0) return encode_csm1(*sm->mesh, std::uint32_t(sm->version));
+      return encode_csm1(simplify_by_clustering(*sm->mesh, sm->voxel_size * float(1 << lod)), std::uint32_t(sm->version));
+    });
+    res.set_content(*bytes, "application/octet-stream");
+  });
+}
+
+void group_routes(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache> cache) {
+  auto download = [dense, cache](bool mesh) {
+    return [dense, cache, mesh](const httplib::Request& req, httplib::Response& res) {
+      if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
+      const auto view = dense->view();
+      const auto group = requested_group(req, res, *view);
+      if (!group) return;
+      const auto submaps = submaps_by_group(*view).at(*group);
+      const std::string key = std::string(mesh ? "mesh-" : "cloud-") + std::to_string(*group);
+      std::string error;
+      const auto bytes = cache->get(key, view->version, [&]() -> std::string {
+        try {
+          return mesh ? ply_mesh_bytes(server::group_mesh(submaps)) : ply_bytes(server::group_cloud(submaps));
+        } catch (const std::invalid_argument&) {
+          return {};
+        }
+      });
+      if (bytes->empty()) return json_error(res, 404, "group " + std::to_string(*group) + " has no dense surface yet");
+      const std::string name = std::string(mesh ? "dense_mesh_" : "dense_cloud_") + std::to_string(*group) + ".ply";
+      res.set_header("Content-Disposition", "attachment; filename=\"" + name + "\"");
+      res.set_header("Cache-Control", "no-store");
+      res.set_content(*bytes, "application/octet-stream");
+    };
+  };
+  s.Get("/api/dense/cloud.ply", download(false));
+  s.Get("/api/dense/mesh.ply", download(true));
+}
+
+}  // namespace
+
+void add_dense_routes(httplib::Server& server, const DenseService* dense) {
+  auto cache = std::make_shared<ProductCache>();
+  status_route(server, dense);
+  index_route(server, dense);
+  mesh_route(server, dense, cache);
+  group_routes(server, dense, cache);
+}
+
+}  // namespace cslam::http

@@ -1,0 +1,20 @@
+#pragma once
+// HTTP routes of the live dense map (docs/http.md, "Dense map"): status, the submap index with
+// versions (ETag / If-None-Match), each submap's mesh (CSM1, levels of detail), a group's fused
+// cloud and mesh (PLY), and the navigation maps. Handlers read the dense worker's immutable view;
+// products derived from it are cached per (group, view version), a bounded number of them.
+
+namespace httplib {
+class Server;
+}
+
+namespace cslam::server {
+class DenseService;
+}
+
+namespace cslam::http {
+
+// dense may be null (dense map off): the routes answer {"enabled": false} / 503.
+void add_dense_routes(httplib::Server& server, const server::DenseService* dense);
+
+}  // namespace cslam::http
