@@ -263,6 +263,7 @@ void Receiver::on_hello(const std::string& routing_id, const std::string& key, c
   if (new_session) {
     system_.start_new_session(info.id);
     session->last_seq = 0;
+    session->stamps = {};  // a new recording: a new time base
     resumed = false;
   }
   if (resumed) ++stats_.client(info.id).reconnects;
@@ -320,6 +321,10 @@ void Receiver::on_frame(const std::string& routing_id, std::unique_ptr<wire::Rgb
     reply_error(routing_id, id, seq, e.code(), e.what(), 1);
     return;
   }
+  const double stamp = frame->timestamp();  // finite: check_frame
+  const auto now = Clock::now();
+  const StampHistory::Verdict verdict = session->stamps.check(stamp, now, config_.timestamp_bound);
+  if (!verdict.ok) return refuse(wire::ERROR_TIMESTAMP_JUMP, verdict.message, 1);
   DecodeJob job;
   job.client = id;
   job.seq = seq;
@@ -327,6 +332,8 @@ void Receiver::on_frame(const std::string& routing_id, std::unique_ptr<wire::Rgb
   job.source = source;
   job.frame = std::move(frame);
   if (!pool_.post(std::move(job))) return refuse(wire::ERROR_OVERLOADED, "decode queue full", 1);
+  if (verdict.new_epoch) log()->warn("{}: {}", source, verdict.message);
+  session->stamps.accept(stamp, now);
   session->decoding.insert(seq);
   ++session->in_flight;
 }

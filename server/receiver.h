@@ -48,6 +48,7 @@ struct ReceiverConfig {
   std::size_t max_clients = 64;                  // sessions (any state) at a time
   std::uint64_t max_pixels = 1920 * 1080;        // largest camera a hello may announce
   std::uint64_t max_seq_jump = 1000000;          // a frame's seq may be at most this far past the last one
+  TimestampBound timestamp_bound;                // forward timestamp jumps (session_table.h)
   double session_ttl_s = 300;                    // reclaim sessions not active for this long (0: never)
   std::size_t decode_threads = 2;                // decode pool size (shared by all clients)
   std::string reclaim_dir = "cslam-out/reclaimed";  // outputs of reclaimed sessions (default hook)

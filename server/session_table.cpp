@@ -1,5 +1,7 @@
 #include "server/session_table.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <stdexcept>
 
@@ -23,6 +25,65 @@ const char* to_string(Admission admission) {
     case Admission::kFull: return "full";
   }
   return "unknown";
+}
+
+namespace {
+std::string seconds(double s) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.6g s", s);
+  return buf;
+}
+}  // namespace
+
+double StampHistory::median_interval() const {
+  if (count_ == 0) return 0;
+  std::array<double, kIntervals> v = intervals_;
+  auto mid = v.begin() + std::ptrdiff_t(count_ / 2);
+  std::nth_element(v.begin(), mid, v.begin() + std::ptrdiff_t(count_));
+  return *mid;
+}
+
+double StampHistory::allowed_jump(Clock::time_point now, const TimestampBound& bound) const {
+  const double wall = has_last_ ? std::max(0.0, std::chrono::duration<double>(now - last_wall_).count()) : 0.0;
+  return std::max(bound.min_jump_s, bound.interval_factor * median_interval()) + bound.wall_factor * wall;
+}
+
+StampHistory::Verdict StampHistory::check(double t, Clock::time_point now, const TimestampBound& bound) {
+  if (bound.min_jump_s <= 0 || !has_last_ || t <= last_) return {};  // backwards: the SLAM front end answers it
+  const double jump = t - last_, allowed = allowed_jump(now, bound);
+  if (jump <= allowed) {
+    pending_ = 0;
+    return {};
+  }
+  // Out of bound. Agrees with the previous out-of-bound frame (a genuine jump of the time base)?
+  const double step = std::max(bound.min_jump_s, bound.interval_factor * median_interval());
+  pending_ = pending_ > 0 && t > pending_last_ && t - pending_last_ <= step ? pending_ + 1 : 1;
+  pending_last_ = t;
+  if (pending_ >= std::max(1, bound.confirm_frames) && bound.confirm_frames > 0) {
+    pending_ = 0;
+    epoch_ = true;
+    return {true, true,
+            "timestamps jumped " + seconds(jump) + " ahead over " + std::to_string(bound.confirm_frames) +
+                " consecutive frames: taken as a new time base"};
+  }
+  return {false, false,
+          "timestamp " + seconds(t) + " is " + seconds(jump) + " past the last accepted frame's (" + seconds(last_) +
+              "); at most " + seconds(allowed) + " is allowed (median frame interval " + seconds(median_interval()) + ")"};
+}
+
+void StampHistory::accept(double t, Clock::time_point now) {
+  if (has_last_ && t <= last_) return;  // refused downstream (not increasing): changes nothing
+  if (has_last_ && !epoch_) {
+    intervals_[next_] = t - last_;
+    next_ = (next_ + 1) % kIntervals;
+    count_ = std::min(count_ + 1, kIntervals);
+  }
+  if (epoch_) count_ = next_ = 0;
+  epoch_ = false;
+  pending_ = 0;
+  has_last_ = true;
+  last_ = t;
+  last_wall_ = now;
 }
 
 Admission SessionTable::admit(ClientId id, const std::string& routing_id, const std::string& key) const {

@@ -9,6 +9,7 @@
 //  - a hello for a known id from the connection that owns the session re-opens it;
 //  - from another connection it resumes the session only with the same CURVE key, or (without
 //    CURVE) only once the old connection is no longer active (timed out or said goodbye).
+#include <array>
 #include <chrono>
 #include <map>
 #include <optional>
@@ -22,6 +23,53 @@ namespace cslam::server {
 
 using Clock = std::chrono::steady_clock;
 
+// Bound on forward timestamp jumps (docs/security.md, "Timestamps"). A frame stamped more than
+//   max(min_jump_s, interval_factor x the median of the session's recent frame intervals)
+//   + wall_factor x the wall-clock seconds since its last accepted frame
+// past that frame is refused (ERROR_TIMESTAMP_JUMP) and the session goes on: one wild stamp no
+// longer moves the session's clock (the later, correctly stamped frames were all "not
+// increasing" before). The wall-clock term lets a robot that paused for an hour come back with
+// stamps an hour later. A genuine jump in the stamps (a replayed recording with a gap) is taken
+// after confirm_frames consecutive out-of-bound frames that agree with each other: the last of
+// them is accepted and the history restarts from it. min_jump_s <= 0 turns the bound off.
+struct TimestampBound {
+  double min_jump_s = 10.0;
+  double interval_factor = 100.0;
+  double wall_factor = 2.0;
+  int confirm_frames = 3;
+};
+
+// The timestamps a session has accepted: the newest and up to 32 recent intervals.
+class StampHistory {
+ public:
+  struct Verdict {
+    bool ok = true;
+    bool new_epoch = false;  // accepted as the confirmed start of a new time base
+    std::string message;     // why it was refused, or what the new epoch is
+  };
+  // Whether a frame stamped t (finite) may go on. Refusals are remembered for the confirmation
+  // of a genuine jump; nothing else changes until accept().
+  Verdict check(double t, Clock::time_point now, const TimestampBound& bound);
+  // Records a frame that passed check() and was handed on.
+  void accept(double t, Clock::time_point now);
+  // The largest forward jump allowed now.
+  double allowed_jump(Clock::time_point now, const TimestampBound& bound) const;
+  double median_interval() const;  // 0 without intervals
+  bool empty() const { return !has_last_; }
+  double last() const { return last_; }
+
+ private:
+  static constexpr std::size_t kIntervals = 32;
+  bool has_last_ = false;
+  double last_ = 0;
+  Clock::time_point last_wall_{};
+  std::array<double, kIntervals> intervals_{};
+  std::size_t count_ = 0, next_ = 0;
+  int pending_ = 0;          // consecutive out-of-bound frames that agree with each other
+  double pending_last_ = 0;  // stamp of the newest of them
+  bool epoch_ = false;       // the next accept() starts a new time base
+};
+
 enum class SessionState { kActive, kDisconnected, kDone };
 const char* to_string(SessionState state);
 
@@ -31,6 +79,7 @@ struct Session {
   std::string key;               // CURVE public key (Z85) of the connection, empty without CURVE
   SessionState state = SessionState::kActive;
   std::uint64_t last_seq = 0;    // highest accepted sequence number
+  StampHistory stamps;           // timestamps of the frames handed on (forward-jump bound)
   std::set<std::uint64_t> decoding;  // seqs handed to the decode pool, result not back yet
   std::uint32_t in_flight = 0;   // frames reserved (decoding or queued) and not yet consumed
   Clock::time_point last_seen;

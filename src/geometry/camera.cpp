@@ -1,6 +1,7 @@
 #include "geometry/camera.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include <opencv2/calib3d.hpp>
 
@@ -14,17 +15,38 @@ bool PinholeCamera::has_distortion() const {
   return false;
 }
 
+namespace {
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+}  // namespace
+
 void PinholeCamera::validate() const {
+  const std::string what = "camera '" + name + "': ";
   auto finite_pos = [](double v) { return std::isfinite(v) && v > 0; };
-  if (!finite_pos(fx) || !finite_pos(fy)) throw ConfigError("camera '" + name + "': focal lengths must be positive");
-  if (!std::isfinite(cx) || !std::isfinite(cy)) throw ConfigError("camera '" + name + "': principal point is not finite");
-  if (width <= 0 || height <= 0) throw ConfigError("camera '" + name + "': image size must be positive");
-  if (!finite_pos(depth_factor)) throw ConfigError("camera '" + name + "': depth_factor must be positive");
-  if (!finite_pos(depth_scale_correction)) throw ConfigError("camera '" + name + "': depth_scale_correction must be positive");
+  if (!finite_pos(fx) || !finite_pos(fy)) throw ConfigError(what + "focal lengths must be positive");
+  if (!std::isfinite(cx) || !std::isfinite(cy)) throw ConfigError(what + "principal point is not finite");
+  if (width <= 0 || height <= 0) throw ConfigError(what + "image size must be positive");
+  if (width < kMinCameraSide || height < kMinCameraSide)
+    throw ConfigError(what + "image " + std::to_string(width) + "x" + std::to_string(height) + " is below the minimum " +
+                      std::to_string(kMinCameraSide) + "x" + std::to_string(kMinCameraSide) +
+                      " (the feature detector finds nothing in a smaller image)");
+  if (!(cx >= 0 && cx <= width) || !(cy >= 0 && cy <= height))
+    throw ConfigError(what + "principal point (" + num(cx) + ", " + num(cy) + ") is outside the " + std::to_string(width) +
+                      "x" + std::to_string(height) + " image");
+  auto focal_ok = [](double f, int side) { return f >= kMinFocalPerSide * side && f <= kMaxFocalPerSide * side; };
+  if (!focal_ok(fx, width) || !focal_ok(fy, height))
+    throw ConfigError(what + "focal lengths fx = " + num(fx) + ", fy = " + num(fy) + " are outside [" + num(kMinFocalPerSide) +
+                      ", " + num(kMaxFocalPerSide) + "] x the image size " + std::to_string(width) + "x" +
+                      std::to_string(height) + " (a field of view between 157 and 5.7 degrees)");
+  if (!finite_pos(depth_factor)) throw ConfigError(what + "depth_factor must be positive");
+  if (!finite_pos(depth_scale_correction)) throw ConfigError(what + "depth_scale_correction must be positive");
   for (double d : dist)
-    if (!std::isfinite(d)) throw ConfigError("camera '" + name + "': distortion coefficient is not finite");
+    if (!std::isfinite(d)) throw ConfigError(what + "distortion coefficient is not finite");
   if (!std::isfinite(readout_time) || readout_time < 0 || readout_time > 1.0)
-    throw ConfigError("camera '" + name + "': readout_time must be in [0, 1] s");
+    throw ConfigError(what + "readout_time must be in [0, 1] s");
 }
 
 namespace {

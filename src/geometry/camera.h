@@ -8,6 +8,16 @@
 
 namespace cslam {
 
+// Plausibility bounds of PinholeCamera::validate (docs/security.md, "Camera checks"):
+//  - each image side at least 48 px: the ORB extractor (edge_threshold 19) skips a pyramid level
+//    whose side is <= 2 * 19 + 8 = 46 px, so a smaller image yields no features at all;
+//  - the principal point inside the image, cx in [0, width], cy in [0, height] (no margin: a
+//    calibrated centre is always inside; an off-centre crop keeps it inside too);
+//  - fx in [0.1, 10] x width and fy in [0.1, 10] x height: a field of view between about 157 and
+//    5.7 degrees; a lens outside that is not a pinhole camera this system can track with.
+constexpr int kMinCameraSide = 48;
+constexpr double kMinFocalPerSide = 0.1, kMaxFocalPerSide = 10.0;
+
 struct PinholeCamera {
   double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;
   // Distortion coefficients in OpenCV order: k1 k2 p1 p2 k3.
@@ -23,7 +33,9 @@ struct PinholeCamera {
   std::string name = "custom";
 
   bool has_distortion() const;
-  // Throws ConfigError if any value is impossible (non-positive focal, size, depth factor, NaN).
+  // Throws ConfigError naming the value if any is impossible or implausible: a non-finite or
+  // non-positive focal length, depth factor or size, a side below kMinCameraSide, a principal
+  // point outside the image, a focal length outside [kMinFocalPerSide, kMaxFocalPerSide] x side.
   void validate() const;
 
   // Undistorted normalized/pixel conversions.

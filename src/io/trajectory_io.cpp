@@ -1,6 +1,7 @@
 #include "io/trajectory_io.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -26,26 +27,34 @@ Trajectory read_tum_trajectory(const std::string& path) {
   return out;
 }
 
+bool tum_stamp_ok(double timestamp) { return std::isfinite(timestamp) && std::abs(timestamp) <= kMaxTumTimestamp; }
+
 std::string format_tum_line(const StampedPose& p) {
   const auto& t = p.T_world_cam.translation();
   const auto& q = p.T_world_cam.rotation();
+  const double stamp = tum_stamp_ok(p.timestamp) ? p.timestamp : std::nan("");
   char buf[256];
-  std::snprintf(buf, sizeof(buf), "%.6f %.6f %.6f %.6f %.7f %.7f %.7f %.7f", p.timestamp, t.x(), t.y(), t.z(), q.x(),
+  std::snprintf(buf, sizeof(buf), "%.6f %.6f %.6f %.6f %.7f %.7f %.7f %.7f", stamp, t.x(), t.y(), t.z(), q.x(),
                 q.y(), q.z(), q.w());
   return buf;
 }
 
 void write_tum_trajectory(const std::string& path, const Trajectory& trajectory, const std::string& header) {
-  for (const auto& p : trajectory)
-    if (!p.T_world_cam.is_finite() || !std::isfinite(p.timestamp))
+  std::size_t bad_stamps = 0;
+  for (const auto& p : trajectory) {
+    if (!p.T_world_cam.is_finite())
       throw std::invalid_argument("write_tum_trajectory(" + path + "): non-finite pose at t=" + std::to_string(p.timestamp));
+    bad_stamps += !tum_stamp_ok(p.timestamp);
+  }
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp);
     if (!out) throw InputError(path, "cannot write trajectory file");
     if (!header.empty()) out << "# " << header << "\n";
     out << "# timestamp x y z qx qy qz qw (T_world_cam)\n";
-    for (const auto& p : trajectory) out << format_tum_line(p) << "\n";
+    if (bad_stamps > 0) out << "# " << bad_stamps << " poses with a non-finite or out-of-range timestamp left out\n";
+    for (const auto& p : trajectory)
+      if (tum_stamp_ok(p.timestamp)) out << format_tum_line(p) << "\n";
     if (!out) throw InputError(path, "write failed");
   }
   std::error_code ec;

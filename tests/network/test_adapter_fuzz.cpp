@@ -12,8 +12,11 @@ namespace {
 
 TEST(AdapterFuzz, MutatedMessagesNeverCrashTheDecodePath) {
   PinholeCamera cam = camera_tum_fr1();
-  cam.width = 40;
-  cam.height = 30;
+  cam.width = 64;  // the smallest plausible camera is 48x48 (PinholeCamera::validate)
+  cam.height = 48;
+  cam.fx = cam.fy = 50;
+  cam.cx = 31.5;
+  cam.cy = 23.5;
   std::mt19937 rng(99);
   std::vector<std::string> seeds;
   CodecOptions png;
@@ -40,8 +43,8 @@ TEST(AdapterFuzz, MutatedMessagesNeverCrashTheDecodePath) {
       ++parsed;
       if (m.has_frame()) {
         const RgbdFrame f = wire::from_wire_frame(m.frame(), cam, "fuzz");
-        EXPECT_EQ(f.bgr.cols, 40);
-        EXPECT_EQ(f.depth.rows, 30);
+        EXPECT_EQ(f.bgr.cols, 64);
+        EXPECT_EQ(f.depth.rows, 48);
         ++decoded;
       } else if (m.has_hello()) {
         wire::from_hello(m.hello(), "fuzz");

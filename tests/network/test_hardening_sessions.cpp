@@ -169,6 +169,7 @@ TEST(Hardening, HugeCameraIsRefusedAtHello) {
   hd.height = 1080;
   hd.cx = 960;
   hd.cy = 540;
+  hd.fx = hd.fy = 1000;  // within [0.1, 10] x the image size
   peer.send(test::make_hello(2, hd));  // the default limit is 1920 x 1080
   EXPECT_TRUE(next_of(peer, wire::ServerMessage::kWelcome));
   srv.stop();
