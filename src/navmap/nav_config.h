@@ -30,7 +30,7 @@ struct NavMapConfig {
   // A noisy depth pixel makes a short streak of truncation length along its ray: neither.
   double min_obstacle_height = 0.10;
   double min_obstacle_fill = 1.0;
-  int min_free_voxels = 1;                // ... free with >= this many free band voxels (and no obstacle)
+  int min_free_voxels = 3;                // ... free with >= this many free band voxels (and no obstacle)
   double floor_tolerance = 0.05;          // a floor crossing within this of the floor: floor seen (free)
   // Per-submap votes combined as log-odds (OctoMap's hit/miss defaults, p = 0.7 / 0.4): one
   // submap seeing an obstacle outweighs one seeing free space, two free ones outweigh it.

@@ -18,13 +18,28 @@ std::int64_t key_i(std::uint64_t k) { return std::int64_t(k >> 32) - kBias; }
 std::int64_t key_j(std::uint64_t k) { return std::int64_t(k & 0xFFFFFFFFu) - kBias; }
 
 struct Evidence {
-  int occupied = 0, free = 0;
+  int occupied = 0, free = 0;  // band voxels: obstacle (signed distance <= 0) / free
+  int tops = 0;                // upward-facing surface points in the band (a box or table top)
   bool floor = false;
-  float occupied_low = 1e30f, occupied_high = -1e30f;  // heights of the obstacle voxels' centres
+  float low = 1e30f, high = -1e30f;  // heights of the obstacle evidence
+  float free_low = 1e30f;            // lowest free band voxel
+  void add_obstacle(double h, int& counter) {
+    ++counter;
+    low = std::min(low, float(h));
+    high = std::max(high, float(h));
+  }
+  // A top seen at a grazing angle leaves few voxels behind it (the projective distance grows
+  // past the truncation) but one zero crossing per voxel column: both count.
   bool obstacle(const NavMapConfig& c, double voxel) const {
-    if (occupied < c.min_occupied_voxels) return false;
+    const int n = occupied + tops;
+    if (n < c.min_occupied_voxels) return false;
     const double per_layer = (c.resolution / voxel) * (c.resolution / voxel);
-    return double(occupied_high - occupied_low) + voxel >= c.min_obstacle_height || occupied >= c.min_obstacle_fill * per_layer;
+    return double(high - low) + voxel >= c.min_obstacle_height || n >= c.min_obstacle_fill * per_layer;
+  }
+  // Free space seen only high in the band (above a box whose sides hide the rest) says nothing
+  // about the band below it: the free voxels must reach down to band_min + min_obstacle_height.
+  bool clear(const NavMapConfig& c) const {
+    return floor || (free >= c.min_free_voxels && double(free_low) <= c.band_min + c.min_obstacle_height);
   }
 };
 
@@ -56,20 +71,25 @@ std::unordered_map<std::uint64_t, Evidence> submap_evidence(const SubmapView& vi
     Evidence& e = ev[key];
     if (d > 0) {
       ++e.free;
-      return;
-    }
-    ++e.occupied;
-    e.occupied_low = std::min(e.occupied_low, float(h));
-    e.occupied_high = std::max(e.occupied_high, float(h));
+      e.free_low = std::min(e.free_low, float(h));
+    } else
+      e.add_obstacle(h, e.occupied);
   });
   for_each_upward_crossing(view, up, c.min_voxel_weight, [&](const Eigen::Vector3d& p) {
-    if (std::abs(up.dot(p) - floor) > c.floor_tolerance) return;
+    const double h = up.dot(p) - floor;
+    const bool on_floor = std::abs(h) <= c.floor_tolerance;
+    if (!on_floor && (h < c.band_min || h > c.band_max)) return;
     if (!index(p, key)) {
       ++stats.voxels_out_of_range;
       return;
     }
-    ++stats.floor_samples;
-    ev[key].floor = true;
+    Evidence& e = ev[key];
+    if (on_floor) {
+      ++stats.floor_samples;
+      e.floor = true;
+    } else {
+      e.add_obstacle(h, e.tops);
+    }
   });
   return ev;
 }
@@ -109,7 +129,7 @@ GridResult build_occupancy_grid(const SubmapViews& views, const Eigen::Vector3d&
     for (const auto& [key, e] : submap_evidence(v, index, up, floor, c, out.stats)) {
       if (e.obstacle(c, voxel))
         log_odds[key] += c.log_odds_occupied;
-      else if (e.free >= c.min_free_voxels || e.floor)
+      else if (e.clear(c))
         log_odds[key] += c.log_odds_free;
     }
   }

@@ -47,10 +47,12 @@ struct GridResult {
 Eigen::Matrix3d grid_rotation(const Eigen::Vector3d& up);
 
 // Rule, per submap and cell (voxels whose height above the floor is in [band_min, band_max]):
-//   obstacle voxels (signed distance <= 0) >= min_occupied_voxels, and spanning
-//   >= min_obstacle_height or >= min_obstacle_fill cell layers of voxels   -> vote occupied
-//   else free band voxels >= min_free_voxels, or the floor seen there      -> vote free
-//        (an upward crossing within floor_tolerance of the floor)
+//   obstacle evidence (voxels with signed distance <= 0, and upward-facing zero crossings:
+//   tops) >= min_occupied_voxels, and spanning >= min_obstacle_height or
+//   >= min_obstacle_fill cell layers of voxels                             -> vote occupied
+//   else the floor seen there (an upward crossing within floor_tolerance
+//        of the floor), or free band voxels >= min_free_voxels reaching down
+//        to band_min + min_obstacle_height                                 -> vote free
 // Votes of all submaps add up as log-odds (log_odds_occupied / log_odds_free); a cell is
 // occupied if the sum is > 0, free if < 0, unknown without votes. The grid covers the voted
 // cells' bounding box; beyond config.max_cells it is refused (error). Throws ConfigError on a

@@ -73,6 +73,7 @@ TEST_F(NavMapScene, GridAgreesWithExactScene) {
   ASSERT_EQ(g.cells.size(), std::size_t(g.width) * std::size_t(g.height));
   const double half_diag = g.resolution * std::sqrt(0.5);
   std::size_t observed = 0, boundary = 0, judged = 0, agree = 0, centre_agree = 0, occupied = 0, free = 0;
+  std::size_t false_free = 0, false_occupied = 0;
   for (int j = 0; j < g.height; ++j)
     for (int i = 0; i < g.width; ++i) {
       const std::int8_t v = g.at(i, j);
@@ -90,6 +91,8 @@ TEST_F(NavMapScene, GridAgreesWithExactScene) {
       }
       ++judged;
       agree += map_occ == (d <= 0);
+      false_free += !map_occ && d <= 0;
+      false_occupied += map_occ && d > 0;
     }
   const double agreement = double(agree) / double(std::max<std::size_t>(1, judged));
   std::printf("grid %d x %d at %.2f m: observed %zu (occupied %zu, free %zu), edge cells %zu; agreement %.2f %% of %zu "
@@ -98,6 +101,8 @@ TEST_F(NavMapScene, GridAgreesWithExactScene) {
               g.width, g.height, g.resolution, observed, occupied, free, boundary, 100 * agreement, judged,
               100.0 * double(centre_agree) / double(std::max<std::size_t>(1, observed)), m.stats.total_ms,
               m.stats.up_floor_ms, m.stats.grid_ms, m.stats.octomap_ms);
+  std::printf("disagreements: %zu free cells inside an obstacle, %zu occupied cells clear of any obstacle\n", false_free,
+              false_occupied);
   EXPECT_GT(occupied, 500u);
   EXPECT_GT(free, 500u);
   EXPECT_GE(agreement, 0.95);
