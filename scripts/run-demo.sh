@@ -35,7 +35,7 @@ rm -rf "$RUN" && mkdir -p "$RUN"
 EXIT_FLAG=()
 [ "$EXIT" = 1 ] && EXIT_FLAG=(--exit-when-done)
 "$BIN/cslam-server" --bind 'tcp://127.0.0.1:*' --endpoint-file "$RUN/endpoint" --clients 3 "${EXIT_FLAG[@]}" \
-  --out-dir "$RUN" --log-interval 10 --http "$HTTP_PORT" --http-port-file "$RUN/http_port" --datasets-dir "$SCENE" \
+  --out-dir "$RUN" --log-interval 10 --http "$HTTP_PORT" --http-port-file "$RUN/http_port" \
   > "$RUN/server.log" 2>&1 &
 SERVER=$!
 trap 'kill $SERVER 2>/dev/null || true' EXIT
@@ -61,6 +61,9 @@ else
       || { echo "cannot fetch trajectories from the HTTP API on port $PORT; see $RUN/server.log" >&2; exit 1; }
   done
   curl -sf "http://127.0.0.1:$PORT/api/status" > "$RUN/status.json" || true
+  # The live dense map as the server holds it now (built from the keyframes the robots sent).
+  curl -sf "http://127.0.0.1:$PORT/api/dense/cloud.ply" -o "$RUN/dense_cloud_live.ply" || true
+  curl -sf "http://127.0.0.1:$PORT/api/dense/status" -o "$RUN/dense_status.json" || true
   FUSED=$(python3 - "$RUN/status.json" <<'PY' || true
 import json, sys
 s = json.load(open(sys.argv[1]))
@@ -86,6 +89,23 @@ if [ -n "$FUSED" ]; then
     --aligned "$RUN/aligned_1.txt" "$RUN/aligned_2.txt" "$RUN/aligned_3.txt" | tail -1
 else
   echo "no fused group: clients stayed in their own frames (see $RUN/stats.json)"
+fi
+
+# Accuracy of a cloud in the fused SLAM frame against the exact scene surface, moved into the
+# scene's frame by the one SE3 that aligned the fused trajectories: "median / p95 / completeness".
+cloud_line() {
+  "$BIN/cslam-eval" cloud "$SCENE/scene.ply" "$1" --move-from "$RUN/client_1.txt" --move-to "$RUN/aligned_1.txt" --json \
+    | python3 -c 'import json,sys; j=json.load(sys.stdin); c=j["c2c_test_to_ref"]; print("median %.1f mm, p95 %.1f mm, completeness %.1f %% within 2 cm (%d points)" % (1e3*c["median"], 1e3*c["p95"], 100*j["completeness"]["2cm"], j["test_points"]))'
+}
+LIVE="$RUN/dense_cloud_live.ply"
+[ "$EXIT" = 1 ] && LIVE=$(ls "$RUN"/dense_cloud_*.ply 2>/dev/null | head -1 || true)
+if [ -n "$FUSED" ] && [ -s "$LIVE" ]; then
+  echo "== live dense map (built by the server from the keyframes the robots sent; no image files)"
+  [ -s "$RUN/dense_status.json" ] && python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); print("%d submaps, %d keyframes integrated, %d re-integrations, store %d keyframes %.1f MB, integration %.0f ms per keyframe (median)" % (d["submaps"], d["keyframes_integrated"], d["reintegrated"], d["store"]["keyframes"], d["store"]["payload_bytes"]/1e6, d["integrate_ms"]["p50"]))' "$RUN/dense_status.json" || true
+  printf "live dense cloud vs exact surface:            "; cloud_line "$LIVE"
+  "$BIN/cslam-recon" --dataset "$SCENE/robot_1" "$SCENE/robot_2" "$SCENE/robot_3" \
+    --poses "$RUN/client_1.txt" "$RUN/client_2.txt" "$RUN/client_3.txt" --voxel 0.02 --out "$RUN/cloud_2cm.ply" > /dev/null 2>&1
+  printf "offline cslam-recon, every frame, same voxel: "; cloud_line "$RUN/cloud_2cm.ply"
 fi
 
 echo "== dense reconstruction from the fused poses"

@@ -1,15 +1,17 @@
 #include "server/dense/dense_products.h"
 
 #include <cstring>
+#include <fstream>
 
 #include "cloud/ply_io.h"
 #include "dense/mesh_lod.h"
+#include "navmap/map_server_io.h"
 
 namespace cslam::server {
 
-std::map<int, std::vector<const SubmapView*>> submaps_by_group(const DenseMapView& view) {
-  std::map<int, std::vector<const SubmapView*>> out;
-  for (const SubmapView& s : view.submaps) out[s.group].push_back(&s);
+std::map<int, std::vector<const DenseSubmapView*>> submaps_by_group(const DenseMapView& view) {
+  std::map<int, std::vector<const DenseSubmapView*>> out;
+  for (const DenseSubmapView& s : view.submaps) out[s.group].push_back(&s);
   return out;
 }
 
@@ -23,9 +25,9 @@ int largest_group(const DenseMapView& view) {
 
 namespace {
 
-std::vector<PlacedMesh> placed(const std::vector<const SubmapView*>& submaps) {
+std::vector<PlacedMesh> placed(const std::vector<const DenseSubmapView*>& submaps) {
   std::vector<PlacedMesh> out;
-  for (const SubmapView* s : submaps)
+  for (const DenseSubmapView* s : submaps)
     if (s->mesh && !s->mesh->vertices.empty()) out.push_back({s->mesh.get(), s->T_world_submap});
   return out;
 }
@@ -39,9 +41,9 @@ void put(std::string& out, const T& v) {
 
 }  // namespace
 
-TriangleMesh group_mesh(const std::vector<const SubmapView*>& submaps) { return merge_meshes(placed(submaps)); }
+TriangleMesh group_mesh(const std::vector<const DenseSubmapView*>& submaps) { return merge_meshes(placed(submaps)); }
 
-ColoredCloud group_cloud(const std::vector<const SubmapView*>& submaps) {
+ColoredCloud group_cloud(const std::vector<const DenseSubmapView*>& submaps) {
   const float voxel = submaps.empty() ? 0.01f : submaps.front()->voxel_size;
   return mesh_vertices_cloud(placed(submaps), voxel);
 }
@@ -65,6 +67,16 @@ std::string encode_csm1(const TriangleMesh& mesh, std::uint32_t version) {
   return out;
 }
 
+NavMaps group_nav_maps(const std::vector<const DenseSubmapView*>& submaps, const NavMapConfig& config) {
+  SubmapViews views;
+  std::vector<SE3> cameras;
+  for (const DenseSubmapView* s : submaps) {
+    if (s->nav_volume) views.push_back({s->nav_volume.get(), s->T_world_submap});
+    cameras.push_back(s->T_world_submap);
+  }
+  return build_nav_maps(views, cameras, config);
+}
+
 std::vector<std::string> write_dense_outputs(const DenseMapView& view, const std::string& dir) {
   std::vector<std::string> written;
   for (const auto& [group, submaps] : submaps_by_group(view)) {
@@ -75,6 +87,18 @@ std::vector<std::string> write_dense_outputs(const DenseMapView& view, const std
     write_ply(dir + "/dense_cloud_" + g + ".ply", group_cloud(submaps));
     written.push_back(dir + "/dense_mesh_" + g + ".ply");
     written.push_back(dir + "/dense_cloud_" + g + ".ply");
+    const NavMaps nav = group_nav_maps(submaps);
+    if (!nav.grid.empty()) {
+      const std::string stem = dir + "/occupancy_" + g;
+      std::ofstream(stem + ".pgm", std::ios::binary) << to_pgm(nav.grid);
+      std::ofstream(stem + ".yaml") << to_map_yaml(nav.grid, "occupancy_" + g + ".pgm");
+      written.push_back(stem + ".pgm");
+      written.push_back(stem + ".yaml");
+    }
+    if (!nav.octomap_bt.empty()) {
+      std::ofstream(dir + "/octomap_" + g + ".bt", std::ios::binary) << nav.octomap_bt;
+      written.push_back(dir + "/octomap_" + g + ".bt");
+    }
   }
   return written;
 }

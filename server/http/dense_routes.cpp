@@ -1,11 +1,13 @@
 #include "server/http/dense_routes.h"
 
 #include <charconv>
+#include <functional>
 #include <memory>
 #include <mutex>
 
 #include "cloud/ply_io.h"
 #include "dense/mesh_lod.h"
+#include "navmap/map_server_io.h"
 #include "server/dense/dense_products.h"
 #include "server/dense/dense_service.h"
 // After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
@@ -20,16 +22,17 @@ using server::largest_group;
 using server::submaps_by_group;
 
 // Products of one view version, at most kMaxEntries kept (the oldest dropped).
+template <typename T>
 class ProductCache {
  public:
   template <typename Make>
-  std::shared_ptr<const std::string> get(const std::string& key, std::uint64_t version, Make make) {
+  std::shared_ptr<const T> get(const std::string& key, std::uint64_t version, Make make) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (const auto& e : entries_)
         if (e.key == key && e.version == version) return e.bytes;
     }
-    auto bytes = std::make_shared<const std::string>(make());  // outside the lock: may take a while
+    auto bytes = std::make_shared<const T>(make());  // outside the lock: may take a while
     std::lock_guard<std::mutex> lock(mutex_);
     if (entries_.size() >= kMaxEntries) entries_.erase(entries_.begin());
     entries_.push_back(Entry{key, version, bytes});
@@ -41,7 +44,7 @@ class ProductCache {
   struct Entry {
     std::string key;
     std::uint64_t version;
-    std::shared_ptr<const std::string> bytes;
+    std::shared_ptr<const T> bytes;
   };
   std::mutex mutex_;
   std::vector<Entry> entries_;
@@ -86,6 +89,31 @@ double percentile(std::vector<double> v, double p) {
   return v[std::size_t(p * double(v.size() - 1) + 0.5)];
 }
 
+nlohmann::json dense_status_json(const DenseService* dense) {
+  if (!dense) return {{"enabled", false}};
+  const auto st = dense->stats();
+  const auto view = dense->view();
+  return {{"enabled", true},
+          {"version", view->version},
+          {"submaps", view->submaps.size()},
+          {"keyframes_received", st.keyframes_received},
+          {"keyframes_integrated", st.integrated},
+          {"queue", st.queue},
+          {"queue_dropped", st.queue_dropped},
+          {"pending", st.pending},
+          {"reintegrated", st.reintegrated},
+          {"submaps_moved", st.moved},
+          {"culled", st.culled},
+          {"missing_images", st.missing_images},
+          {"integrate_ms", {{"p50", percentile(st.integrate_ms, 0.5)}, {"max", percentile(st.integrate_ms, 1.0)}}},
+          {"cpu_ms", st.integrate_cpu_ms},
+          {"last_correction_s", st.last_correction_s},
+          {"store", {{"keyframes", st.store.keyframes}, {"payload_bytes", st.store.payload_bytes},
+                     {"file_bytes", st.store.file_bytes}, {"max_bytes", st.store.max_bytes},
+                     {"stored", st.stored}, {"refused_full", st.store_refused_full}, {"errors", st.store_errors},
+                     {"last_error", st.store.last_error}}}};
+}
+
 bool not_modified(const httplib::Request& req, httplib::Response& res, const std::string& etag) {
   res.set_header("ETag", etag);
   res.set_header("Cache-Control", "no-cache");
@@ -96,28 +124,7 @@ bool not_modified(const httplib::Request& req, httplib::Response& res, const std
 
 void status_route(httplib::Server& s, const DenseService* dense) {
   s.Get("/api/dense/status", [dense](const httplib::Request&, httplib::Response& res) {
-    if (!dense) return json_reply(res, {{"enabled", false}});
-    const auto st = dense->stats();
-    const auto view = dense->view();
-    json_reply(res, {{"enabled", true},
-                     {"version", view->version},
-                     {"submaps", view->submaps.size()},
-                     {"keyframes_received", st.keyframes_received},
-                     {"keyframes_integrated", st.integrated},
-                     {"queue", st.queue},
-                     {"queue_dropped", st.queue_dropped},
-                     {"pending", st.pending},
-                     {"reintegrated", st.reintegrated},
-                     {"submaps_moved", st.moved},
-                     {"culled", st.culled},
-                     {"missing_images", st.missing_images},
-                     {"integrate_ms", {{"p50", percentile(st.integrate_ms, 0.5)}, {"max", percentile(st.integrate_ms, 1.0)}}},
-                     {"cpu_ms", st.integrate_cpu_ms},
-                     {"last_correction_s", st.last_correction_s},
-                     {"store", {{"keyframes", st.store.keyframes}, {"payload_bytes", st.store.payload_bytes},
-                                {"file_bytes", st.store.file_bytes}, {"max_bytes", st.store.max_bytes},
-                                {"refused_full", st.store.refused_full}, {"errors", st.store.errors},
-                                {"last_error", st.store.last_error}}}});
+    json_reply(res, dense_status_json(dense));
   });
 }
 
@@ -137,7 +144,7 @@ void index_route(httplib::Server& s, const DenseService* dense) {
       if (only && group != *only) continue;
       nlohmann::json list = nlohmann::json::array();
       std::vector<int> clients;
-      for (const SubmapView* sm : submaps) {
+      for (const DenseSubmapView* sm : submaps) {
         if (std::find(clients.begin(), clients.end(), int(sm->client)) == clients.end()) clients.push_back(sm->client);
         list.push_back({{"id", sm->id}, {"client", sm->client}, {"version", sm->version},
                         {"pose_version", sm->pose_version}, {"T_world_submap", pose_json(sm->T_world_submap)},
@@ -153,7 +160,7 @@ void index_route(httplib::Server& s, const DenseService* dense) {
   });
 }
 
-void mesh_route(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache> cache) {
+void mesh_route(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache<std::string>> cache) {
   s.Get(R"(/api/dense/submaps/(\d+)/mesh\.bin)", [dense, cache](const httplib::Request& req, httplib::Response& res) {
     if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
     const auto id = strict_long(req.matches[1]);
@@ -164,7 +171,7 @@ void mesh_route(httplib::Server& s, const DenseService* dense, std::shared_ptr<P
       lod = *l;
     }
     const auto view = dense->view();
-    const SubmapView* sm = nullptr;
+    const DenseSubmapView* sm = nullptr;
     for (const auto& v : view->submaps)
       if (id && long(v.id) == *id) sm = &v;
     if (!sm) return json_error(res, 404, "no submap " + std::string(req.matches[1]) + " (removed, or not yet)");
@@ -180,7 +187,7 @@ void mesh_route(httplib::Server& s, const DenseService* dense, std::shared_ptr<P
   });
 }
 
-void group_routes(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache> cache) {
+void group_routes(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache<std::string>> cache) {
   auto download = [dense, cache](bool mesh) {
     return [dense, cache, mesh](const httplib::Request& req, httplib::Response& res) {
       if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
@@ -208,14 +215,99 @@ void group_routes(httplib::Server& s, const DenseService* dense, std::shared_ptr
   s.Get("/api/dense/mesh.ply", download(true));
 }
 
+std::string base64(const std::int8_t* data, std::size_t n) {
+  static const char* k = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  const auto* b = reinterpret_cast<const unsigned char*>(data);
+  std::string out;
+  out.reserve((n + 2) / 3 * 4);
+  for (std::size_t i = 0; i < n; i += 3) {
+    const unsigned v = unsigned(b[i]) << 16 | (i + 1 < n ? unsigned(b[i + 1]) << 8 : 0u) | (i + 2 < n ? b[i + 2] : 0u);
+    out += k[(v >> 18) & 63];
+    out += k[(v >> 12) & 63];
+    out += i + 1 < n ? k[(v >> 6) & 63] : '=';
+    out += i + 2 < n ? k[v & 63] : '=';
+  }
+  return out;
+}
+
+void nav_routes(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache<NavMaps>> cache) {
+  // Replies with the group's navigation maps, or an error; the maps are built once per version.
+  auto with_maps = [dense, cache](const httplib::Request& req, httplib::Response& res,
+                                  const std::function<void(int, const NavMaps&)>& reply) {
+    if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
+    const auto view = dense->view();
+    const auto group = requested_group(req, res, *view);
+    if (!group) return;
+    const auto maps = cache->get("nav-" + std::to_string(*group), view->version,
+                                 [&] { return server::group_nav_maps(submaps_by_group(*view).at(*group)); });
+    reply(*group, *maps);
+  };
+  auto download = [](httplib::Response& res, const std::string& name, const std::string& bytes, const char* type) {
+    res.set_header("Content-Disposition", "attachment; filename=\"" + name + "\"");
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(bytes, type);
+  };
+  s.Get("/api/dense/occupancy.json", [with_maps](const httplib::Request& req, httplib::Response& res) {
+    with_maps(req, res, [&](int group, const NavMaps& m) {
+      if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
+      json_reply(res, {{"group", group}, {"resolution", m.grid.resolution}, {"width", m.grid.width},
+                       {"height", m.grid.height}, {"T_world_grid", pose_json(m.grid.T_world_grid)},
+                       {"up", {m.up.x(), m.up.y(), m.up.z()}}, {"floor", m.floor},
+                       {"cells", {{"occupied", m.stats.cells_occupied}, {"free", m.stats.cells_free},
+                                  {"unknown", m.stats.cells_unknown}}},
+                       {"data", base64(m.grid.cells.data(), m.grid.cells.size())}});
+    });
+  });
+  s.Get("/api/dense/occupancy.pgm", [with_maps, download](const httplib::Request& req, httplib::Response& res) {
+    with_maps(req, res, [&](int group, const NavMaps& m) {
+      if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
+      download(res, "occupancy_" + std::to_string(group) + ".pgm", to_pgm(m.grid), "image/x-portable-graymap");
+    });
+  });
+  s.Get("/api/dense/occupancy.yaml", [with_maps, download](const httplib::Request& req, httplib::Response& res) {
+    with_maps(req, res, [&](int group, const NavMaps& m) {
+      if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
+      const std::string g = std::to_string(group);
+      download(res, "occupancy_" + g + ".yaml", to_map_yaml(m.grid, "occupancy_" + g + ".pgm"), "text/yaml");
+    });
+  });
+  s.Get("/api/dense/octomap.bt", [with_maps, download](const httplib::Request& req, httplib::Response& res) {
+    with_maps(req, res, [&](int group, const NavMaps& m) {
+      if (m.octomap_bt.empty()) return json_error(res, 404, "no OctoMap yet: " + m.octomap_error);
+      download(res, "octomap_" + std::to_string(group) + ".bt", m.octomap_bt, "application/octet-stream");
+    });
+  });
+}
+
 }  // namespace
 
+void add_dense_status(const DenseService* dense, nlohmann::json& status, std::string& metrics) {
+  const nlohmann::json j = dense_status_json(dense);
+  status["dense"] = j;
+  if (!dense) return;
+  const auto line = [&metrics](const char* name, const char* type, const nlohmann::json& v, const char* help) {
+    metrics += std::string("# HELP ") + name + " " + help + "\n# TYPE " + name + " " + type + "\n" + name + " " + v.dump() + "\n";
+  };
+  line("cslam_dense_submaps", "gauge", j["submaps"], "TSDF submaps of the live dense map");
+  line("cslam_dense_queue", "gauge", j["queue"], "keyframes waiting for the dense worker");
+  line("cslam_dense_pending", "gauge", j["pending"], "keyframes waiting to be integrated");
+  line("cslam_dense_keyframes_integrated_total", "counter", j["keyframes_integrated"], "keyframes fused into submaps");
+  line("cslam_dense_queue_dropped_total", "counter", j["queue_dropped"], "keyframes the full dense queue turned away");
+  line("cslam_dense_reintegrations_total", "counter", j["reintegrated"], "submaps rebuilt after their keyframes moved");
+  line("cslam_dense_integrate_ms_p50", "gauge", j["integrate_ms"]["p50"], "integration time per keyframe (ms, median)");
+  line("cslam_dense_store_keyframes", "gauge", j["store"]["keyframes"], "keyframes in the image store");
+  line("cslam_dense_store_bytes", "gauge", j["store"]["payload_bytes"], "image bytes in the store");
+  line("cslam_dense_store_refused_full_total", "counter", j["store"]["refused_full"], "keyframe images refused: store full");
+  line("cslam_dense_store_errors_total", "counter", j["store"]["errors"], "failed store writes");
+}
+
 void add_dense_routes(httplib::Server& server, const DenseService* dense) {
-  auto cache = std::make_shared<ProductCache>();
+  auto cache = std::make_shared<ProductCache<std::string>>();
   status_route(server, dense);
   index_route(server, dense);
   mesh_route(server, dense, cache);
   group_routes(server, dense, cache);
+  nav_routes(server, dense, std::make_shared<ProductCache<NavMaps>>());
 }
 
 }  // namespace cslam::http

@@ -4,6 +4,10 @@
 // cloud and mesh (PLY), and the navigation maps. Handlers read the dense worker's immutable view;
 // products derived from it are cached per (group, view version), a bounded number of them.
 
+#include <string>
+
+#include <nlohmann/json.hpp>
+
 namespace httplib {
 class Server;
 }
@@ -13,6 +17,10 @@ class DenseService;
 }
 
 namespace cslam::http {
+
+// The dense map's part of /api/status ("dense") and /metrics (cslam_dense_*), for
+// HttpServer::set_status_extra.
+void add_dense_status(const server::DenseService* dense, nlohmann::json& status, std::string& metrics);
 
 // dense may be null (dense map off): the routes answer {"enabled": false} / 503.
 void add_dense_routes(httplib::Server& server, const server::DenseService* dense);

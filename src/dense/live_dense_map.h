@@ -26,7 +26,7 @@ namespace cslam {
 
 struct DenseMapView {
   std::uint64_t version = 0;  // increases with every change a reader can see
-  std::vector<SubmapView> submaps;  // sorted by id
+  std::vector<DenseSubmapView> submaps;  // sorted by id
   std::size_t keyframes_integrated = 0, keyframes_pending = 0;
 };
 

@@ -86,8 +86,8 @@ void DenseSubmap::close() {
   fine_.reset();
 }
 
-SubmapView DenseSubmap::view() const {
-  SubmapView v;
+DenseSubmapView DenseSubmap::view() const {
+  DenseSubmapView v;
   v.id = id_;
   v.client = submap_client(id_);
   v.group = group_;

@@ -44,7 +44,7 @@ struct LiveDenseConfig {
 };
 
 // A submap as readers see it: immutable, shared with the map's published view.
-struct SubmapView {
+struct DenseSubmapView {
   SubmapId id = 0;
   ClientId client = 0;
   int group = -1;
@@ -98,7 +98,7 @@ class DenseSubmap {
   // Meshes, then releases the fine volume: the window is complete.
   void close();
 
-  SubmapView view() const;
+  DenseSubmapView view() const;
 
  private:
   const SubmapId id_;

@@ -84,7 +84,7 @@ TEST(LiveDenseMap, WindowsOfKeyframesMeshOnTheSurface) {
   ASSERT_EQ(view->submaps.size(), 3u);  // 3 + 3 + 1 keyframes
   EXPECT_EQ(view->submaps[0].keyframes.size(), 3u);
   EXPECT_EQ(view->submaps[2].keyframes.size(), 1u);
-  for (const SubmapView& s : view->submaps) {
+  for (const DenseSubmapView& s : view->submaps) {
     EXPECT_EQ(submap_client(s.id), 1);
     EXPECT_EQ(s.group, 100);
     ASSERT_TRUE(s.mesh);
@@ -112,7 +112,7 @@ TEST(LiveDenseMap, CorrectionMovesSubmapsRigidlyWithoutReintegration) {
   std::map<KeyFrameId, SE3> current;
   for (const auto& p : poses) current[p.id] = p.T_world_cam;
   for (std::size_t i = 0; i < after->submaps.size(); ++i) {
-    const SubmapView &a = after->submaps[i], &b = before->submaps[i];
+    const DenseSubmapView &a = after->submaps[i], &b = before->submaps[i];
     EXPECT_EQ(a.version, b.version);  // geometry untouched
     EXPECT_EQ(a.pose_version, b.pose_version + 1);
     EXPECT_EQ(a.group, 300);
@@ -138,7 +138,7 @@ TEST(LiveDenseMap, RelativeMotionBeyondThresholdReintegrates) {
   EXPECT_EQ(r.reintegrated, 1);
   EXPECT_EQ(f.loads, 3);
   EXPECT_NEAR(r.max_deviation_m, 0.06, 1e-9);
-  const SubmapView& s = f.map.view()->submaps.at(0);
+  const DenseSubmapView& s = f.map.view()->submaps.at(0);
   EXPECT_GT(s.version, version);
   // Rebuilt: every keyframe now sits where its pose says.
   r = f.map.step(poses, 30.0, f.loader);
