@@ -104,6 +104,8 @@ bool StateStore::write() {
     stats_.yields += stats_.last_yields;
     stats_.forced += stats_.last_forced;
     stats_.last_error.clear();
+    stats_.last_success = std::chrono::steady_clock::now();
+    stats_.failing_since.reset();
     log()->debug("snapshot {}: {} clients, {:.1f} MB (copy {:.1f} ms, encode {:.1f} ms, write {:.1f} ms)",
                  snapshot::current_path(config_.dir), state.clients.size(), double(bytes.size()) / 1e6, export_ms,
                  encode_ms, stats_.last_write_ms);
@@ -112,6 +114,7 @@ bool StateStore::write() {
     std::lock_guard<std::mutex> lock(mutex_);
     ++stats_.failed;
     stats_.last_error = e.what();
+    if (!stats_.failing_since) stats_.failing_since = std::chrono::steady_clock::now();
     log()->error("snapshot not written, the previous one is kept ({} failures so far): {}", stats_.failed, e.what());
     return false;
   }
@@ -152,16 +155,26 @@ StateStoreStats StateStore::stats() const {
   return stats_;
 }
 
+SnapshotHealth snapshot_health(const StateStoreStats& stats, std::chrono::steady_clock::time_point now) {
+  SnapshotHealth h;
+  if (stats.last_success) h.last_success_age_s = std::chrono::duration<double>(now - *stats.last_success).count();
+  if (stats.failing_since) h.failing_for_s = std::chrono::duration<double>(now - *stats.failing_since).count();
+  return h;
+}
+
 std::string StateStore::stats_json() const {
   const StateStoreStats s = stats();
+  const SnapshotHealth health = snapshot_health(s, std::chrono::steady_clock::now());
   nlohmann::json j = {{"state_dir", config_.dir},     {"interval_s", config_.interval_s},
                       {"written", s.written},         {"failed", s.failed},
                       {"last_copy_ms", s.last_export_ms}, {"last_encode_ms", s.last_encode_ms},
                       {"last_write_ms", s.last_write_ms}, {"last_bytes", s.last_bytes},
                       {"last_copy_yields", s.last_yields}, {"last_copy_forced", s.last_forced},
                       {"copy_yields", s.yields},      {"copy_forced", s.forced},
-                      {"last_error", s.last_error}};
-  return j.dump();
+                      {"last_error", s.last_error},
+                      {"last_success_age_s", health.last_success_age_s ? nlohmann::json(*health.last_success_age_s) : nlohmann::json()},
+                      {"failing_for_s", health.failing_for_s}};
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);  // last_error may hold a path's bytes
 }
 
 }  // namespace cslam::server

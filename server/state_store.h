@@ -4,6 +4,7 @@
 // Each write reads every map under its shared lock for a short copy (CollaborativeSystem::
 // export_state), then serialises, checksums and writes crash-safely off the SLAM threads. A
 // failed write (full disk) is logged and counted; the previous snapshot stays, SLAM goes on.
+#include <chrono>
 #include <condition_variable>
 #include <mutex>
 #include <optional>
@@ -32,7 +33,17 @@ struct StateStoreStats {
   // yielding after 20 such (forced): in the last write, and over all writes.
   std::uint64_t last_yields = 0, last_forced = 0, yields = 0, forced = 0;
   std::string last_error;
+  // Health of the writes (steady clock): the last success, and the first failure since it.
+  std::optional<std::chrono::steady_clock::time_point> last_success, failing_since;
 };
+
+// Seconds since the last successful write (nullopt before the first), and for how long writes
+// have been failing (0 when the newest write succeeded or none was tried).
+struct SnapshotHealth {
+  std::optional<double> last_success_age_s;
+  double failing_for_s = 0;
+};
+SnapshotHealth snapshot_health(const StateStoreStats& stats, std::chrono::steady_clock::time_point now);
 
 class StateStore : public http::MapStore {
  public:

@@ -52,16 +52,27 @@ std::string param_or(const httplib::Request& req, const char* name, const std::s
   return req.has_param(name) ? req.get_param_value(name) : fallback;
 }
 
-// Runs a handler body; std::invalid_argument becomes a 400 with its message.
+// Runs a handler body. Input is checked first (a request part that is not clean UTF-8 text is
+// a 400 with a sanitised echo, before any handler can echo it); std::invalid_argument and
+// ConfigError become a 400 with their message, anything else a 500. The error path cannot throw
+// (json_error sanitises and catches).
 template <typename F>
 httplib::Server::Handler guarded(F f) {
   return [f](const httplib::Request& req, httplib::Response& res) {
+    if (const auto bad = unclean_request_part(req)) return json_error(res, 400, *bad);
+    for (std::size_t i = 1; i < req.matches.size(); ++i)
+      if (!is_clean_text(req.matches[i].str()))
+        return json_error(res, 400, "id is not valid UTF-8 text: '" + sanitized(req.matches[i].str()) + "'");
     try {
       f(req, res);
     } catch (const std::invalid_argument& e) {
       json_error(res, 400, e.what());
     } catch (const ConfigError& e) {
       json_error(res, 400, e.what());
+    } catch (const std::exception& e) {
+      json_error(res, 500, std::string("internal error: ") + e.what());
+    } catch (...) {
+      json_error(res, 500, "internal error");
     }
   };
 }
@@ -120,7 +131,8 @@ void HttpServer::api_routes() {
       o << "# timestamp x y z qx qy qz qw (camera-to-world, fused frame of each client's group)\n";
       for (ClientId id : ids) {
         o << "# client " << id << " group " << group_of(id) << "\n";
-        for (const StampedPose& p : state->trajectories.at(id)) o << format_tum_line(p) << "\n";
+        for (const StampedPose& p : state->trajectories.at(id))
+          if (tum_stamp_ok(p.timestamp)) o << format_tum_line(p) << "\n";
       }
       res.set_content(o.str(), "text/plain; charset=utf-8");
       return;
@@ -172,6 +184,21 @@ void HttpServer::api_routes() {
     res.set_content(cache_.get()->metrics, "text/plain; version=0.0.4; charset=utf-8");
   });
 
+  // Healthy unless map snapshots have been failing for longer than the threshold (a full disk
+  // an alerting system must hear of); 503 with the reasons otherwise.
+  s.Get("/api/health", [this](const httplib::Request&, httplib::Response& res) {
+    const auto state = cache_.get();
+    nlohmann::json reasons = nlohmann::json::array();
+    if (state->snapshots_on && state->snapshot_failing_for_s > config_.health_snapshot_failing_s)
+      reasons.push_back("map snapshots have failed for " + std::to_string(int(state->snapshot_failing_for_s)) +
+                        " s (threshold " + std::to_string(int(config_.health_snapshot_failing_s)) +
+                        " s): " + state->snapshot_last_error);
+    const bool healthy = reasons.empty();
+    json_reply(res, {{"status", healthy ? "ok" : "unhealthy"}, {"reasons", reasons}, {"uptime_s", state->uptime_s},
+                     {"snapshots", state->snapshots_on ? "on" : "off"}, {"snapshot_failing_for_s", state->snapshot_failing_for_s}},
+               healthy ? 200 : 503);
+  });
+
   s.Post("/api/reconstruction", guarded([this](const httplib::Request& req, httplib::Response& res) {
     if (!config_.loopback() && config_.token.empty())
       return json_error(res, 403, "POST needs --http-token when the server is bound beyond loopback");
@@ -216,27 +243,32 @@ void HttpServer::api_routes() {
       sources.push_back({dir, traj->second, dataset_camera(dir, config_.recon_camera).camera});
     }
     if (sources.empty()) return json_error(res, 409, "group " + std::to_string(group) + " has no poses yet");
-    const auto id = jobs_.start(group, std::move(sources), dc);
-    if (!id) return json_error(res, 409, "a reconstruction is already running");
-    json_reply(res, {{"job", *id}, {"group", group}, {"status_url", "/api/reconstruction/" + *id}}, 202);
+    const ReconStart started = jobs_.start(group, std::move(sources), dc);
+    if (started.outcome == ReconStart::Outcome::kBusy) return json_error(res, 409, started.message);
+    if (started.outcome == ReconStart::Outcome::kOverBudget)
+      return json_reply(res, {{"error", started.message}, {"status", 413}, {"estimate_mb", started.estimate.total_mb()},
+                              {"max_mb", jobs_.config().max_mb}}, 413);
+    json_reply(res, {{"job", started.id}, {"group", group}, {"status_url", "/api/reconstruction/" + started.id},
+                     {"estimate_mb", started.estimate.total_mb()}}, 202);
   }));
 
-  s.Get(R"(/api/reconstruction/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
+  s.Get(R"(/api/reconstruction/([^/]+))", guarded([this](const httplib::Request& req, httplib::Response& res) {
     const auto v = jobs_.view(req.matches[1]);
     if (!v) return json_error(res, 404, "unknown reconstruction job " + std::string(req.matches[1]));
     nlohmann::json j = {{"job", v->id},         {"group", v->group},          {"state", v->state},
                         {"progress", v->progress}, {"frames_done", v->frames_done}, {"frames_total", v->frames_total},
                         {"frames_used", v->frames_used}, {"points", v->points}, {"triangles", v->triangles},
-                        {"message", v->message},   {"elapsed_s", v->elapsed_s}};
+                        {"message", v->message},   {"elapsed_s", v->elapsed_s},
+                        {"estimate_mb", v->estimate_mb}, {"peak_growth_mb", v->peak_growth_mb}, {"bytes_held", v->bytes_held}};
     if (v->state == "done") {
       j["cloud_url"] = "/api/reconstruction/" + v->id + "/cloud.ply";
       if (v->triangles > 0) j["mesh_url"] = "/api/reconstruction/" + v->id + "/mesh.ply";
     }
     json_reply(res, j);
-  });
+  }));
 
   auto download = [this](bool mesh) {
-    return [this, mesh](const httplib::Request& req, httplib::Response& res) {
+    return guarded([this, mesh](const httplib::Request& req, httplib::Response& res) {
       const std::string id = req.matches[1];
       const auto v = jobs_.view(id);
       if (!v) return json_error(res, 404, "unknown reconstruction job " + id);
@@ -244,7 +276,7 @@ void HttpServer::api_routes() {
       if (!bytes) return json_error(res, v->state == "done" ? 404 : 409, "job " + id + " is " + v->state + (v->state == "done" ? " without a mesh" : ""));
       res.set_header("Content-Disposition", "attachment; filename=\"" + id + (mesh ? "_mesh" : "_cloud") + ".ply\"");
       res.set_content(*bytes, "application/octet-stream");
-    };
+    });
   };
   s.Get(R"(/api/reconstruction/([^/]+)/cloud\.ply)", download(false));
   s.Get(R"(/api/reconstruction/([^/]+)/mesh\.ply)", download(true));

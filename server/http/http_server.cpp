@@ -23,6 +23,10 @@ void declare_options(CliArgs& cli) {
       .option("web-root", "folder of the web viewer (index.html, viewer.js, node_modules/three)", CSLAM_WEB_DIR)
       .option("http-port-file", "write the bound HTTP port to this file once listening", "")
       .option("datasets-dir", "reconstruction over HTTP: per-client TUM folders DIR/<name>, DIR/robot_K or DIR/client_K", "")
+      .option("recon-max-mb", "memory budget of one reconstruction request (MB): refused (413) if its estimate is over, stopped if the server grows more while it runs", "768")
+      .option("recon-keep-jobs", "finished reconstruction jobs kept for download (the oldest go first)", "8")
+      .option("recon-keep-s", "seconds a finished reconstruction job is kept for download", "900")
+      .option("health-snapshot-failing-s", "GET /api/health answers 503 once map snapshots have failed for this many seconds", "120")
       .option("recon-camera", "camera preset or file for the reconstruction datasets (default: each DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says, else tum1)", "");
 }
 
@@ -46,11 +50,25 @@ HttpConfig config_from(const CliArgs& cli) {
   c.port_file = cli.get("http-port-file");
   c.datasets_dir = cli.get("datasets-dir");
   c.recon_camera = cli.get("recon-camera");
+  c.recon.max_mb = cli.get_double("recon-max-mb");
+  if (!(c.recon.max_mb >= 1)) throw ConfigError("cslam-server: --recon-max-mb must be at least 1");
+  const int keep = cli.get_int("recon-keep-jobs");
+  if (keep < 0) throw ConfigError("cslam-server: --recon-keep-jobs must be >= 0");
+  c.recon.max_finished = std::size_t(keep);
+  c.recon.max_age_s = cli.get_double("recon-keep-s");
+  if (!(c.recon.max_age_s >= 0)) throw ConfigError("cslam-server: --recon-keep-s must be >= 0");
+  c.health_snapshot_failing_s = cli.get_double("health-snapshot-failing-s");
+  if (!(c.health_snapshot_failing_s > 0)) throw ConfigError("cslam-server: --health-snapshot-failing-s must be positive");
   return c;
 }
 
 HttpServer::HttpServer(const CollaborativeSystem& system, HttpConfig config)
-    : config_(std::move(config)), system_(system), cache_(system, config_.cache), server_(std::make_unique<httplib::Server>()) {
+    : config_(std::move(config)),
+      system_(system),
+      cache_(system, config_.cache),
+      jobs_(config_.recon),
+      server_(std::make_unique<httplib::Server>()) {
+  cache_.set_recon_jobs(&jobs_);
   routes();
 }
 
@@ -99,12 +117,17 @@ void HttpServer::routes() {
   s.set_payload_max_length(config_.guard.max_body_bytes);
   s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     const bool api = req.path.rfind("/api/", 0) == 0 || req.path == "/metrics";
-    if (!api || config_.token.empty()) return httplib::Server::HandlerResponse::Unhandled;
-    if (req.get_header_value("Authorization") == "Bearer " + config_.token)
-      return httplib::Server::HandlerResponse::Unhandled;
-    res.set_header("WWW-Authenticate", "Bearer");
-    json_error(res, 401, "missing or wrong bearer token");
-    return httplib::Server::HandlerResponse::Handled;
+    if (api && !config_.token.empty() && req.get_header_value("Authorization") != "Bearer " + config_.token) {
+      res.set_header("WWW-Authenticate", "Bearer");
+      json_error(res, 401, "missing or wrong bearer token");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    // Every route: a path or parameter that is not clean UTF-8 text is a 400 before any handler.
+    if (const auto bad = unclean_request_part(req)) {
+      json_error(res, 400, *bad);
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
   });
   s.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
     if (res.body.empty()) json_error(res, res.status, res.status == 404 ? "no such resource: " + req.path : "request failed");

@@ -30,11 +30,13 @@ struct HttpConfig {
   std::string recon_camera;  // camera preset or file for the datasets; empty: io/dataset_camera.h's rule
   CacheConfig cache;
   GuardConfig guard;              // request deadline, header/body caps, keep-alive, worker pool
+  ReconJobsConfig recon;          // reconstruction budget (--recon-max-mb), finished jobs kept
+  double health_snapshot_failing_s = 120;  // GET /api/health: 503 once snapshots fail this long
   bool loopback() const;
 };
 
 // Declares --http, --http-bind, --http-token, --web-root, --http-port-file, --datasets-dir,
-// --recon-camera on a program's CliArgs, and reads them back (throws ConfigError on bad values).
+// --recon-camera, --recon-max-mb, --health-snapshot-failing-s on a program's CliArgs, and reads them back (throws ConfigError on bad values).
 void declare_options(CliArgs& cli);
 HttpConfig config_from(const CliArgs& cli);
 
@@ -50,6 +52,8 @@ class HttpServer {
   bool start();
   // Live network counters for /api/status and /metrics (set before start()).
   void set_network_status(const NetStatusBoard* board) { cache_.set_network(board); }
+  // Snapshot writes for /api/status, /metrics and /api/health (set before start()).
+  void set_map_store(const MapStore* store) { cache_.set_map_store(store); }
   // Another component's part of /api/status and /metrics (StatusCache::set_extra; before start()).
   void set_status_extra(StatusCache::StatusExtra extra) { cache_.set_extra(std::move(extra)); }
   void stop();  // idempotent; joins every thread (reconstruction jobs are cancelled)

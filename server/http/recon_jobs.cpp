@@ -1,32 +1,54 @@
 #include "server/http/recon_jobs.h"
 
-#include <chrono>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <unordered_set>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include "cloud/ply_io.h"
 #include "core/log.h"
+#include "dense/tsdf_volume.h"
+#include "io/tum_dataset.h"
 
 namespace cslam::http {
+
+using SteadyClock = std::chrono::steady_clock;
 
 struct ReconJobs::Job {
   std::string id;
   int group = -1;
-  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  SteadyClock::time_point start = SteadyClock::now(), finished_at{};
   std::atomic<int> done{0}, total{0}, used{0};
+  std::atomic<double> peak_growth_mb{0};
+  double estimate_mb = 0;
+  std::thread thread;  // joined by expire() or ~ReconJobs, never by itself
   mutable std::mutex mutex;  // guards the fields below
   std::string state = "queued", message;
   double elapsed_s = 0;
   std::size_t points = 0, triangles = 0;
   std::shared_ptr<const std::string> cloud, mesh;
+  bool finished() const { return state != "queued" && state != "running"; }
+  std::size_t bytes_held() const { return (cloud ? cloud->size() : 0) + (mesh ? mesh->size() : 0); }
 };
 
 namespace {
 
 struct Cancelled {};
+struct OverBudget {
+  std::string what;
+};
+
+constexpr double kMB = 1024.0 * 1024.0;
 
 // Our PLY writers take a path: write to a private temp file, read it back, remove it.
 template <typename Writer>
@@ -41,27 +63,174 @@ std::shared_ptr<const std::string> ply_bytes(const std::string& tag, Writer writ
   return std::make_shared<const std::string>(bytes.str());
 }
 
+// Gives freed heap pages back to the system, so a finished job's memory shows as released.
+void release_free_memory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
+std::string mb(double bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.0f MB", bytes / kMB);
+  return buf;
+}
+
 }  // namespace
+
+std::size_t resident_bytes() {
+  std::ifstream in("/proc/self/statm");
+  std::size_t pages_total = 0, pages_resident = 0;
+  if (!(in >> pages_total >> pages_resident)) return 0;
+  return pages_resident * std::size_t(::sysconf(_SC_PAGESIZE));
+}
+
+std::string ReconEstimate::summary() const {
+  return "images " + mb(images) + ", point chunks " + mb(chunk_points) + ", cloud " + mb(cloud) + ", TSDF " + mb(tsdf) +
+         ", mesh " + mb(mesh) + ", PLY " + mb(ply);
+}
+
+namespace {
+
+// The surface the request's frames see, measured on a sample of them: up to max_frames depth
+// images (evenly spread over the poses) back-projected at about 80 columns into 10 cm cells;
+// area = cells x cell^2 (a surface crossing cells obliquely counts a little high, as an estimate
+// of memory should). nullopt if no depth image could be read.
+std::optional<double> sampled_surface_m2(const std::vector<DatasetPoses>& sources, const DenseConfig& config,
+                                         std::size_t max_frames) {
+  constexpr double kCell = 0.10;
+  std::size_t poses = 0;
+  for (const DatasetPoses& s : sources) poses += s.poses.size();
+  if (poses == 0) return std::nullopt;
+  const std::size_t step = std::max<std::size_t>(1, poses / max_frames);
+  std::unordered_set<std::uint64_t> cells;
+  std::size_t read = 0, k = 0;
+  for (const DatasetPoses& s : sources) {
+    std::vector<TimedFile> depth;
+    try {
+      depth = open_tum_dataset(s.dataset_dir).depth;
+    } catch (const std::exception&) {
+      continue;
+    }
+    if (depth.empty()) continue;
+    const PinholeCamera& cam = s.camera;
+    const int px = std::max(1, cam.width / 80);
+    for (const StampedPose& p : s.poses) {
+      if (k++ % step != 0 || !p.T_world_cam.is_finite()) continue;
+      auto it = std::lower_bound(depth.begin(), depth.end(), p.timestamp,
+                                 [](const TimedFile& f, double t) { return f.timestamp < t; });
+      if (it == depth.end()) it = std::prev(it);
+      else if (it != depth.begin() && p.timestamp - std::prev(it)->timestamp < it->timestamp - p.timestamp) it = std::prev(it);
+      if (std::abs(it->timestamp - p.timestamp) > 0.1) continue;
+      const cv::Mat d = cv::imread(it->path, cv::IMREAD_UNCHANGED);
+      if (d.type() != CV_16UC1 || d.cols != cam.width || d.rows != cam.height) continue;
+      ++read;
+      for (int v = px / 2; v < d.rows; v += px)
+        for (int u = px / 2; u < d.cols; u += px) {
+          const double z = cam.depth_from_raw(d.at<std::uint16_t>(v, u));
+          if (z < config.min_depth || z > config.max_depth) continue;
+          const Eigen::Vector3d w = p.T_world_cam * cam.unproject(u, v, z);
+          const auto cell = [](double x) { return std::uint64_t(std::int64_t(std::floor(x / kCell)) & 0x1FFFFF); };
+          cells.insert(cell(w.x()) << 42 | cell(w.y()) << 21 | cell(w.z()));
+        }
+    }
+  }
+  if (read == 0) return std::nullopt;
+  return double(cells.size()) * kCell * kCell;
+}
+
+}  // namespace
+
+// The parts of a request's memory. Constants measured with cslam-recon (--threads 1, as the
+// server runs) on the synthetic 2 x 60-frame 320x240 scene (docs/security.md, "Reconstruction
+// jobs"): about 100 bytes per back-projected point held in a chunk, 120 per filtered cloud point,
+// 48 per mesh triangle, a TSDF block (8^3 voxels) over every block_side^2 of surface. The
+// estimate came out 1.5-2x above the measured growth at every setting tried.
+ReconEstimate estimate_recon_memory(const std::vector<DatasetPoses>& sources, const DenseConfig& config) {
+  constexpr double kChunkPointBytes = 100, kCloudPointBytes = 120, kTriangleBytes = 48;
+  constexpr std::size_t kSampleFrames = 24;
+  // Without readable depth images: each frame's footprint at mid-depth, frames overlapping
+  // about this much (the measured scene: 639 m^2 of footprints over 25 m^2 seen).
+  constexpr double kFallbackOverlap = 10.0;
+  ReconEstimate e;
+  const double stride = std::max(1, config.stride);
+  const double depth = 0.5 * (config.min_depth + config.max_depth);
+  double footprint_sum = 0, largest_image = 0;
+  for (const DatasetPoses& s : sources) {
+    const PinholeCamera& c = s.camera;
+    e.points_per_frame = std::max(e.points_per_frame, std::ceil(c.width / stride) * std::ceil(c.height / stride));
+    largest_image = std::max(largest_image, double(c.width) * c.height);
+    const double footprint = (c.width / c.fx * depth) * (c.height / c.fy * depth);
+    for (const StampedPose& p : s.poses)
+      if (p.T_world_cam.is_finite()) ++e.frames, footprint_sum += footprint;
+  }
+  if (e.frames == 0) return e;
+  const auto sampled = sampled_surface_m2(sources, config, kSampleFrames);
+  e.surface_m2 = sampled ? *sampled : footprint_sum / kFallbackOverlap;
+  const double leaf = config.voxel_size;
+  const double cloud_points = std::min(e.surface_m2 / (leaf * leaf), double(e.frames) * e.points_per_frame);
+  e.images = 4 * largest_image * 5;  // BGR + 16-bit depth: a decoded pair and the one loading
+  e.chunk_points = std::min<double>(std::max(1, config.chunk_frames), double(e.frames)) * e.points_per_frame * kChunkPointBytes;
+  e.cloud = cloud_points * kCloudPointBytes;
+  e.ply = cloud_points * 15;  // binary: xyz float, rgb
+  if (config.build_mesh) {
+    const double vs = config.tsdf.voxel_size, block = TsdfVolume::kBlockSide * vs;
+    const double band = 1 + 2 * config.tsdf.truncation / block;
+    e.tsdf = e.surface_m2 / (block * block) * band * (double(sizeof(TsdfVolume::Block)) + 64);
+    const double triangles = 2 * e.surface_m2 / (vs * vs);
+    e.mesh = triangles * kTriangleBytes;
+    e.ply += triangles * (13 + 0.5 * 15);
+  }
+  return e;
+}
+
+ReconJobs::ReconJobs(ReconJobsConfig config) : config_(config) {}
 
 ReconJobs::~ReconJobs() {
   cancel_ = true;
-  for (std::thread& t : threads_)
-    if (t.joinable()) t.join();
+  std::map<std::string, std::shared_ptr<Job>> jobs;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    jobs.swap(jobs_);
+  }
+  for (auto& [id, job] : jobs)
+    if (job->thread.joinable()) job->thread.join();
 }
 
-std::optional<std::string> ReconJobs::start(int group, std::vector<DatasetPoses> sources, DenseConfig config) {
+ReconStart ReconJobs::start(int group, std::vector<DatasetPoses> sources, DenseConfig config) {
   config.validate();  // throws ConfigError (a 400 for the caller)
+  ReconStart out;
+  out.estimate = estimate_recon_memory(sources, config);
+  expire();
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& [id, job] : jobs_) {
     std::lock_guard<std::mutex> job_lock(job->mutex);
-    if (job->state == "queued" || job->state == "running") return std::nullopt;
+    if (!job->finished()) {
+      ++refused_busy_;
+      out.outcome = ReconStart::Outcome::kBusy;
+      out.message = "a reconstruction is already running (" + id + ")";
+      return out;
+    }
+  }
+  if (out.estimate.total_mb() > config_.max_mb) {
+    ++refused_over_budget_;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "this request would take about %.0f MB, over the %.0f MB budget (--recon-max-mb)",
+                  out.estimate.total_mb(), config_.max_mb);
+    out.outcome = ReconStart::Outcome::kOverBudget;
+    out.message = std::string(buf) + ": " + out.estimate.summary() + "; use a larger voxel or stride, or mesh=0";
+    return out;
   }
   auto job = std::make_shared<Job>();
   job->id = "r" + std::to_string(next_id_++);
   job->group = group;
+  job->estimate_mb = out.estimate.total_mb();
   jobs_[job->id] = job;
-  threads_.emplace_back([this, job, sources = std::move(sources), config]() mutable { run(*job, std::move(sources), config); });
-  return job->id;
+  ++started_;
+  Job* raw = job.get();  // outlives the thread: joined before the job leaves jobs_
+  job->thread = std::thread([this, raw, sources = std::move(sources), config]() mutable { run(*raw, std::move(sources), config); });
+  out.id = job->id;
+  return out;
 }
 
 void ReconJobs::run(Job& job, std::vector<DatasetPoses> sources, DenseConfig config) {
@@ -70,16 +239,29 @@ void ReconJobs::run(Job& job, std::vector<DatasetPoses> sources, DenseConfig con
     std::lock_guard<std::mutex> lock(job.mutex);
     job.state = "running";
   }
+  const std::function<std::size_t()> probe = config_.memory_probe ? config_.memory_probe : std::function<std::size_t()>(resident_bytes);
+  const double rss_start = double(probe());
+  auto check_memory = [&] {
+    const double rss = double(probe());
+    if (rss <= 0 || rss_start <= 0) return;
+    const double growth_mb = (rss - rss_start) / kMB;
+    if (growth_mb > job.peak_growth_mb) job.peak_growth_mb = growth_mb;
+    if (growth_mb > config_.max_mb)
+      throw OverBudget{"stopped: the server grew " + mb(rss - rss_start) + " during this job, over the " +
+                       mb(config_.max_mb * kMB) + " budget (--recon-max-mb); use a larger voxel or stride"};
+  };
   std::string state = "done", message;
   std::shared_ptr<const std::string> cloud, mesh;
   std::size_t points = 0, triangles = 0;
   try {
-    const DenseResult result = reconstruct_from_trajectories(sources, config, [&](const DenseProgress& p) {
+    DenseResult result = reconstruct_from_trajectories(sources, config, [&](const DenseProgress& p) {
       job.done = p.done;
       job.total = p.total;
       job.used = p.used;
       if (cancel_) throw Cancelled{};
+      check_memory();
     });
+    check_memory();  // after the filtering, TSDF and meshing of finish()
     points = result.cloud.size();
     triangles = result.mesh.triangles.size();
     if (points == 0) {
@@ -92,19 +274,74 @@ void ReconJobs::run(Job& job, std::vector<DatasetPoses> sources, DenseConfig con
     }
   } catch (const Cancelled&) {
     state = "cancelled";
+  } catch (const OverBudget& e) {
+    state = "failed";
+    message = e.what;
+    ++stopped_over_budget_;
   } catch (const std::exception& e) {
     state = "failed";
     message = e.what();
   }
-  std::lock_guard<std::mutex> lock(job.mutex);
-  job.state = state;
-  job.message = message;
-  job.cloud = cloud;
-  job.mesh = mesh;
-  job.points = points;
-  job.triangles = triangles;
-  job.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - job.start).count();
-  log->info("reconstruction {} of group {}: {} {}", job.id, job.group, state, message);
+  sources.clear();
+  sources.shrink_to_fit();
+  {
+    std::lock_guard<std::mutex> lock(job.mutex);
+    job.state = state;
+    job.message = message;
+    job.cloud = cloud;
+    job.mesh = mesh;
+    job.points = points;
+    job.triangles = triangles;
+    job.finished_at = SteadyClock::now();
+    job.elapsed_s = std::chrono::duration<double>(job.finished_at - job.start).count();
+  }
+  release_free_memory();
+  log->info("reconstruction {} of group {}: {} {} (estimate {:.0f} MB, grew {:.0f} MB)", job.id, job.group, state, message,
+            job.estimate_mb, job.peak_growth_mb.load());
+}
+
+std::vector<std::shared_ptr<ReconJobs::Job>> ReconJobs::expire_locked(SteadyClock::time_point now) {
+  struct Finished {
+    SteadyClock::time_point at;
+    std::string id;
+    std::size_t bytes;
+    bool operator<(const Finished& o) const { return at < o.at; }
+  };
+  std::vector<Finished> finished;
+  double held = 0;
+  for (const auto& [id, job] : jobs_) {
+    std::lock_guard<std::mutex> job_lock(job->mutex);
+    if (!job->finished()) continue;
+    finished.push_back({job->finished_at, id, job->bytes_held()});
+    held += double(job->bytes_held());
+  }
+  std::sort(finished.begin(), finished.end());  // oldest first
+  std::vector<std::shared_ptr<Job>> out;
+  for (std::size_t i = 0; i < finished.size(); ++i) {
+    const bool too_many = finished.size() - i > config_.max_finished;
+    const bool too_old = std::chrono::duration<double>(now - finished[i].at).count() > config_.max_age_s;
+    const bool too_big = held > config_.max_held_mb * kMB;
+    if (!too_many && !too_old && !too_big) continue;
+    held -= double(finished[i].bytes);
+    auto it = jobs_.find(finished[i].id);
+    out.push_back(it->second);
+    jobs_.erase(it);
+    ++expired_;
+  }
+  return out;
+}
+
+void ReconJobs::expire() {
+  std::vector<std::shared_ptr<Job>> gone;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    gone = expire_locked(SteadyClock::now());
+  }
+  if (gone.empty()) return;
+  for (auto& job : gone)
+    if (job->thread.joinable()) job->thread.join();  // finished: returns at once
+  gone.clear();  // the PLY bytes go here (unless a download still holds them)
+  release_free_memory();
 }
 
 std::shared_ptr<ReconJobs::Job> ReconJobs::find(const std::string& id) const {
@@ -122,14 +359,15 @@ std::optional<ReconJobView> ReconJobs::view(const std::string& id) const {
   v.frames_done = job->done;
   v.frames_total = job->total;
   v.frames_used = job->used;
+  v.estimate_mb = job->estimate_mb;
+  v.peak_growth_mb = job->peak_growth_mb;
   std::lock_guard<std::mutex> lock(job->mutex);
   v.state = job->state;
   v.message = job->message;
   v.points = job->points;
   v.triangles = job->triangles;
-  v.elapsed_s = v.state == "running" || v.state == "queued"
-                    ? std::chrono::duration<double>(std::chrono::steady_clock::now() - job->start).count()
-                    : job->elapsed_s;
+  v.bytes_held = job->bytes_held();
+  v.elapsed_s = job->finished() ? job->elapsed_s : std::chrono::duration<double>(SteadyClock::now() - job->start).count();
   v.progress = v.state == "done" ? 1.0 : v.frames_total > 0 ? double(v.frames_done) / v.frames_total : 0.0;
   return v;
 }
@@ -144,6 +382,24 @@ std::vector<ReconJobView> ReconJobs::list() const {
   for (const std::string& id : ids)
     if (auto v = view(id)) out.push_back(*v);
   return out;
+}
+
+ReconStats ReconJobs::stats() const {
+  ReconStats s;
+  std::lock_guard<std::mutex> lock(mutex_);
+  s.jobs = jobs_.size();
+  for (const auto& [id, job] : jobs_) {
+    std::lock_guard<std::mutex> job_lock(job->mutex);
+    s.running += !job->finished();
+    s.bytes_held += job->bytes_held();
+  }
+  s.started = started_;
+  s.expired = expired_;
+  s.refused_busy = refused_busy_;
+  s.refused_over_budget = refused_over_budget_;
+  s.stopped_over_budget = stopped_over_budget_;
+  s.max_mb = config_.max_mb;
+  return s;
 }
 
 std::shared_ptr<const std::string> ReconJobs::cloud_ply(const std::string& id) const {

@@ -1,8 +1,19 @@
 #pragma once
 // Asynchronous dense reconstructions started over HTTP: one thread per job (at most one running
 // at a time, so SLAM keeps its cores), progress published through atomics, results kept in memory
-// as PLY bytes. Threads are joined on destruction (a running job is cancelled at its next frame).
+// as PLY bytes. Bounded (docs/security.md, "Reconstruction jobs"):
+//  - a request's memory is estimated before it starts (estimate_recon_memory) and refused over
+//    ReconJobsConfig::max_mb; while it runs, the process's resident memory may grow at most
+//    max_mb past its level at the start, else the job stops ("failed", with the figures);
+//  - finished jobs expire by count (max_finished), age (max_age_s) and the bytes they hold
+//    together (max_held_mb); their threads are joined and their bytes freed (and given back to
+//    the system);
+//  - the bytes held by finished jobs are shown per job and in stats().
+// Threads are joined on destruction (a running job is cancelled at its next frame).
 #include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -15,6 +26,29 @@
 
 namespace cslam::http {
 
+struct ReconJobsConfig {
+  double max_mb = 768;           // one request's memory budget (estimate and actual growth), MB
+  std::size_t max_finished = 8;  // finished jobs kept; the oldest beyond are dropped
+  double max_age_s = 900;        // a finished job is dropped this long after it finished
+  double max_held_mb = 256;      // PLY bytes finished jobs may hold together; the oldest go first
+  // The process's resident bytes, read before a job and at each of its frames (empty:
+  // resident_bytes(); tests give their own).
+  std::function<std::size_t()> memory_probe;
+};
+
+// What a request would take, by part (bytes). An estimate meant to err high on the scenes
+// measured (docs/security.md gives its accuracy); the running check is the backstop.
+struct ReconEstimate {
+  std::size_t frames = 0;                 // poses of the request (at most one frame each)
+  double points_per_frame = 0;            // pixels at the stride
+  double surface_m2 = 0;                  // surface the frames can see (capped by the scene extent)
+  double images = 0, chunk_points = 0, cloud = 0, tsdf = 0, mesh = 0, ply = 0;
+  double total_bytes() const { return images + chunk_points + cloud + tsdf + mesh + ply; }
+  double total_mb() const { return total_bytes() / (1024.0 * 1024.0); }
+  std::string summary() const;  // "cloud 12 MB, TSDF 300 MB, ..."
+};
+ReconEstimate estimate_recon_memory(const std::vector<DatasetPoses>& sources, const DenseConfig& config);
+
 struct ReconJobView {
   std::string id;
   int group = -1;
@@ -24,32 +58,61 @@ struct ReconJobView {
   std::size_t points = 0, triangles = 0;
   std::string message;
   double elapsed_s = 0;
+  double estimate_mb = 0;     // estimate_recon_memory before it started
+  double peak_growth_mb = 0;  // largest resident-memory growth seen while it ran
+  std::size_t bytes_held = 0; // PLY bytes kept for download
 };
+
+struct ReconStats {
+  std::size_t jobs = 0, running = 0;  // kept now
+  std::uint64_t started = 0, expired = 0, refused_busy = 0, refused_over_budget = 0, stopped_over_budget = 0;
+  std::size_t bytes_held = 0;
+  double max_mb = 0;
+};
+
+struct ReconStart {
+  enum class Outcome { kStarted, kBusy, kOverBudget };
+  Outcome outcome = Outcome::kStarted;
+  std::string id;        // kStarted
+  ReconEstimate estimate;
+  std::string message;   // kBusy / kOverBudget: why
+};
+
+// Resident set size of this process (bytes), from /proc/self/statm; 0 if unreadable.
+std::size_t resident_bytes();
 
 class ReconJobs {
  public:
-  ReconJobs() = default;
+  explicit ReconJobs(ReconJobsConfig config = {});
   ~ReconJobs();  // cancels and joins every job thread
   ReconJobs(const ReconJobs&) = delete;
   ReconJobs& operator=(const ReconJobs&) = delete;
 
-  // Starts a job; returns its id, or nullopt if another job is still running.
-  std::optional<std::string> start(int group, std::vector<DatasetPoses> sources, DenseConfig config);
+  // Estimates and starts a job; refuses while another runs or over the budget. Throws
+  // ConfigError on a bad config.
+  ReconStart start(int group, std::vector<DatasetPoses> sources, DenseConfig config);
   std::optional<ReconJobView> view(const std::string& id) const;
   std::vector<ReconJobView> list() const;
+  ReconStats stats() const;
   // PLY bytes of a finished job (nullptr if unknown, not finished or no mesh).
   std::shared_ptr<const std::string> cloud_ply(const std::string& id) const;
   std::shared_ptr<const std::string> mesh_ply(const std::string& id) const;
+  // Drops finished jobs past the count and age limits (joins their threads); also done by start().
+  void expire();
+  const ReconJobsConfig& config() const { return config_; }
 
  private:
   struct Job;
   void run(Job& job, std::vector<DatasetPoses> sources, DenseConfig config);
   std::shared_ptr<Job> find(const std::string& id) const;
+  std::vector<std::shared_ptr<Job>> expire_locked(std::chrono::steady_clock::time_point now);
 
-  mutable std::mutex mutex_;
+  const ReconJobsConfig config_;
+  mutable std::mutex mutex_;  // guards jobs_, next_id_ and the counters below
   std::map<std::string, std::shared_ptr<Job>> jobs_;
-  std::vector<std::thread> threads_;
   int next_id_ = 1;
+  std::uint64_t started_ = 0, expired_ = 0, refused_busy_ = 0, refused_over_budget_ = 0;
+  std::atomic<std::uint64_t> stopped_over_budget_{0};
   std::atomic<bool> cancel_{false};
 };
 

@@ -176,6 +176,51 @@ std::string guard_metrics_text(const GuardStats& g) {
   return o.str();
 }
 
+std::string snapshot_metrics_text(const nlohmann::json& j) {
+  std::ostringstream o;
+  o << "# HELP cslam_snapshot_writes_total Map snapshot writes, by result.\n"
+       "# TYPE cslam_snapshot_writes_total counter\n"
+    << "cslam_snapshot_writes_total{result=\"ok\"} " << j.value("written", std::uint64_t(0)) << "\n"
+    << "cslam_snapshot_writes_total{result=\"failed\"} " << j.value("failed", std::uint64_t(0)) << "\n"
+    << "# HELP cslam_snapshot_failing_seconds Seconds since the first failed write after the last good one (0: the newest write succeeded).\n"
+       "# TYPE cslam_snapshot_failing_seconds gauge\n"
+    << "cslam_snapshot_failing_seconds " << j.value("failing_for_s", 0.0) << "\n";
+  const auto age = j.find("last_success_age_s");
+  if (age != j.end() && age->is_number())
+    o << "# HELP cslam_snapshot_last_success_age_seconds Seconds since the last good snapshot was written.\n"
+         "# TYPE cslam_snapshot_last_success_age_seconds gauge\n"
+      << "cslam_snapshot_last_success_age_seconds " << age->get<double>() << "\n";
+  return o.str();
+}
+
+nlohmann::json recon_json(const ReconStats& r) {
+  return {{"jobs", r.jobs},
+          {"running", r.running},
+          {"bytes_held", r.bytes_held},
+          {"started", r.started},
+          {"expired", r.expired},
+          {"refused_busy", r.refused_busy},
+          {"refused_over_budget", r.refused_over_budget},
+          {"stopped_over_budget", r.stopped_over_budget},
+          {"max_mb", r.max_mb}};
+}
+
+std::string recon_metrics_text(const ReconStats& r) {
+  std::ostringstream o;
+  o << "# HELP cslam_recon_jobs Reconstruction jobs kept (running or finished, not yet expired).\n"
+       "# TYPE cslam_recon_jobs gauge\ncslam_recon_jobs " << r.jobs << "\n"
+    << "# HELP cslam_recon_bytes_held PLY bytes of finished reconstruction jobs kept for download.\n"
+       "# TYPE cslam_recon_bytes_held gauge\ncslam_recon_bytes_held " << r.bytes_held << "\n"
+    << "# HELP cslam_recon_jobs_total Reconstruction requests, by outcome.\n"
+       "# TYPE cslam_recon_jobs_total counter\n"
+    << "cslam_recon_jobs_total{outcome=\"started\"} " << r.started << "\n"
+    << "cslam_recon_jobs_total{outcome=\"refused_busy\"} " << r.refused_busy << "\n"
+    << "cslam_recon_jobs_total{outcome=\"refused_over_budget\"} " << r.refused_over_budget << "\n"
+    << "cslam_recon_jobs_total{outcome=\"stopped_over_budget\"} " << r.stopped_over_budget << "\n"
+    << "cslam_recon_jobs_total{outcome=\"expired\"} " << r.expired << "\n";
+  return o.str();
+}
+
 StatusCache::StatusCache(const CollaborativeSystem& system, CacheConfig config)
     : system_(system), config_(std::move(config)), state_(std::make_shared<CachedState>()) {}
 
@@ -208,6 +253,33 @@ void StatusCache::loop() {
     refresh();
     lock.lock();
   }
+}
+
+void StatusCache::add_snapshots(CachedState& next) {
+  if (!map_store_) return;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(map_store_->stats_json());
+    next.snapshots_on = !j.value("state_dir", std::string()).empty();
+    if (!next.snapshots_on) return;
+    next.snapshot_failing_for_s = j.value("failing_for_s", 0.0);
+    next.snapshot_last_error = j.value("last_error", std::string());
+    next.status["snapshots"] = {{"written", j.value("written", std::uint64_t(0))},
+                                {"failed", j.value("failed", std::uint64_t(0))},
+                                {"last_success_age_s", j.value("last_success_age_s", nlohmann::json())},
+                                {"failing_for_s", next.snapshot_failing_for_s},
+                                {"last_error", next.snapshot_last_error}};
+    next.metrics += snapshot_metrics_text(j);
+  } catch (const std::exception& e) {
+    logger("http")->error("status: snapshot counters unreadable: {}", e.what());
+  }
+}
+
+void StatusCache::add_recon(CachedState& next) {
+  if (!recon_) return;
+  recon_->expire();  // finished jobs past their age go even when nobody asks
+  const ReconStats r = recon_->stats();
+  next.status["reconstruction"] = recon_json(r);
+  next.metrics += recon_metrics_text(r);
 }
 
 void StatusCache::apply_extra(CachedState& next) {
@@ -299,6 +371,8 @@ void StatusCache::refresh() {
   next->metrics = metrics_text(snap, fps_of, fusions);
   if (net) next->metrics += network_metrics_text(*net);
   if (guard_) next->metrics += guard_metrics_text(*guard_);
+  add_snapshots(*next);
+  add_recon(*next);
   apply_extra(*next);
   next->status_body = next->status.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 

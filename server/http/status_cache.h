@@ -16,7 +16,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "server/http/map_routes.h"
 #include "server/http/net_status.h"
+#include "server/http/recon_jobs.h"
 #include "system/collaborative_system.h"
 
 namespace cslam::http {
@@ -43,6 +45,10 @@ struct CachedState {
   std::map<ClientId, int> group_of;
   std::map<int, std::vector<ClientId>> groups;
   std::map<int, std::shared_ptr<const std::vector<ViewerPoint>>> points;  // per group, decimated
+  // Snapshot writes (from MapStore::stats_json; absent without a store or without --state-dir).
+  bool snapshots_on = false;
+  double snapshot_failing_for_s = 0;     // 0 while the newest write succeeded
+  std::string snapshot_last_error;
 };
 
 // Builds the status JSON/metrics from one system snapshot (pure; unit-tested).
@@ -58,6 +64,10 @@ nlohmann::json network_json(const NetStatus& n);
 std::string network_metrics_text(const NetStatus& n);
 // The HTTP guard's counters (cslam_http_*) for /metrics.
 std::string guard_metrics_text(const GuardStats& g);
+// Snapshot writes (cslam_snapshot_*) from a MapStore's stats JSON, and reconstruction jobs (cslam_recon_*).
+std::string snapshot_metrics_text(const nlohmann::json& stats);
+nlohmann::json recon_json(const ReconStats& r);
+std::string recon_metrics_text(const ReconStats& r);
 
 class StatusCache {
  public:
@@ -75,6 +85,11 @@ class StatusCache {
   // append Prometheus lines to `metrics`. An exception from it is caught, logged (once per
   // message change) and counted in cslam_status_extra_errors_total; the refresh goes on without
   // its part. Set before start().
+  // Snapshot writes for status, metrics and /api/health (set before start(); may be null).
+  void set_map_store(const MapStore* store) { map_store_ = store; }
+  // Reconstruction jobs: their counters in status and metrics; finished jobs past their age are
+  // expired on each refresh (set before start(); may be null).
+  void set_recon_jobs(ReconJobs* jobs) { recon_ = jobs; }
   using StatusExtra = std::function<void(nlohmann::json& status, std::string& metrics)>;
   void set_extra(StatusExtra extra) { extra_ = std::move(extra); }
   void start();        // starts the refresh thread (refresh() once first)
@@ -90,6 +105,8 @@ class StatusCache {
   const NetStatusBoard* network_ = nullptr;
   const GuardStats* guard_ = nullptr;
   StatusExtra extra_;
+  const MapStore* map_store_ = nullptr;
+  ReconJobs* recon_ = nullptr;
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   mutable std::mutex mutex_;  // guards state_ (pointer swap only) and stop_
   std::condition_variable wake_;
@@ -104,6 +121,8 @@ class StatusCache {
   std::uint64_t extra_errors_ = 0;
   std::string last_extra_error_;
   void apply_extra(CachedState& next);
+  void add_snapshots(CachedState& next);
+  void add_recon(CachedState& next);
 };
 
 }  // namespace cslam::http

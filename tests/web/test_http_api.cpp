@@ -2,14 +2,19 @@
 // status JSON schema, per-client view, metrics, and the 404 / 400 / 401 / 403 / 503 paths.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+
 #include <opencv2/core.hpp>
 
 #include "core/error.h"
 #include "geometry/camera.h"
 #include "server/http/http_server.h"
+#include "server/http/map_routes.h"
 #include "system/collaborative_system.h"
 // After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
 #include <httplib.h>
+#include "server/http/json_reply.h"
 #include <nlohmann/json.hpp>
 
 namespace cslam::http {
@@ -234,6 +239,159 @@ TEST_F(HttpApiTest, ThrowingStatusExtraIsCountedAndStatusStillServed) {
   EXPECT_FALSE(s->status.contains("bad"));
   EXPECT_NE(s->metrics.find("cslam_status_extra_errors_total 2"), std::string::npos);
   EXPECT_EQ(json::parse(s->status_body).at("status_extra_errors"), 2);
+}
+
+// Raw HTTP/1.1 over a socket: the request line goes out byte for byte (no client-side encoding).
+std::pair<int, std::string> raw_get(int port, const std::string& target, const std::string& method = "GET") {
+  httplib::Client cli("127.0.0.1", port);
+  cli.set_url_encode(false);
+  const auto r = method == "GET" ? cli.Get(target) : cli.Post(target, "", "text/plain");
+  if (!r) return {0, ""};
+  return {r->status, r->body};
+}
+
+// Item 4 of hardening round 2: bytes that are not UTF-8 in an id or a parameter were a 500 (the
+// JSON library threw while the error reply echoed them). Every route with a path or query
+// parameter: a 400 whose JSON body echoes the bytes as \xHH.
+TEST_F(HttpApiTest, BadBytesInIdsAndParametersAre400WithASanitisedEcho) {
+  auto server = serve();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"GET", "/api/reconstruction/%ff"},
+      {"GET", "/api/reconstruction/%ff/cloud.ply"},
+      {"GET", "/api/reconstruction/%ff%fe/mesh.ply"},
+      {"GET", "/api/clients/%ff%fe"},
+      {"GET", "/api/clients/a%00b"},
+      {"GET", "/api/trajectories?format=%ff%fe"},
+      {"GET", "/api/trajectories?client=%ff"},
+      {"GET", "/api/trajectories?%ff=1"},
+      {"GET", "/api/map/points?group=%ff"},
+      {"GET", "/api/map/points?format=%c0%af"},  // overlong '/'
+      {"GET", "/api/map/snapshot?x=%ed%a0%80"},  // a surrogate
+      {"GET", "/api/nothing/%ff"},
+      {"GET", "/metrics?x=%ff"},
+      {"POST", "/api/reconstruction?voxel=%ff"},
+      {"POST", "/api/reconstruction?group=%fe"},
+  };
+  for (const auto& [method, target] : cases) {
+    const auto [status, body] = raw_get(server->port(), target, method);
+    EXPECT_EQ(status, 400) << method << " " << target << ": " << body;
+    json j;
+    ASSERT_NO_THROW(j = json::parse(body)) << target << ": " << body;
+    const std::string error = j.value("error", "");
+    EXPECT_TRUE(error.find("\\x") != std::string::npos) << target << ": " << error;
+    EXPECT_NE(error.find("UTF-8"), std::string::npos) << target << ": " << error;
+  }
+  // Valid UTF-8 that names nothing is a plain 404 echoing it.
+  const auto [status, body] = raw_get(server->port(), "/api/clients/%c3%a9");
+  EXPECT_EQ(status, 404);
+  EXPECT_NE(json::parse(body).value("error", "").find("\xc3\xa9"), std::string::npos) << body;
+  // The status still answers.
+  EXPECT_EQ(client(*server).Get("/api/status")->status, 200);
+}
+
+// The error path itself cannot throw: a handler throwing with bad bytes in its message.
+TEST_F(HttpApiTest, ErrorRepliesNeverThrowOnBadBytes) {
+  HttpConfig c;
+  c.port = 0;
+  c.web_root = std::string(CSLAM_SOURCE_DIR) + "/web";
+  HttpServer server(system_, c);
+  server.routes_server().Get("/test/throw", [](const httplib::Request&, httplib::Response&) {
+    throw std::runtime_error("bad \xff\xfe bytes");
+  });
+  server.routes_server().Get("/test/reply", [](const httplib::Request&, httplib::Response& res) {
+    json_reply(res, {{"name", std::string("\xff")}});
+  });
+  ASSERT_TRUE(server.start());
+  auto cli = client(server);
+  const auto thrown = cli.Get("/test/throw");
+  ASSERT_TRUE(thrown);
+  EXPECT_EQ(thrown->status, 500);
+  EXPECT_NE(json::parse(thrown->body).value("error", "").find("bad \\xff\\xfe bytes"), std::string::npos) << thrown->body;
+  const auto replied = cli.Get("/test/reply");
+  ASSERT_TRUE(replied);
+  EXPECT_EQ(replied->status, 200);
+  EXPECT_EQ(json::parse(replied->body).value("name", ""), "\xef\xbf\xbd");  // U+FFFD
+  EXPECT_TRUE(is_clean_text("caf\xc3\xa9"));
+  EXPECT_FALSE(is_clean_text("\xf4\x90\x80\x80"));  // above U+10FFFF
+  EXPECT_EQ(sanitized(std::string(300, 'a'), 10), "aaaaaaaaaa...");
+}
+
+// Item 6 over HTTP: a request over --recon-max-mb is a 413 carrying the estimate.
+TEST_F(HttpApiTest, ReconstructionOverTheBudgetIs413WithTheEstimate) {
+  const std::string dir = (std::filesystem::temp_directory_path() / "cslam_http_recon_datasets").string();
+  std::filesystem::create_directories(dir + "/alpha");
+  std::ofstream(dir + "/alpha/rgb.txt") << "# no images needed: refused before any is read\n";
+  HttpConfig c;
+  c.datasets_dir = dir;
+  c.recon.max_mb = 50;
+  auto server = serve(c);
+  auto cli = client(*server);
+  const auto r = cli.Post("/api/reconstruction?voxel=0.002&stride=1&mesh=1&group=" +
+                              std::to_string(json::parse(cli.Get("/api/clients/1")->body).at("group").get<int>()),
+                          "", "text/plain");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 413) << r->body;
+  const json j = json::parse(r->body);
+  EXPECT_GT(j.at("estimate_mb").get<double>(), 50.0);
+  EXPECT_EQ(j.at("max_mb"), 50.0);
+  EXPECT_NE(j.at("error").get<std::string>().find("--recon-max-mb"), std::string::npos);
+  json status;
+  for (int i = 0; i < 500; ++i) {  // the status is refreshed 5 times per second
+    status = json::parse(cli.Get("/api/status")->body);
+    if (status.at("reconstruction").at("refused_over_budget") == 1) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(status.at("reconstruction").at("refused_over_budget"), 1);
+  EXPECT_NE(cli.Get("/metrics")->body.find("cslam_recon_jobs_total{outcome=\"refused_over_budget\"} 1"), std::string::npos);
+}
+
+// Item 7: snapshot writes in /metrics and /api/health (a store reporting failures).
+class FakeStore : public MapStore {
+ public:
+  std::optional<std::string> snapshot_file() const override { return std::nullopt; }
+  std::string write_now(double) override { return "no"; }
+  std::size_t load(const std::string&) override { return 0; }
+  std::string stats_json() const override { return stats.dump(); }
+  json stats = {{"state_dir", "/state"}, {"written", 3}, {"failed", 0}, {"failing_for_s", 0.0},
+                {"last_success_age_s", 4.5}, {"last_error", ""}};
+};
+
+TEST_F(HttpApiTest, SnapshotFailuresAreInMetricsAndTurnHealthUnhealthy) {
+  FakeStore store;
+  HttpConfig c;
+  c.port = 0;
+  c.web_root = std::string(CSLAM_SOURCE_DIR) + "/web";
+  c.health_snapshot_failing_s = 60;
+  {
+    HttpServer server(system_, c);
+    server.set_map_store(&store);
+    ASSERT_TRUE(server.start());
+    auto cli = client(server);
+    const auto metrics = cli.Get("/metrics")->body;
+    EXPECT_NE(metrics.find("cslam_snapshot_writes_total{result=\"ok\"} 3"), std::string::npos) << metrics;
+    EXPECT_NE(metrics.find("cslam_snapshot_writes_total{result=\"failed\"} 0"), std::string::npos);
+    EXPECT_NE(metrics.find("cslam_snapshot_last_success_age_seconds 4.5"), std::string::npos);
+    const auto health = cli.Get("/api/health");
+    EXPECT_EQ(health->status, 200) << health->body;
+    EXPECT_EQ(json::parse(health->body).at("status"), "ok");
+  }
+  store.stats["failed"] = 7;
+  store.stats["failing_for_s"] = 61.0;
+  store.stats["last_error"] = "No space left on device";
+  HttpServer server(system_, c);
+  server.set_map_store(&store);
+  ASSERT_TRUE(server.start());
+  auto cli = client(server);
+  const auto metrics = cli.Get("/metrics")->body;
+  EXPECT_NE(metrics.find("cslam_snapshot_writes_total{result=\"failed\"} 7"), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("cslam_snapshot_failing_seconds 61"), std::string::npos) << metrics;
+  const auto health = cli.Get("/api/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 503) << health->body;
+  const json h = json::parse(health->body);
+  EXPECT_EQ(h.at("status"), "unhealthy");
+  ASSERT_EQ(h.at("reasons").size(), 1u);
+  EXPECT_NE(h["reasons"][0].get<std::string>().find("No space left on device"), std::string::npos);
 }
 
 TEST(HttpConfigTest, BadPortIsAConfigError) {
