@@ -106,6 +106,26 @@ if [ -n "$FUSED" ] && [ -s "$LIVE" ]; then
   "$BIN/cslam-recon" --dataset "$SCENE/robot_1" "$SCENE/robot_2" "$SCENE/robot_3" \
     --poses "$RUN/client_1.txt" "$RUN/client_2.txt" "$RUN/client_3.txt" --voxel 0.02 --out "$RUN/cloud_2cm.ply" > /dev/null 2>&1
   printf "offline cslam-recon, every frame, same voxel: "; cloud_line "$RUN/cloud_2cm.ply"
+  if [ "$EXIT" = 0 ]; then
+    PORT=$(cat "$RUN/http_port" 2>/dev/null || echo "$HTTP_PORT")
+    curl -sf "http://127.0.0.1:$PORT/api/dense/occupancy.pgm" -o "$RUN/occupancy_live.pgm" || true
+    curl -sf "http://127.0.0.1:$PORT/api/dense/octomap.bt" -o "$RUN/octomap_live.bt" || true
+  fi
+  PGM=$(ls "$RUN"/occupancy_*.pgm 2>/dev/null | head -1 || true)
+  BT=$(ls "$RUN"/octomap_*.bt 2>/dev/null | head -1 || true)
+  if [ -s "$PGM" ]; then
+    python3 - "$PGM" "$BT" <<'PY'
+import os, sys
+data = open(sys.argv[1], "rb").read()
+head = data.split(b"\n", 3)  # P5, "W H", "255", pixels
+w, h = map(int, head[1].split())
+px = head[3][: w * h]
+occ, free = px.count(0), px.count(254)
+bt = os.path.getsize(sys.argv[2]) if sys.argv[2] and os.path.exists(sys.argv[2]) else 0
+print("navigation maps: 2D grid %d x %d cells at 5 cm (%d occupied, %d free, %d unknown), OctoMap %.0f KB"
+      % (w, h, occ, free, w * h - occ - free, bt / 1024))
+PY
+  fi
 fi
 
 echo "== dense reconstruction from the fused poses"
@@ -126,6 +146,7 @@ echo
 echo "outputs: $RUN"
 echo "  client_K.txt  trajectories (TUM, fused frame)   fused_*.txt  combined trajectory"
 echo "  cloud.ply / mesh.ply  dense reconstruction     stats.json   run statistics (written when the server stops)"
+echo "  dense_*.ply, occupancy_*.pgm/.yaml, octomap_*.bt  the server's live dense map and navigation maps (at exit)"
 if [ "$EXIT" = 0 ]; then
   PORT=$(cat "$RUN/http_port" 2>/dev/null || echo "$HTTP_PORT")
   echo
