@@ -5,7 +5,10 @@
 // whole map stays under a triangle budget; replaced and removed geometry is disposed.
 import { MeshLoader, urgency } from './dense_loader.js';
 
-export const DENSE_DEFAULTS = { maxConcurrent: 4, triangleBudget: 3e6, lodNear: 8, lodFar: 20, flashMs: 1500 };
+// meshMinIntervalMs: a submap whose geometry keeps changing (being integrated) is fetched again at
+// most this often; new submaps are fetched at once.
+export const DENSE_DEFAULTS = { maxConcurrent: 4, triangleBudget: 3e6, lodNear: 8, lodFar: 20, flashMs: 1500,
+  meshMinIntervalMs: 2000 };
 const MAX_ERRORS_KEPT = 20;
 
 const validSubmap = (s) => Number.isInteger(s.id) && Number.isInteger(s.version) && Number.isInteger(s.pose_version) &&
@@ -34,7 +37,7 @@ export class DenseLayer {
     this.flashMaterial = new T.MeshBasicMaterial({ color: 0xfacc15, side: T.DoubleSide });
     this.missingGeometry = new T.OctahedronGeometry(0.08);
     this.missingMaterial = new T.MeshBasicMaterial({ color: 0xff3030, wireframe: true });
-    this.loader = new MeshLoader({ api, maxConcurrent: this.o.maxConcurrent,
+    this.loader = new MeshLoader({ api, maxConcurrent: this.o.maxConcurrent, minIntervalMs: this.o.meshMinIntervalMs,
       build: (e, p, lod) => this.build(e, p, lod), onError: (e, err) => this.failed(e, err) });
     this.loader.onSettled = () => this.updateLod();  // the next download starts as one ends
     view.hooks.push((t) => this.animate(t));
@@ -138,6 +141,7 @@ export class DenseLayer {
       g.setAttribute('color', new T.BufferAttribute(p.colours, 3, true));
       g.setIndex(new T.BufferAttribute(p.indices, 1));
       g.computeBoundingSphere();
+      g.computeBoundingBox();
       // The page keeps no CPU copy once the GPU has the buffers (bounds computed above).
       for (const a of [g.attributes.position, g.attributes.color, g.index]) a.onUpload(function release() { this.array = null; });
       e.mesh = new T.Mesh(g, this.flashing.has(e) ? this.flashMaterial : this.material);
@@ -148,6 +152,7 @@ export class DenseLayer {
     }
     if (e.marker) { e.marker.removeFromParent(); e.marker = null; }
     e.loadedVersion = p.version;
+    e.loadedAt = performance.now();
     e.loadedLod = lod;
     e.drawnTriangles = p.triangles;
     e.state = 'loaded';
@@ -271,13 +276,12 @@ export class DenseLayer {
   }
 
   // The visible map's bounds (a submap not loaded yet counts as a 1 m cube around its origin).
-  bounds(group = null) {
-    const T = this.THREE, box = new T.Box3(), s = new T.Sphere(), b = new T.Box3();
+  bounds(group = null, { meshesOnly = false } = {}) {
+    const T = this.THREE, box = new T.Box3(), b = new T.Box3(), half = new T.Vector3(0.5, 0.5, 0.5);
     for (const e of this.entries.values()) {
       if (e.hidden || (group !== null && e.group !== group)) continue;
-      if (e.mesh) s.copy(e.mesh.geometry.boundingSphere).applyMatrix4(e.obj.matrixWorld);
-      else s.set(e.obj.position, 0.5);
-      box.union(s.getBoundingBox(b));
+      if (e.mesh) box.union(b.copy(e.mesh.geometry.boundingBox).applyMatrix4(e.obj.matrixWorld));
+      else if (!meshesOnly) box.union(b.set(e.obj.position.clone().sub(half), e.obj.position.clone().add(half)));
     }
     return box;
   }

@@ -28,8 +28,8 @@ export function urgency(e) {
 
 export class MeshLoader {
   // api(path, opts) -> Response; build(entry, parsed, lod) installs the geometry.
-  constructor({ api, build, onError, maxConcurrent = 4 }) {
-    Object.assign(this, { api, build, onError, maxConcurrent });
+  constructor({ api, build, onError, maxConcurrent = 4, minIntervalMs = 0 }) {
+    Object.assign(this, { api, build, onError, maxConcurrent, minIntervalMs });
     this.inFlight = new Map();  // id -> AbortController
     this.requests = 0;  // mesh requests sent
     this.loaded = 0;
@@ -44,6 +44,7 @@ export class MeshLoader {
     for (const e of entries) {
       if (this.inFlight.has(e.id) || e.retryAt > now || !e.mesh_url) continue;
       const u = urgency(e);
+      if (u === 2 && now - (e.loadedAt ?? -1e9) < this.minIntervalMs) continue;  // growing: not every version
       if (u > 0) want.push([u, e.distance ?? 0, e]);
     }
     want.sort((a, b) => b[0] - a[0] || a[1] - b[1]);

@@ -2,7 +2,7 @@
 // map (per-submap meshes, see dense.js), the robots as camera frusta, trajectories, the sparse map
 // and the occupancy grid, with fusion and loop events highlighted. three.js is loaded from the
 // server (/vendor, installed by npm ci); without it the client table and the events still work.
-// URL hash options: token=..., dense_ms, status_ms, sparse_ms, budget (triangles), lod_near / lod_far (metres),
+// URL hash options: token=..., dense_ms, status_ms, sparse_ms, mesh_interval_ms, budget (triangles), lod_near / lod_far (metres),
 // aa=0|1 (multisampling; default: on unless WebGL runs in software).
 import { api, connection, traffic } from './net.js';
 import { createView, drawTrajectories, drawPoints, Robots, frame } from './scene.js';
@@ -13,7 +13,7 @@ import { $, renderStatus, renderEvents, renderDenseInfo, showConnection, setupDo
 const opts = new URLSearchParams(location.hash.slice(1));
 const num = (k, d) => (opts.has(k) && Number.isFinite(Number(opts.get(k))) ? Number(opts.get(k)) : d);
 const config = { statusMs: num('status_ms', 500), denseMs: num('dense_ms', 1000), sparseMs: num('sparse_ms', 2000), occupancyMs: 5000,
-  denseStatusMs: 5000, triangleBudget: num('budget', 3e6), lodNear: num('lod_near', 8), lodFar: num('lod_far', 20) };
+  denseStatusMs: 5000, meshMinIntervalMs: num('mesh_interval_ms', 2000), triangleBudget: num('budget', 3e6), lodNear: num('lod_near', 8), lodFar: num('lod_far', 20) };
 const app = { view: null, dense: null, occupancy: null, robots: null, groups: new Map(), visibleGroup: null,
   uptime: -1, eventsSeen: -1, denseStatus: undefined, sparseBox: null, clientPoses: new Map(), restarts: 0 };
 const shown = (name) => $(`show-${name}`).checked;
@@ -198,12 +198,7 @@ window.cslamViewer = {
   // The dense map's (or one group's) bounding box on the canvas, in canvas pixels.
   screenRect: (group = null) => {
     if (!app.view || !app.dense) return null;
-    const { THREE, camera, renderer } = app.view, box = new THREE.Box3(), s = new THREE.Sphere();
-    for (const e of app.dense.entries.values()) {
-      if (!e.mesh || (group !== null && e.group !== group)) continue;
-      s.copy(e.mesh.geometry.boundingSphere).applyMatrix4(e.obj.matrixWorld);
-      box.union(s.getBoundingBox(new THREE.Box3()));
-    }  // (a sphere's box: loose, but always contains the mesh)
+    const { THREE, camera, renderer } = app.view, box = app.dense.bounds(group, { meshesOnly: true });
     if (box.isEmpty()) return null;
     const { width: W, height: H } = renderer.domElement;
     let x0 = W, y0 = H, x1 = 0, y1 = 0;

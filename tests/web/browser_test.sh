@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Browser test of the web viewer: cslam-server + two cslam-client streaming a small synthetic
-# run at 15 frames/s, the page opened in headless Chromium (playwright-core), see browser_test.mjs.
+# Browser test of the web viewer: cslam-server (behind --http-token, no --datasets-dir: the dense map
+# comes from the images the robots send) + two cslam-client streaming a small synthetic run at
+# 15 frames/s, the page opened in headless Chromium (playwright-core), see browser_test.mjs.
 # Usage: browser_test.sh BIN_DIR SOURCE_DIR ARTIFACT_DIR
 # Exit 77 (CTest: skipped) if chromium or web/node_modules is missing, unless CI=true (then 1).
 set -euo pipefail
@@ -24,9 +25,10 @@ cleanup() {
 }
 trap cleanup EXIT
 
+TOKEN="browser-test-$RANDOM$RANDOM"
 "$BIN/cslam-synth" --preset test-small --out "$WORK/scene" --log-level warn > /dev/null
 "$BIN/cslam-server" --bind 'tcp://127.0.0.1:*' --endpoint-file "$WORK/endpoint" --clients 2 --out-dir "$WORK/run" \
-  --http 0 --http-port-file "$WORK/http_port" --datasets-dir "$WORK/scene" --web-root "$SRC/web" \
+  --http 0 --http-port-file "$WORK/http_port" --http-token "$TOKEN" --web-root "$SRC/web" \
   --log-interval 2 > "$WORK/server.log" 2>&1 &
 SERVER=$!
 for _ in $(seq 1 100); do [ -s "$WORK/endpoint" ] && [ -s "$WORK/http_port" ] && break; sleep 0.1; done
@@ -38,6 +40,6 @@ for k in 1 2; do
   CLIENTS+=($!)
 done
 status=0
-node "$SRC/tests/web/browser_test.mjs" "http://127.0.0.1:$PORT/" "$SRC/web" "$ART" || status=$?
+node "$SRC/tests/web/browser_test.mjs" "http://127.0.0.1:$PORT/" "$SRC/web" "$ART" "$TOKEN" || status=$?
 if [ $status -ne 0 ]; then echo "--- server log"; tail -30 "$WORK/server.log"; fi
 exit $status

@@ -4,7 +4,7 @@
 // Run by hand, not in CTest:
 //   node tests/web/measure_viewer.mjs --mock [--submaps 100 --clients 3 --triangles 30000]   (starts the mock)
 //   node tests/web/measure_viewer.mjs --url http://127.0.0.1:PORT/#token=...              (a running server)
-// Options: --seconds 10 (frame-rate window), --load-timeout 180, --hash "budget=3000000&..." (viewer options),
+// Options: --watch S (bytes per minute over S s after the page opened), --seconds 10 (frame-rate window), --load-timeout 180, --hash "budget=3000000&..." (viewer options),
 //          --screenshot FILE, --width 1400 --height 900.
 import { createRequire } from 'node:module';
 import { spawn } from 'node:child_process';
@@ -44,6 +44,20 @@ try {
   const t0 = Date.now();
   await page.goto(url);
   const state = () => page.evaluate(() => window.cslamViewer.denseState());
+  // --watch S: the bytes the page downloads over S seconds right after it opened (robots mapping).
+  let watch = null;
+  if (Number(arg('watch', 0)) > 0) {
+    await page.waitForFunction(() => window.cslamViewer, null, { timeout: 20000 });
+    await sleep(3000);  // past the page's own files
+    const a = await state(), S = Number(arg('watch', 0));
+    const tw = Date.now();
+    await sleep(1000 * S);
+    const b = await state(), s = (Date.now() - tw) / 1000;
+    const cat = Object.fromEntries(Object.keys(b.bytesByCategory).map((k) => [k, Math.round((b.bytesByCategory[k] - (a.bytesByCategory[k] || 0)) * 60 / s)]));
+    watch = { seconds: +s.toFixed(1), bytes_per_minute: Math.round((b.bytesDownloaded - a.bytesDownloaded) * 60 / s), per_minute_by_category: cat,
+      mesh_downloads: b.meshDownloads - a.meshDownloads, pose_only_updates: b.poseOnlyUpdates - a.poseOnlyUpdates, pose_updates: b.poseUpdates };
+    console.log('while watching:', JSON.stringify(watch, null, 1));
+  }
   // Loaded: something drawn, nothing in flight, no submap waiting, twice in a row.
   let st = null, quiet = 0;
   const timeout = 1000 * Number(arg('load-timeout', 180));
