@@ -170,7 +170,7 @@ TEST(HardeningRound2, OneWildTimestampIsRefusedAndTheSessionGoesOn) {
   }
   const auto wild = send(t + 1e6);
   ASSERT_TRUE(wild);
-  ASSERT_TRUE(wild->has_error()) << wild->DebugString();
+  EXPECT_TRUE(wild->has_error()) << wild->DebugString();
   EXPECT_EQ(wild->error().code(), wire::ERROR_TIMESTAMP_JUMP);
   EXPECT_NE(wild->error().message().find("past the last accepted frame"), std::string::npos) << wild->error().message();
   for (int i = 0; i < 5; ++i) {
