@@ -26,7 +26,7 @@ struct DenseServiceConfig {
   bool store_is_temporary = false;  // removed at exit
   double step_interval_s = 0.25;    // poses are re-read at least this often
   std::size_t queue_capacity = 64;  // keyframes waiting for the worker
-  int max_integrations_per_step = 4;
+  int max_integrations_per_step = 2;
   int max_reintegrations_per_step = 1;
   double log_interval_s = 5;
   void validate() const;  // throws ConfigError

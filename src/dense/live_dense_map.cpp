@@ -46,6 +46,7 @@ DenseStepResult LiveDenseMap::step(const std::vector<KeyframePose>& poses, doubl
   std::vector<std::pair<double, SubmapId>> distorted;
   find_culled(index, r);
   apply_poses(index, r, distorted);
+  if (r.moved > 0 || r.removed > 0) publish();  // corrections reach readers before the slower work below
   integrate_pending(index, now_s, false, loader, budget.max_integrations, r);
   std::sort(distorted.rbegin(), distorted.rend());  // most distorted first
   for (const auto& [deviation, id] : distorted) {

@@ -2,7 +2,8 @@
 // The live dense map: TSDF submaps built from the robots' keyframes while they map, following
 // every correction. Sources of truth are the keyframes (their images, loaded on demand) and their
 // current poses; a step() applies the poses of the moment:
-//   1. every submap takes the current pose of its reference keyframe (rigid move, no re-integration);
+//   1. every submap takes the current pose of its reference keyframe (rigid move, no re-integration),
+//      published at once;
 //   2. keyframes culled by local mapping are forgotten (reported, so their images can be dropped);
 //   3. keyframes that have waited integration_delay_s (local BA has refined them) are integrated
 //      into their client's open submap, a new one opening when the window is full;
