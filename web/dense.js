@@ -5,10 +5,11 @@
 // whole map stays under a triangle budget; replaced and removed geometry is disposed.
 import { MeshLoader, urgency } from './dense_loader.js';
 
-// meshMinIntervalMs: a submap whose geometry keeps changing (being integrated) is fetched again at
-// most this often; new submaps are fetched at once.
+// A submap whose geometry changed within settleMs is growing (being integrated): it is fetched one
+// level coarser and at most every meshMinIntervalMs; once it settles, at its full level. New
+// submaps are fetched at once.
 export const DENSE_DEFAULTS = { maxConcurrent: 4, triangleBudget: 3e6, lodNear: 8, lodFar: 20, flashMs: 1500,
-  meshMinIntervalMs: 2000 };
+  meshMinIntervalMs: 3000, settleMs: 6000 };
 const MAX_ERRORS_KEPT = 20;
 
 const validSubmap = (s) => Number.isInteger(s.id) && Number.isInteger(s.version) && Number.isInteger(s.pose_version) &&
@@ -62,6 +63,7 @@ export class DenseLayer {
   reconcile(index, bytes) {
     if (!index || !Array.isArray(index.groups)) throw new Error('dense index: no groups list');
     if (index.version < this.version) this.serverRestarted();
+    const live = this.version >= 0;  // a submap that appears in a later index is being built
     this.version = index.version;
     const seen = new Set(), moved = [];
     let geometryChanges = 0;
@@ -72,9 +74,10 @@ export class DenseLayer {
         let e = this.entries.get(s.id);
         if (!e) {
           e = this.create(s, g.group);
+          if (live) e.changedAt = performance.now();
         } else {
           if (e.group !== g.group) this.reparent(e, g.group);
-          if (s.version !== e.version) geometryChanges += 1;
+          if (s.version !== e.version) { geometryChanges += 1; e.changedAt = performance.now(); }
           else if (s.pose_version !== e.pose_version) this.poseOnlyUpdates += 1;
         }
         if (s.triangles === 0 && e.loadedVersion !== s.version) this.empty(e, s.version);
@@ -239,7 +242,7 @@ export class DenseLayer {
   // Distance-based level of detail, then coarser levels for the farthest submaps until the visible
   // map fits the triangle budget (estimate: each level has a quarter of the triangles); starts downloads.
   updateLod() {
-    const T = this.THREE, cam = this.view.camera.position, v = new T.Vector3();
+    const T = this.THREE, cam = this.view.camera.position, v = new T.Vector3(), now = performance.now();
     const visible = [];
     for (const e of this.entries.values()) {
       e.hidden = !(this.visibleGroup === null || this.visibleGroup === e.group);
@@ -248,6 +251,7 @@ export class DenseLayer {
       e.distance = Math.max(0, v.distanceTo(cam) - (e.radius || 0));
       if (e.hidden) { if (e.loadedLod >= 0) e.desiredLod = e.loadedLod; continue; }
       e.desiredLod = this.lodFor(e.distance, e.loadedLod);
+      if (now - (e.changedAt ?? -1e9) < this.o.settleMs) e.desiredLod = Math.min(2, e.desiredLod + 1);  // growing
       visible.push(e);
     }
     const est = (e, lod) => e.triangles / 4 ** lod, budget = this.budget();

@@ -2,7 +2,7 @@
 // map (per-submap meshes, see dense.js), the robots as camera frusta, trajectories, the sparse map
 // and the occupancy grid, with fusion and loop events highlighted. three.js is loaded from the
 // server (/vendor, installed by npm ci); without it the client table and the events still work.
-// URL hash options: token=..., dense_ms, status_ms, sparse_ms, mesh_interval_ms, budget (triangles), lod_near / lod_far (metres),
+// URL hash options: token=..., dense_ms, status_ms, sparse_ms, mesh_interval_ms, settle_ms, budget (triangles), lod_near / lod_far (metres),
 // aa=0|1 (multisampling; default: on unless WebGL runs in software).
 import { api, connection, traffic } from './net.js';
 import { createView, drawTrajectories, drawPoints, Robots, frame } from './scene.js';
@@ -13,7 +13,7 @@ import { $, renderStatus, renderEvents, renderDenseInfo, showConnection, setupDo
 const opts = new URLSearchParams(location.hash.slice(1));
 const num = (k, d) => (opts.has(k) && Number.isFinite(Number(opts.get(k))) ? Number(opts.get(k)) : d);
 const config = { statusMs: num('status_ms', 500), denseMs: num('dense_ms', 1000), sparseMs: num('sparse_ms', 2000), occupancyMs: 5000,
-  denseStatusMs: 5000, meshMinIntervalMs: num('mesh_interval_ms', 2000), triangleBudget: num('budget', 3e6), lodNear: num('lod_near', 8), lodFar: num('lod_far', 20) };
+  denseStatusMs: 5000, meshMinIntervalMs: num('mesh_interval_ms', 3000), settleMs: num('settle_ms', 6000), triangleBudget: num('budget', 3e6), lodNear: num('lod_near', 8), lodFar: num('lod_far', 20) };
 const app = { view: null, dense: null, occupancy: null, robots: null, groups: new Map(), visibleGroup: null,
   uptime: -1, eventsSeen: -1, denseStatus: undefined, sparseBox: null, clientPoses: new Map(), restarts: 0 };
 const shown = (name) => $(`show-${name}`).checked;
@@ -221,7 +221,8 @@ window.cslamViewer = {
       app.view.hooks.push(() => { if (app.spinning) app.view.orbit.yaw += 0.01; return app.spinning; });
     }
   },
-  renderStats: () => ({ frames: app.view?.frames ?? 0, renders: app.view?.renders ?? 0, frameMs: app.view?.frameMs ?? 0, software: app.view?.software ?? '' }),
+  renderStats: () => ({ frames: app.view?.frames ?? 0, renders: app.view?.renders ?? 0, frameMs: app.view?.frameMs ?? 0,
+    software: app.view?.software ?? '', gpu: app.view ? { ...app.view.renderer.info.memory } : null }),
 };
 
 setupControls();

@@ -90,6 +90,15 @@ try {
   });
   console.log('scene graph:', JSON.stringify(meshes));
 
+  // Group selection: only the chosen group's meshes are drawn.
+  await page.selectOption('#group', '3');
+  const only3 = await waitFor('group 3 alone', async () => {
+    const s = await page.evaluate(() => window.cslamViewer.sceneMeshes());
+    return Object.keys(s).join() === '3' ? s : null;
+  });
+  console.log('group 3 selected:', JSON.stringify(only3));
+  await page.selectOption('#group', 'all');
+
   // 2. A pose-only change: the page follows, nothing is downloaded again.
   const before = await dense(), reqBefore = (await control('state')).meshRequests;
   await control('move?id=65537&dx=0.25&yaw=0.3');
@@ -131,6 +140,29 @@ try {
     const st = await dense();
     return [added, 131073].every((id) => pageSubmaps(st).find((s) => s.id === id)?.state === 'loaded');
   }, 40000);
+
+  // Removed submaps leave the scene and their geometry is disposed (GPU buffers freed).
+  const gpu0 = (await page.evaluate(() => window.cslamViewer.renderStats())).gpu.geometries;
+  await control('remove?id=65536');
+  await control('remove?id=65537');
+  await waitFor('removed submaps gone', async () => {
+    const st = await dense();
+    return !pageSubmaps(st).some((x) => x.id === 65536 || x.id === 65537);
+  });
+  const gpu1 = await waitFor('geometries disposed', async () => {
+    const g = (await page.evaluate(() => window.cslamViewer.renderStats())).gpu.geometries;
+    return g <= gpu0 - 2 ? g : null;
+  });
+  console.log(`geometries on the GPU: ${gpu0} -> ${gpu1} after removing 2 submaps`);
+
+  // Occupancy grid toggle: the grid of each group as a textured plane.
+  await page.click('#show-occupancy');
+  const occ = await waitFor('occupancy grid drawn', async () => {
+    const o = await page.evaluate(() => window.cslamViewer.occupancy());
+    return o && o.groups.length > 0 && o.groups.every((g) => g.width === 40 && g.height === 30) ? o : null;
+  });
+  console.log('occupancy:', JSON.stringify(occ.groups));
+  await page.click('#show-occupancy');
 
   // 5. The screen: non-background pixels in the mesh's screen area.
   await page.evaluate(() => { for (const n of ['sparse', 'trajectories', 'robots']) document.getElementById(`show-${n}`).click(); });
