@@ -3,10 +3,18 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 
 #include <gtest/gtest.h>
 
+#include <opencv2/imgcodecs.hpp>
+
+#include "client/frame_sender.h"
+#include "common/run_program.h"
+#include "eval/trajectory_eval.h"
+#include "geometry/camera_io.h"
 #include "io/trajectory_io.h"
+#include "io/tum_dataset.h"
 #include "net_test_util.h"
 
 namespace cslam {
@@ -242,6 +250,88 @@ TEST(HardeningRound2, TrajectoryWritersLeaveAbsurdStampsOut) {
   EXPECT_LT(format_tum_line({1e300, SE3()}).size(), 120u);
   EXPECT_TRUE(tum_stamp_ok(1.7e9));
   EXPECT_FALSE(tum_stamp_ok(1e300));
+}
+
+// The robot beside a hostile peer: a synthetic 60-frame sequence streamed with SLAM on (mapping
+// in the worker: deterministic), alone and again while another peer sends every round-2 case
+// (implausible cameras; on its own session, wild timestamps). The robot gets every frame acked,
+// none refused, the same number of poses, and the same accuracy against the ground truth.
+struct RobotRun {
+  std::size_t frames = 0, acks = 0, refused = 0, poses = 0;
+  double ate_rmse = 0;
+  std::size_t hostile_errors = 0;
+};
+
+RobotRun stream_robot(const std::string& data, bool hostile) {
+  const TumDataset dataset = open_tum_dataset(data);
+  server::ReceiverConfig rc;
+  SystemConfig sc;
+  sc.slam.threaded = false;
+  test::InProcessServer srv(rc, sc);
+  zmq::context_t ctx(1);
+  test::RawPeer peer(ctx, srv.endpoint());
+  client::SenderConfig cc;
+  cc.server = srv.endpoint();
+  cc.info.id = 1;
+  cc.info.name = "robot";
+  cc.info.camera = load_camera_file(data + "/camera.yaml");
+  cc.reply_timeout_s = 60;
+  client::FrameSender sender(cc);
+  sender.connect();
+  RobotRun run;
+  PinholeCamera bad = qvga();
+  std::uint64_t hostile_seq = 0;
+  if (hostile) {
+    peer.send(test::make_hello(9, qvga()));  // a session of its own for the wild stamps
+    next_of(peer, wire::ServerMessage::kWelcome);
+    peer.send(test::make_frame(9, ++hostile_seq, 1.0, qvga()));  // its clock starts sane (the first frame sets it)
+  }
+  for (const RgbdPair& pair : dataset.pairs) {
+    RgbdFrame f;
+    f.timestamp = pair.rgb_time;
+    f.bgr = cv::imread(pair.rgb_path, cv::IMREAD_COLOR);
+    f.depth = cv::imread(pair.depth_path, cv::IMREAD_UNCHANGED);
+    sender.send_frame(f);
+    ++run.frames;
+    if (!hostile) continue;
+    const int k = int(run.frames % 4);
+    bad = qvga();
+    if (k == 0) bad.cx = -1000;
+    if (k == 1) bad.width = bad.height = 1;
+    if (k == 2) bad.fx = 1e-3;
+    if (k == 3) bad.cy = 1e9;
+    peer.send(test::make_hello(ClientId(20 + k), bad));
+    peer.send(test::make_frame(9, ++hostile_seq, run.frames % 2 ? 1e6 * double(run.frames) : 1.0 + 0.03 * double(run.frames), qvga()));
+  }
+  EXPECT_TRUE(sender.goodbye(60));
+  run.acks = sender.stats().acks;
+  run.refused = sender.stats().frames_refused;
+  if (hostile)
+    for (auto r = peer.receive(200); r; r = peer.receive(200)) run.hostile_errors += r->has_error();
+  srv.stop();
+  const Trajectory est = srv.system().trajectories().at(1);
+  run.poses = est.size();
+  run.ate_rmse = compute_ate(*dataset.groundtruth, est, Alignment::kSE3).stats.rmse;
+  return run;
+}
+
+TEST(HardeningRound2, RobotBesideAHostilePeerGetsAllItsPosesAtUnchangedAccuracy) {
+  test::TempDir dir("cslam_round2_beside");
+  const auto synth =
+      test::run_program("cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
+  ASSERT_EQ(synth.status, 0) << synth.output;
+  const std::string data = dir / "scene/robot_1";
+  const RobotRun alone = stream_robot(data, false);
+  const RobotRun beside = stream_robot(data, true);
+  std::cout << "robot alone: " << alone.poses << " poses of " << alone.frames << ", ATE " << alone.ate_rmse
+            << " m; beside the hostile peer: " << beside.poses << " poses, ATE " << beside.ate_rmse << " m, "
+            << beside.hostile_errors << " errors answered to the peer\n";
+  EXPECT_EQ(beside.acks, beside.frames);
+  EXPECT_EQ(beside.refused, 0u);
+  EXPECT_EQ(beside.poses, alone.poses);
+  EXPECT_GT(alone.poses, alone.frames / 2);
+  EXPECT_NEAR(beside.ate_rmse, alone.ate_rmse, 1e-3 + 0.05 * alone.ate_rmse) << "alone " << alone.ate_rmse;
+  EXPECT_GE(beside.hostile_errors, beside.frames);  // every bad hello and wild stamp was answered with an error
 }
 
 }  // namespace
