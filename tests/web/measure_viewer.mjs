@@ -43,12 +43,12 @@ try {
   await cdp.send('Performance.enable');
   const t0 = Date.now();
   await page.goto(url);
+  await page.waitForFunction(() => window.cslamViewer, null, { timeout: 30000 });
   const state = () => page.evaluate(() => window.cslamViewer.denseState());
   // --watch S: the bytes the page downloads over S seconds right after it opened (robots mapping).
   let watch = null;
   if (Number(arg('watch', 0)) > 0) {
-    await page.waitForFunction(() => window.cslamViewer, null, { timeout: 20000 });
-    await sleep(3000);  // past the page's own files
+    await page.waitForFunction(() => window.cslamViewer?.denseState().frames > 0, null, { timeout: 30000 });  // past the page's own files
     const a = await state(), S = Number(arg('watch', 0));
     const tw = Date.now();
     await sleep(1000 * S);
