@@ -20,6 +20,9 @@
 #include "dense/tsdf_volume.h"
 #include "io/tum_dataset.h"
 
+// tcmalloc's C API, weak: null when the program does not allocate through tcmalloc.
+extern "C" void MallocExtension_ReleaseFreeMemory(void) __attribute__((weak));
+
 namespace cslam::http {
 
 using SteadyClock = std::chrono::steady_clock;
@@ -63,8 +66,14 @@ std::shared_ptr<const std::string> ply_bytes(const std::string& tag, Writer writ
   return std::make_shared<const std::string>(bytes.str());
 }
 
-// Gives freed heap pages back to the system, so a finished job's memory shows as released.
+// Gives freed heap pages back to the system, so a finished job's memory shows as released:
+// the programs allocate through tcmalloc (cmake/Dependencies.cmake), which keeps freed spans in
+// its page heap (a 0.005 m job left 384 MB there); without tcmalloc, glibc's malloc_trim.
 void release_free_memory() {
+  if (MallocExtension_ReleaseFreeMemory) {
+    MallocExtension_ReleaseFreeMemory();
+    return;
+  }
 #if defined(__GLIBC__)
   malloc_trim(0);
 #endif
@@ -199,8 +208,18 @@ ReconJobs::~ReconJobs() {
 
 ReconStart ReconJobs::start(int group, std::vector<DatasetPoses> sources, DenseConfig config) {
   config.validate();  // throws ConfigError (a 400 for the caller)
+  ReconEstimate estimate = estimate_recon_memory(sources, config);
+  auto shared = std::make_shared<std::vector<DatasetPoses>>(std::move(sources));
+  ReconFunction reconstruct = [shared](const DenseConfig& c, const DenseProgressCallback& progress) {
+    return reconstruct_from_trajectories(*shared, c, progress);
+  };
+  return start(group, std::move(reconstruct), estimate, std::move(config));
+}
+
+ReconStart ReconJobs::start(int group, ReconFunction reconstruct, ReconEstimate estimate, DenseConfig config) {
+  config.validate();  // throws ConfigError (a 400 for the caller)
   ReconStart out;
-  out.estimate = estimate_recon_memory(sources, config);
+  out.estimate = estimate;
   expire();
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& [id, job] : jobs_) {
@@ -228,12 +247,14 @@ ReconStart ReconJobs::start(int group, std::vector<DatasetPoses> sources, DenseC
   jobs_[job->id] = job;
   ++started_;
   Job* raw = job.get();  // outlives the thread: joined before the job leaves jobs_
-  job->thread = std::thread([this, raw, sources = std::move(sources), config]() mutable { run(*raw, std::move(sources), config); });
+  job->thread = std::thread([this, raw, reconstruct = std::move(reconstruct), config]() mutable {
+    run(*raw, std::move(reconstruct), config);
+  });
   out.id = job->id;
   return out;
 }
 
-void ReconJobs::run(Job& job, std::vector<DatasetPoses> sources, DenseConfig config) {
+void ReconJobs::run(Job& job, ReconFunction reconstruct, DenseConfig config) {
   auto log = logger("http");
   {
     std::lock_guard<std::mutex> lock(job.mutex);
@@ -254,7 +275,7 @@ void ReconJobs::run(Job& job, std::vector<DatasetPoses> sources, DenseConfig con
   std::shared_ptr<const std::string> cloud, mesh;
   std::size_t points = 0, triangles = 0;
   try {
-    DenseResult result = reconstruct_from_trajectories(sources, config, [&](const DenseProgress& p) {
+    DenseResult result = reconstruct(config, [&](const DenseProgress& p) {
       job.done = p.done;
       job.total = p.total;
       job.used = p.used;
@@ -282,8 +303,7 @@ void ReconJobs::run(Job& job, std::vector<DatasetPoses> sources, DenseConfig con
     state = "failed";
     message = e.what();
   }
-  sources.clear();
-  sources.shrink_to_fit();
+  reconstruct = nullptr;  // frees what the frames' source holds
   {
     std::lock_guard<std::mutex> lock(job.mutex);
     job.state = state;
