@@ -218,6 +218,7 @@ int run(int argc, char** argv) {
   http.set_network_status(&net_status);
   cslam::http::add_map_routes(http.routes_server(), state, http_config.token);
   cslam::http::add_dense_routes(http.routes_server(), dense.get());
+  if (dense && http_config.datasets_dir.empty()) http.set_held_frames(cslam::http::held_frames_source(dense.get()));
   http.set_status_extra([d = dense.get()](nlohmann::json& status, std::string& metrics) {
     cslam::http::add_dense_status(d, status, metrics);
   });

@@ -155,6 +155,28 @@ void DenseService::store_jobs(std::deque<Job>& jobs) {
   }
 }
 
+std::vector<KeyframePose> DenseService::group_keyframes(int group) const {
+  std::vector<KeyframePose> out;
+  for (const KeyframePose& p : system_.keyframe_poses())
+    if (p.group == group) out.push_back(p);
+  return out;
+}
+
+std::optional<DenseService::StoredKeyframe> DenseService::stored_keyframe(KeyFrameId id) const {
+  try {
+    const auto record = store_.get(id);
+    const auto camera = store_.camera(id.client);
+    if (!record || !camera) return std::nullopt;
+    std::ostringstream source;
+    source << "stored keyframe " << id;
+    auto [bgr, depth] = decode_rgbd(record->images, camera->width, camera->height, source.str());
+    return StoredKeyframe{{std::move(bgr), std::move(depth)}, *camera, record->depth_time_offset};
+  } catch (const InputError& e) {
+    log()->warn("{}", e.what());
+    return std::nullopt;
+  }
+}
+
 std::optional<DenseImages> DenseService::load(KeyFrameId id) {
   try {
     const auto record = store_.get(id);

@@ -62,6 +62,16 @@ class DenseService {
   void finish();
 
   std::shared_ptr<const DenseMapView> view() const { return map_.view(); }
+  // For other threads (a full-rate reconstruction job): a group's live keyframes at their current
+  // poses, and one keyframe's stored images decoded with its client's camera (nullopt: not stored,
+  // or unreadable, logged).
+  std::vector<KeyframePose> group_keyframes(int group) const;
+  struct StoredKeyframe {
+    DenseImages images;
+    PinholeCamera camera;
+    double depth_time_offset = 0;
+  };
+  std::optional<StoredKeyframe> stored_keyframe(KeyFrameId id) const;
   DenseServiceStats stats() const;
   const DenseServiceConfig& config() const { return config_; }
   double uptime_s() const;

@@ -89,6 +89,15 @@ void write_trajectory_json(nlohmann::json& out, ClientId id, int group, const Tr
 
 }  // namespace
 
+void HttpServer::reply_started(httplib::Response& res, int group, const ReconStart& started) const {
+  if (started.outcome == ReconStart::Outcome::kBusy) return json_error(res, 409, started.message);
+  if (started.outcome == ReconStart::Outcome::kOverBudget)
+    return json_reply(res, {{"error", started.message}, {"status", 413}, {"estimate_mb", started.estimate.total_mb()},
+                            {"max_mb", jobs_.config().max_mb}}, 413);
+  json_reply(res, {{"job", started.id}, {"group", group}, {"status_url", "/api/reconstruction/" + started.id},
+                   {"estimate_mb", started.estimate.total_mb()}}, 202);
+}
+
 void HttpServer::api_routes() {
   httplib::Server& s = *server_;
 
@@ -221,8 +230,14 @@ void HttpServer::api_routes() {
     dc.threads = 1;  // leave the cores to SLAM
     dc.tsdf.threads = 1;
     dc.validate();  // ConfigError: 400
-    if (config_.datasets_dir.empty())
-      return json_error(res, 503, "reconstruction needs the clients' images: start cslam-server with --datasets-dir DIR");
+    if (config_.datasets_dir.empty()) {  // the keyframes the server keeps
+      if (!held_frames_)
+        return json_error(res, 503, "reconstruction needs the clients' images: the dense map is off (--no-dense) and "
+                                    "there is no --datasets-dir");
+      const auto held = held_frames_(group);
+      if (!held) return json_error(res, 409, "group " + std::to_string(group) + " has no stored keyframes yet");
+      return reply_started(res, group, jobs_.start(group, held->reconstruct, estimate_recon_memory(held->estimate_inputs, dc), dc));
+    }
     std::vector<DatasetPoses> sources;
     for (ClientId id : state->groups.at(group)) {
       const auto traj = state->trajectories.find(id);
@@ -243,13 +258,7 @@ void HttpServer::api_routes() {
       sources.push_back({dir, traj->second, dataset_camera(dir, config_.recon_camera).camera});
     }
     if (sources.empty()) return json_error(res, 409, "group " + std::to_string(group) + " has no poses yet");
-    const ReconStart started = jobs_.start(group, std::move(sources), dc);
-    if (started.outcome == ReconStart::Outcome::kBusy) return json_error(res, 409, started.message);
-    if (started.outcome == ReconStart::Outcome::kOverBudget)
-      return json_reply(res, {{"error", started.message}, {"status", 413}, {"estimate_mb", started.estimate.total_mb()},
-                              {"max_mb", jobs_.config().max_mb}}, 413);
-    json_reply(res, {{"job", started.id}, {"group", group}, {"status_url", "/api/reconstruction/" + started.id},
-                     {"estimate_mb", started.estimate.total_mb()}}, 202);
+    reply_started(res, group, jobs_.start(group, std::move(sources), dc));
   }));
 
   s.Get(R"(/api/reconstruction/([^/]+))", guarded([this](const httplib::Request& req, httplib::Response& res) {

@@ -7,6 +7,8 @@
 
 #include "cloud/ply_io.h"
 #include "dense/mesh_lod.h"
+#include "dense/reconstructor.h"
+#include "dense/trajectory_recon.h"
 #include "navmap/map_server_io.h"
 #include "server/dense/dense_products.h"
 #include "server/dense/dense_service.h"
@@ -299,6 +301,39 @@ void add_dense_status(const DenseService* dense, nlohmann::json& status, std::st
   line("cslam_dense_store_bytes", "gauge", j["store"]["payload_bytes"], "image bytes in the store");
   line("cslam_dense_store_refused_full_total", "counter", j["store"]["refused_full"], "keyframe images refused: store full");
   line("cslam_dense_store_errors_total", "counter", j["store"]["errors"], "failed store writes");
+}
+
+HttpServer::HeldFramesSource held_frames_source(const DenseService* dense) {
+  return [dense](int group) -> std::optional<HttpServer::HeldFrames> {
+    if (!dense) return std::nullopt;
+    auto keyframes = std::make_shared<const std::vector<KeyframePose>>(dense->group_keyframes(group));
+    if (keyframes->empty()) return std::nullopt;
+    HttpServer::HeldFrames held;
+    std::map<ClientId, DatasetPoses> per_client;  // for the estimate: poses and the camera
+    for (const KeyframePose& k : *keyframes) {
+      auto [it, fresh] = per_client.try_emplace(k.id.client);
+      if (fresh)
+        if (const auto stored = dense->stored_keyframe(k.id)) it->second.camera = stored->camera;
+      it->second.poses.push_back({0.0, k.T_world_cam});
+    }
+    for (auto& [client, source] : per_client) held.estimate_inputs.push_back(std::move(source));
+    held.reconstruct = [dense, keyframes](const DenseConfig& config, const DenseProgressCallback& progress) {
+      DenseReconstructor recon(config);
+      DenseProgress p;
+      p.total = int(keyframes->size());
+      for (const KeyframePose& k : *keyframes) {
+        if (const auto stored = dense->stored_keyframe(k.id)) {
+          if (recon.integrate(k.T_world_cam, stored->images.bgr, stored->images.depth, stored->camera).used) ++p.used;
+        } else {
+          recon.count_skipped(SkipReason::kNoImage);
+        }
+        ++p.done;
+        if (progress) progress(p);
+      }
+      return recon.finish();
+    };
+    return held;
+  };
 }
 
 void add_dense_routes(httplib::Server& server, const DenseService* dense) {

@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "server/http/http_server.h"
+
 namespace httplib {
 class Server;
 }
@@ -21,6 +23,10 @@ namespace cslam::http {
 // The dense map's part of /api/status ("dense") and /metrics (cslam_dense_*), for
 // HttpServer::set_status_extra.
 void add_dense_status(const server::DenseService* dense, nlohmann::json& status, std::string& metrics);
+
+// POST /api/reconstruction without --datasets-dir: every stored keyframe of the group at its
+// current pose (HttpServer::set_held_frames).
+HttpServer::HeldFramesSource held_frames_source(const server::DenseService* dense);
 
 // dense may be null (dense map off): the routes answer {"enabled": false} / 503.
 void add_dense_routes(httplib::Server& server, const server::DenseService* dense);

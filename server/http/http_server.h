@@ -4,6 +4,8 @@
 // asynchronous dense reconstruction jobs and the web viewer's static files (web/). Handlers only
 // read the StatusCache snapshot; they never call into the SLAM system themselves.
 #include <atomic>
+#include <functional>
+#include <optional>
 #include <memory>
 #include <string>
 #include <thread>
@@ -15,6 +17,7 @@
 
 namespace httplib {
 class Server;
+struct Response;
 }
 
 namespace cslam::http {
@@ -56,6 +59,14 @@ class HttpServer {
   void set_map_store(const MapStore* store) { cache_.set_map_store(store); }
   // Another component's part of /api/status and /metrics (StatusCache::set_extra; before start()).
   void set_status_extra(StatusCache::StatusExtra extra) { cache_.set_extra(std::move(extra)); }
+  // Frames the server holds itself (the keyframe store), for POST /api/reconstruction without
+  // --datasets-dir (before start()).
+  struct HeldFrames {
+    std::vector<DatasetPoses> estimate_inputs;  // poses and cameras (no folder) for the memory estimate
+    ReconFunction reconstruct;
+  };
+  using HeldFramesSource = std::function<std::optional<HeldFrames>(int group)>;
+  void set_held_frames(HeldFramesSource source) { held_frames_ = std::move(source); }
   void stop();  // idempotent; joins every thread (reconstruction jobs are cancelled)
   int port() const { return port_; }
   const GuardStats* guard_stats() const { return guard_ ? &guard_->stats() : nullptr; }
@@ -65,12 +76,14 @@ class HttpServer {
  private:
   void routes();
   void api_routes();
+  void reply_started(httplib::Response& res, int group, const ReconStart& started) const;
   void static_routes();
 
   HttpConfig config_;
   const CollaborativeSystem& system_;
   StatusCache cache_;
   ReconJobs jobs_;
+  HeldFramesSource held_frames_;
   std::unique_ptr<httplib::Server> server_;  // routes only: never listens itself
   std::unique_ptr<HttpGuard> guard_;         // owns the socket, hands complete requests to httplib
   int port_ = -1;

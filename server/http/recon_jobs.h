@@ -49,6 +49,10 @@ struct ReconEstimate {
 };
 ReconEstimate estimate_recon_memory(const std::vector<DatasetPoses>& sources, const DenseConfig& config);
 
+// A reconstruction whose frames come from elsewhere (the server's keyframe store): runs on the
+// job's thread; the progress callback may throw to stop it.
+using ReconFunction = std::function<DenseResult(const DenseConfig&, const DenseProgressCallback&)>;
+
 struct ReconJobView {
   std::string id;
   int group = -1;
@@ -91,6 +95,8 @@ class ReconJobs {
   // Estimates and starts a job; refuses while another runs or over the budget. Throws
   // ConfigError on a bad config.
   ReconStart start(int group, std::vector<DatasetPoses> sources, DenseConfig config);
+  // The same for frames from elsewhere, with the caller's estimate.
+  ReconStart start(int group, ReconFunction reconstruct, ReconEstimate estimate, DenseConfig config);
   std::optional<ReconJobView> view(const std::string& id) const;
   std::vector<ReconJobView> list() const;
   ReconStats stats() const;
@@ -103,7 +109,7 @@ class ReconJobs {
 
  private:
   struct Job;
-  void run(Job& job, std::vector<DatasetPoses> sources, DenseConfig config);
+  void run(Job& job, ReconFunction reconstruct, DenseConfig config);
   std::shared_ptr<Job> find(const std::string& id) const;
   std::vector<std::shared_ptr<Job>> expire_locked(std::chrono::steady_clock::time_point now);
 

@@ -150,6 +150,26 @@ TEST_F(DenseServer, StreamedRobotsGetALiveDenseMapThatFollowsFusion) {
   ASSERT_TRUE(metrics);
   EXPECT_NE(metrics->body.find("cslam_dense_submaps"), std::string::npos);
 
+  // A full-rate rebuild from the keyframe store (no --datasets-dir); the finest request refused.
+  const auto refused = http.Post("/api/reconstruction?voxel=0.002&stride=1&mesh=1", "", "text/plain");
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 413) << refused->body;
+  const auto started = http.Post("/api/reconstruction?voxel=0.02&stride=4&mesh=0", "", "text/plain");
+  ASSERT_TRUE(started && started->status == 202) << (started ? started->body : "no reply");
+  const std::string job = nlohmann::json::parse(started->body)["job"];
+  nlohmann::json jv;
+  for (int i = 0; i < 300; ++i) {
+    jv = get_json(http, "/api/reconstruction/" + job);
+    if (jv.is_object() && jv["state"] != "queued" && jv["state"] != "running") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  ASSERT_TRUE(jv.is_object());
+  EXPECT_EQ(jv["state"], "done") << jv.dump();
+  EXPECT_EQ(jv["frames_used"], st["store"]["keyframes"]) << jv.dump();
+  const auto job_cloud = http.Get("/api/reconstruction/" + job + "/cloud.ply");
+  ASSERT_TRUE(job_cloud && job_cloud->status == 200);
+  EXPECT_EQ(job_cloud->body.rfind("ply\n", 0), 0u);
+
   server.terminate();
   ASSERT_EQ(server.wait(120), 0) << "see " << run << "/server.log";
   std::vector<std::pair<Trajectory, Trajectory>> pairs;

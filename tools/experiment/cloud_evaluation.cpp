@@ -75,6 +75,29 @@ const ColoredCloud& CloudEvaluator::groundtruth_cloud(const RunDetail& detail, c
   return gt_clouds_.emplace(key, std::move(r.cloud)).first->second;
 }
 
+void CloudEvaluator::evaluate_live(const RunDetail& detail, const ColoredCloud& gt, const std::string& run_dir,
+                                   CloudFigures& f) {
+  // One live cloud: the clients' maps were fused into one group (several files: not comparable).
+  std::vector<std::string> files;
+  const std::string out = run_dir + "/out";
+  if (!std::filesystem::is_directory(out) || detail.tracks.empty()) return;
+  for (const auto& e : std::filesystem::directory_iterator(out))
+    if (e.path().filename().string().rfind("dense_cloud_", 0) == 0) files.push_back(e.path().string());
+  if (files.size() != 1) return;
+  ColoredCloud live = read_ply(files[0]);
+  const Sim3& S = detail.tracks[0].T_gt_est_cloud;
+  for (auto& p : live.points) p = (S.scale() * (S.R() * p.cast<double>()) + S.translation()).cast<float>();
+  CloudCompareConfig cc;
+  cc.threads = 2;
+  cc.match_bbox = true;
+  const CloudComparison m = compare_clouds(gt.points, live.points, cc);
+  f.live_points = live.size();
+  f.live_hausdorff_bbox = m.hausdorff_symmetric;
+  f.live_c2c_mean_bbox = m.test_to_ref.mean;
+  f.live_c2c_median_bbox = m.test_to_ref.median;
+  if (!scene_ply_.empty()) f.live_scene_median = distance_stats(nearest_distances(live.points, scene_points(), 2)).median;
+}
+
 CloudFigures CloudEvaluator::evaluate(const RunDetail& detail, const std::vector<ClientSpec>& specs, DatasetStore& datasets,
                                       const std::string& run_dir) {
   CloudFigures f;
@@ -136,6 +159,7 @@ CloudFigures CloudEvaluator::evaluate(const RunDetail& detail, const std::vector
         it = gt_scene_median_.emplace(key, distance_stats(nearest_distances(gt.points, scene_points(), 2)).median).first;
       f.gt_scene_median = it->second;
     }
+    evaluate_live(detail, gt, run_dir, f);
     f.computed = true;
   } catch (const std::exception& e) {
     f.note = e.what();

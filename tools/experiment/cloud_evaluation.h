@@ -29,6 +29,8 @@ class CloudEvaluator {
   const ColoredCloud& groundtruth_cloud(const RunDetail& detail, const std::vector<ClientSpec>& specs, DatasetStore& datasets,
                                         std::string& key);
   const std::vector<Eigen::Vector3f>& scene_points();
+  // Network runs: the server's live dense cloud against the same ground-truth cloud.
+  void evaluate_live(const RunDetail& detail, const ColoredCloud& gt, const std::string& run_dir, CloudFigures& f);
 
   ReconOptions options_;
   std::string scene_ply_, camera_, cache_dir_;

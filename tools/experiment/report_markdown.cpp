@@ -103,6 +103,12 @@ void table_three(std::ostream& md, const std::vector<ConfigSummary>& summaries, 
   if (scene) {
     for (const char* h : {"vs scene.ply: C2C median (m)", "C2C mean (m)", "p95 (m)", "Hausdorff SLAM→scene (m)"}) t.header.push_back(h);
   }
+  bool live = false;
+  for (const auto& s : summaries)
+    for (const RunRecord* r : s.runs)
+      live = live || r->cloud.live_points > 0;
+  if (live)
+    for (const char* h : {"live dense map: Hausdorff, bbox (m)", "C2C median, bbox (m)"}) t.header.push_back(h);
   t.align.assign(t.header.size(), 'r');
   t.align[0] = 'l';
   for (const auto& s : summaries) {
@@ -121,6 +127,10 @@ void table_three(std::ostream& md, const std::vector<ConfigSummary>& summaries, 
       cell([](const RunRecord& r) { return r.cloud.scene_mean; }, 4);
       cell([](const RunRecord& r) { return r.cloud.scene_p95; }, 4);
       cell([](const RunRecord& r) { return r.cloud.scene_max; }, 4);
+    }
+    if (live) {
+      cell([](const RunRecord& r) { return r.cloud.live_hausdorff_bbox; }, 4);
+      cell([](const RunRecord& r) { return r.cloud.live_c2c_median_bbox; }, 4);
     }
     t.rows.push_back(row);
   }

@@ -73,6 +73,8 @@ const std::vector<Metric>& metrics() {
       {"hausdorff_bbox_slam_to_gt_m", 4, [](const RunRecord& r) { return r.cloud.hausdorff_bbox_slam_to_gt; }},
       {"c2c_mean_bbox_m", 4, [](const RunRecord& r) { return r.cloud.c2c_mean_bbox; }},
       {"c2c_median_bbox_m", 4, [](const RunRecord& r) { return r.cloud.c2c_median_bbox; }},
+      {"live_hausdorff_bbox_m", 4, [](const RunRecord& r) { return r.cloud.live_hausdorff_bbox; }},
+      {"live_c2c_median_bbox_m", 4, [](const RunRecord& r) { return r.cloud.live_c2c_median_bbox; }},
       {"bbox_scale", 4, [](const RunRecord& r) { return r.cloud.bbox_scale; }},
       {"hausdorff_m", 4, [](const RunRecord& r) { return r.cloud.hausdorff; }},
       {"c2c_mean_m", 4, [](const RunRecord& r) { return r.cloud.c2c_mean; }},

@@ -52,6 +52,10 @@ struct CloudFigures {
   // SLAM-pose cloud against the exact surface (synthetic scenes), one-sided TEST -> scene.
   double scene_median = kNaN, scene_mean = kNaN, scene_p95 = kNaN, scene_max = kNaN;
   double gt_scene_median = kNaN;  // the ground-truth-pose cloud against the surface, for reference
+  // Network mode: the server's live dense map (dense_cloud_G.ply of the clients' one fused group,
+  // built from the keyframes it received), moved by the same alignment, vs the ground-truth cloud.
+  std::size_t live_points = 0;
+  double live_hausdorff_bbox = kNaN, live_c2c_mean_bbox = kNaN, live_c2c_median_bbox = kNaN, live_scene_median = kNaN;
   double alignment_rotation_deg = kNaN;  // pose alignment vs the APE (position-only) alignment
   double seconds = kNaN;          // reconstruction + metrics time
 };
