@@ -222,7 +222,8 @@ window.cslamViewer = {
     }
   },
   renderStats: () => ({ frames: app.view?.frames ?? 0, renders: app.view?.renders ?? 0, frameMs: app.view?.frameMs ?? 0,
-    software: app.view?.software ?? '', gpu: app.view ? { ...app.view.renderer.info.memory } : null }),
+    software: app.view?.software ?? '', gpu: app.view ? { ...app.view.renderer.info.memory } : null,
+    sceneGeometries: app.view ? (() => { const g = new Set(); app.view.scene.traverse((o) => o.geometry && g.add(o.geometry)); return g.size; })() : 0 }),
 };
 
 setupControls();

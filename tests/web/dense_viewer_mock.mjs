@@ -142,19 +142,20 @@ try {
     return [added, 131073].every((id) => pageSubmaps(st).find((s) => s.id === id)?.state === 'loaded');
   }, 40000);
 
-  // Removed submaps leave the scene and their geometry is disposed (GPU buffers freed).
-  const gpu0 = (await page.evaluate(() => window.cslamViewer.renderStats())).gpu.geometries;
+  // Removed submaps leave the scene and their geometry is disposed: the renderer holds no geometry
+  // that is not in the scene (replaced and removed meshes freed, here after many replacements).
+  const r0 = await page.evaluate(() => window.cslamViewer.renderStats());
   await control('remove?id=65536');
   await control('remove?id=65537');
   await waitFor('removed submaps gone', async () => {
     const st = await dense();
     return !pageSubmaps(st).some((x) => x.id === 65536 || x.id === 65537);
   });
-  const gpu1 = await waitFor('geometries disposed', async () => {
-    const g = (await page.evaluate(() => window.cslamViewer.renderStats())).gpu.geometries;
-    return g <= gpu0 - 2 ? g : null;
-  });
-  console.log(`geometries on the GPU: ${gpu0} -> ${gpu1} after removing 2 submaps`);
+  await page.waitForTimeout(300);
+  const r1 = await page.evaluate(() => window.cslamViewer.renderStats());
+  console.log(`geometries: renderer ${r0.gpu.geometries} -> ${r1.gpu.geometries}, scene ${r0.sceneGeometries} -> ${r1.sceneGeometries} after removing 2 submaps`);
+  // (+ 1: the shared marker geometry of missing submaps stays for reuse)
+  if (r1.gpu.geometries > r1.sceneGeometries + 1) fail('the renderer keeps geometries that left the scene');
 
   // Occupancy grid toggle: the grid of each group as a textured plane.
   await page.click('#show-occupancy');
