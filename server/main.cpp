@@ -196,8 +196,9 @@ int run(int argc, char** argv) {
   sc.on_frame_done = [&done](const cslam::FrameDone& d) { done.push(d); };
   // Keyframes reach the dense map once it exists (after the snapshot is loaded).
   std::atomic<cslam::server::DenseService*> dense_sink{nullptr};
-  sc.on_keyframe = [&dense_sink](const cslam::ClientInfo& c, const cslam::KeyFrameId& id, const cslam::RgbdFrame& f) {
-    if (auto* d = dense_sink.load()) d->on_keyframe(c, id, f);
+  sc.on_keyframe = [&dense_sink](const cslam::ClientInfo& c, const cslam::KeyFrameId& id, const cslam::RgbdFrame& f,
+                                  const cslam::SE3& T_cam_depthcam) {
+    if (auto* d = dense_sink.load()) d->on_keyframe(c, id, f, T_cam_depthcam);
   };
   cslam::CollaborativeSystem system(sc);
   // Loads the newest snapshot (refuses to start on a bad one unless --state-reset).

@@ -75,8 +75,10 @@ void DenseService::start() {
   thread_ = std::thread([this] { run(); });
 }
 
-void DenseService::on_keyframe(const ClientInfo& client, const KeyFrameId& id, const RgbdFrame& frame) {
+void DenseService::on_keyframe(const ClientInfo& client, const KeyFrameId& id, const RgbdFrame& frame,
+                               const SE3& T_cam_depthcam) {
   Job job;
+  job.T_cam_depthcam = T_cam_depthcam;
   job.client = client;
   job.record.id = id;
   job.record.timestamp = frame.timestamp;
@@ -151,7 +153,7 @@ void DenseService::store_jobs(std::deque<Job>& jobs) {
     }
     // Integrated from the decoded images at hand even when the store refused them (they are
     // then missing only for a later re-integration, counted there).
-    map_.add_keyframe(job.record.id, std::move(job.images), now);
+    map_.add_keyframe(job.record.id, std::move(job.images), now, job.T_cam_depthcam);
   }
 }
 

@@ -56,7 +56,7 @@ class DenseService {
   // them for integration; starts the worker.
   void start();
   // SystemConfig::on_keyframe (SLAM worker threads): queue and return.
-  void on_keyframe(const ClientInfo& client, const KeyFrameId& id, const RgbdFrame& frame);
+  void on_keyframe(const ClientInfo& client, const KeyFrameId& id, const RgbdFrame& frame, const SE3& T_cam_depthcam);
   // Stops the worker after storing what is queued and integrating every pending keyframe with
   // the final poses. Idempotent.
   void finish();
@@ -81,6 +81,7 @@ class DenseService {
     ClientInfo client;
     KeyframeRecord record;
     std::optional<DenseImages> images;
+    SE3 T_cam_depthcam;  // motion between the colour and the depth image (not stored: identity after a restart)
   };
   void run();
   void store_jobs(std::deque<Job>& jobs);

@@ -159,6 +159,10 @@ void HttpServer::static_routes() {
   server_->Get("/", file("index.html", "text/html; charset=utf-8"));
   server_->Get("/index.html", file("index.html", "text/html; charset=utf-8"));
   server_->Get("/viewer.js", file("viewer.js", "text/javascript; charset=utf-8"));
+  // The viewer's modules (web/*.js): flat lower-case names only, so no path can leave the web root.
+  server_->Get(R"(/([a-z0-9_]+\.js))", [file](const httplib::Request& req, httplib::Response& res) {
+    file(std::string(req.matches[1]), "text/javascript; charset=utf-8")(req, res);
+  });
   // three.js (r160 is one ES module file) from the npm install, never from the internet.
   server_->Get("/vendor/three.module.js", file("node_modules/three/build/three.module.js", "text/javascript; charset=utf-8"));
 }

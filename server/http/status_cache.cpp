@@ -348,8 +348,8 @@ void StatusCache::refresh() {
     }
     fps_of[c.id] = fps;
     nlohmann::json j = client_json(c, fps, input_fps, connection);
+    j["pose"] = pose_json(c.T_world_cam, c.last_timestamp);  // the viewer places each robot's camera with it
     clients.push_back(j);
-    j["pose"] = pose_json(c.T_world_cam, c.last_timestamp);
     next->clients[c.id] = std::move(j);
     next->group_of[c.id] = c.group;
   }

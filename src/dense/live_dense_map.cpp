@@ -25,8 +25,8 @@ void LiveDenseMap::set_camera(ClientId client, const PinholeCamera& camera) {
   if (!table || !table->matches(camera)) table = std::make_unique<RayTable>(camera);
 }
 
-void LiveDenseMap::add_keyframe(KeyFrameId id, std::optional<DenseImages> images, double now_s) {
-  pending_.push_back({id, now_s, std::move(images)});
+void LiveDenseMap::add_keyframe(KeyFrameId id, std::optional<DenseImages> images, double now_s, const SE3& T_cam_depthcam) {
+  pending_.push_back({id, now_s, std::move(images), T_cam_depthcam});
   // Bounded: beyond max_pending_images the oldest waiting keyframes let go of their images (the
   // loader finds them again when their turn comes).
   std::size_t with_images = 0;
@@ -158,14 +158,15 @@ void LiveDenseMap::integrate_pending(const PoseIndex& poses, double now_s, bool 
     if (!images && loader) images = loader(it->id);
     if (!images || images->bgr.empty() || images->depth.empty()) {
       ++r.missing_images;
-    } else if (integrate_one(*pose->second, *images, r)) {
+    } else if (integrate_one(*pose->second, *images, it->T_cam_depthcam, r)) {
       ++r.integrated;
     }
     it = pending_.erase(it);
   }
 }
 
-bool LiveDenseMap::integrate_one(const KeyframePose& pose, const DenseImages& images, DenseStepResult& r) {
+bool LiveDenseMap::integrate_one(const KeyframePose& pose, const DenseImages& images, const SE3& T_cam_depthcam,
+                                 DenseStepResult& r) {
   const ClientId client = pose.id.client;
   const RayTable& rays = *rays_.at(client);
   if (images.bgr.type() != CV_8UC3 || images.depth.type() != CV_16UC1 || images.bgr.cols != rays.camera().width ||
@@ -197,7 +198,7 @@ bool LiveDenseMap::integrate_one(const KeyframePose& pose, const DenseImages& im
     open_[client] = id;
   }
   const Stopwatch timer;
-  open->integrate(pose.id, pose.T_world_cam, images, rays);
+  open->integrate(pose.id, pose.T_world_cam, images, rays, T_cam_depthcam);
   r.integrate_ms.push_back(timer.ms());
   ++integrated_;
   ++version_;
@@ -217,7 +218,7 @@ void LiveDenseMap::reintegrate(DenseSubmap& submap, const PoseIndex& poses, cons
     if (!images.back()) ++r.missing_images;
     if (members.empty()) group = it->second->group;
     members.push_back({m.id, it->second->T_world_cam, images.back() ? &*images.back() : nullptr,
-                       rays_.at(m.id.client).get()});
+                       rays_.at(m.id.client).get(), m.T_cam_depthcam});
   }
   if (members.empty()) return;
   submap.reintegrate(members, group);

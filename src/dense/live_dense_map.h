@@ -57,8 +57,9 @@ class LiveDenseMap {
 
   // The camera of a client (before its keyframes can be integrated).
   void set_camera(ClientId client, const PinholeCamera& camera);
-  // A new keyframe; its images if at hand (else the loader is asked when it is integrated).
-  void add_keyframe(KeyFrameId id, std::optional<DenseImages> images, double now_s);
+  // A new keyframe; its images if at hand (else the loader is asked when it is integrated), and
+  // where its depth image was taken relative to its colour image's pose.
+  void add_keyframe(KeyFrameId id, std::optional<DenseImages> images, double now_s, const SE3& T_cam_depthcam = SE3());
   // One step with the current poses of every live keyframe (any order).
   DenseStepResult step(const std::vector<KeyframePose>& poses, double now_s, const DenseImageLoader& loader,
                        const DenseStepBudget& budget = {});
@@ -74,6 +75,7 @@ class LiveDenseMap {
     KeyFrameId id;
     double added_s = 0;
     std::optional<DenseImages> images;
+    SE3 T_cam_depthcam;
   };
   using PoseIndex = std::map<KeyFrameId, const KeyframePose*>;
 
@@ -81,7 +83,7 @@ class LiveDenseMap {
   void find_culled(const PoseIndex& poses, DenseStepResult& r);
   void integrate_pending(const PoseIndex& poses, double now_s, bool all, const DenseImageLoader& loader, int budget,
                          DenseStepResult& r);
-  bool integrate_one(const KeyframePose& pose, const DenseImages& images, DenseStepResult& r);
+  bool integrate_one(const KeyframePose& pose, const DenseImages& images, const SE3& T_cam_depthcam, DenseStepResult& r);
   void reintegrate(DenseSubmap& submap, const PoseIndex& poses, const DenseImageLoader& loader, DenseStepResult& r);
   void remesh_due(double now_s, bool all, DenseStepResult& r);
   void publish();

@@ -29,14 +29,20 @@ DenseSubmap::DenseSubmap(SubmapId id, int group, int map, const SE3& T_world_sub
       T_world_first_(T_world_submap), fine_(std::make_unique<TsdfVolume>(config.tsdf)),
       nav_(std::make_shared<TsdfVolume>(config.nav)) {}
 
-void DenseSubmap::integrate(KeyFrameId id, const SE3& T_world_cam, const DenseImages& images, const RayTable& rays) {
+void DenseSubmap::integrate(KeyFrameId id, const SE3& T_world_cam, const DenseImages& images, const RayTable& rays,
+                            const SE3& T_cam_depthcam) {
   if (!fine_) throw std::logic_error("DenseSubmap::integrate on a closed submap");
   const SE3 T_submap_cam = T_world_submap_.inverse() * T_world_cam;
-  fine_->integrate(images.bgr, images.depth, rays, T_submap_cam, config_.min_depth, config_.max_depth);
+  const SE3 T_submap_depthcam = T_submap_cam * T_cam_depthcam;
+  const bool moved = !(T_cam_depthcam.translation().isZero() && T_cam_depthcam.rotation().w() == 1.0);
+  const SE3* T_colourcam_depthcam = moved ? &T_cam_depthcam : nullptr;
+  fine_->integrate(images.bgr, images.depth, rays, T_submap_depthcam, config_.min_depth, config_.max_depth,
+                   T_colourcam_depthcam);
   if (nav_.use_count() > 1) nav_ = std::make_shared<TsdfVolume>(*nav_);  // readers keep the published copy
-  nav_->integrate(images.bgr, images.depth, rays, T_submap_cam, config_.min_depth, config_.max_depth);
+  nav_->integrate(images.bgr, images.depth, rays, T_submap_depthcam, config_.min_depth, config_.max_depth,
+                  T_colourcam_depthcam);
   if (members_.empty()) T_world_first_ = T_world_cam;
-  members_.push_back({id, T_submap_cam});
+  members_.push_back({id, T_submap_cam, T_cam_depthcam});
   ++version_;
   mesh_stale_ = true;
 }
@@ -66,7 +72,7 @@ void DenseSubmap::reintegrate(const std::vector<Reintegration>& members, int gro
   fine_ = std::make_unique<TsdfVolume>(config_.tsdf);
   nav_ = std::make_shared<TsdfVolume>(config_.nav);
   for (const Reintegration& m : members)
-    if (m.images) integrate(m.id, m.T_world_cam, *m.images, *m.rays);
+    if (m.images) integrate(m.id, m.T_world_cam, *m.images, *m.rays, m.T_cam_depthcam);
   ++version_;
   ++pose_version_;
   remesh();

@@ -61,7 +61,8 @@ class DenseSubmap {
  public:
   struct Member {
     KeyFrameId id;
-    SE3 T_submap_kf;  // where it was integrated, in the submap frame
+    SE3 T_submap_kf;     // where its colour image was integrated, in the submap frame
+    SE3 T_cam_depthcam;  // where its depth image was taken, from the colour image's pose
   };
 
   DenseSubmap(SubmapId id, int group, int map, const SE3& T_world_submap, const LiveDenseConfig& config);
@@ -78,8 +79,10 @@ class DenseSubmap {
   // The first member: it decides when the window is full (distance and angle).
   const SE3& T_world_first() const { return T_world_first_; }
 
-  // Fuses one keyframe at T_world_cam (the group frame) into the open volumes.
-  void integrate(KeyFrameId id, const SE3& T_world_cam, const DenseImages& images, const RayTable& rays);
+  // Fuses one keyframe at T_world_cam (the group frame; its depth image at T_world_cam *
+  // T_cam_depthcam, colours looked up where depth points project in the colour image).
+  void integrate(KeyFrameId id, const SE3& T_world_cam, const DenseImages& images, const RayTable& rays,
+                 const SE3& T_cam_depthcam = SE3());
   // Moves the submap rigidly; bumps pose_version if it moved.
   void set_pose(const SE3& T_world_submap, int group);
   // Drops members culled by local mapping (their contribution stays until a re-integration).
@@ -91,6 +94,7 @@ class DenseSubmap {
     SE3 T_world_cam;
     const DenseImages* images;  // null: lost from the store, left out
     const RayTable* rays;
+    SE3 T_cam_depthcam;
   };
   void reintegrate(const std::vector<Reintegration>& members, int group);
   // Marching cubes over the fine volume (only while it exists).

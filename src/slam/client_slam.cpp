@@ -89,6 +89,8 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
 
   Stopwatch sw;
   // Where the camera moved between the colour and the depth image (none known: read in place).
+  const std::optional<SE3> T_depthcam_motion =
+      frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset) : std::nullopt;
   const std::optional<SE3> T_depthcam_cam =
       config_.rgbd.depth_time_compensation && frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset)
                                                                              : std::nullopt;
@@ -111,6 +113,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   r.track_ms = sw.ms();
   r.new_keyframe = t.new_keyframe;
   r.keyframe = t.keyframe;
+  if (T_depthcam_motion) r.T_cam_depthcam = T_depthcam_motion->inverse();
   r.inliers = t.inliers;
   r.outcome = t.ok ? FrameOutcome::kTracked
                    : (t.state == TrackState::kNotInitialized ? FrameOutcome::kNotInitialized : FrameOutcome::kLost);

@@ -24,6 +24,9 @@ struct ProcessResult {
   std::string reject_reason;
   bool new_keyframe = false;
   std::optional<KeyFrameId> keyframe;  // the keyframe this frame became (also a new map's first)
+  // Where the camera was when the depth image was taken (frame.depth_time_offset away), relative
+  // to the colour image's pose, as the motion model predicts it (identity without one).
+  SE3 T_cam_depthcam;
   int inliers = 0;
   int features = 0;
   double extract_ms = 0, track_ms = 0;

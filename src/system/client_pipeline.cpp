@@ -98,7 +98,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame) {
   }
   if (new_session_.exchange(false)) slam_->start_new_session();
   const ProcessResult r = slam_->process(frame);
-  if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame);
+  if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame, r.T_cam_depthcam);
   if (r.outcome == FrameOutcome::kRejected)
     logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);
   switch (r.outcome) {

@@ -51,9 +51,11 @@ struct SystemConfig {
   // Must be cheap and must not call back into the system.
   std::function<void(const FrameDone& done)> on_frame_done;
   // Called from a client's worker thread when a frame became a keyframe (a new map's first
-  // keyframe too), with that frame: the dense map keeps its images. Must be cheap (queue and
+  // keyframe too), with that frame and where its depth image was taken (ProcessResult::T_cam_depthcam):
+  // the dense map keeps its images. Must be cheap (queue and
   // return) and must not call back into the system.
-  std::function<void(const ClientInfo& client, const KeyFrameId& keyframe, const RgbdFrame& frame)> on_keyframe;
+  std::function<void(const ClientInfo& client, const KeyFrameId& keyframe, const RgbdFrame& frame, const SE3& T_cam_depthcam)>
+      on_keyframe;
 };
 
 }  // namespace cslam
