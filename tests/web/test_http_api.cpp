@@ -95,7 +95,10 @@ TEST_F(HttpApiTest, StatusJsonSchema) {
   EXPECT_EQ(a["frames_received"], 3);
   EXPECT_EQ(j["clients"][1]["name"], "beta");
   EXPECT_EQ(j["clients"][1]["frames_received"], 2);
-  EXPECT_FALSE(a.contains("pose"));  // the pose is in /api/clients/{id}
+  // Each robot's pose (the viewer places its camera with it; 1a034b0).
+  ASSERT_TRUE(a.contains("pose"));
+  EXPECT_EQ(a["pose"].at("position").size(), 3u);
+  EXPECT_EQ(a["pose"].at("quaternion").size(), 4u);
 }
 
 TEST_F(HttpApiTest, ClientByIdHasPoseAndUnknownIdIs404) {
