@@ -218,6 +218,7 @@ int run(int argc, char** argv) {
   cslam::http::HttpServer http(system, http_config);  // reads snapshots only
   http.set_network_status(&net_status);
   cslam::http::add_map_routes(http.routes_server(), state, http_config.token);
+  http.set_map_store(&state);  // snapshot health in /metrics and /api/health
   cslam::http::add_dense_routes(http.routes_server(), dense.get());
   if (dense && http_config.datasets_dir.empty()) http.set_held_frames(cslam::http::held_frames_source(dense.get()));
   http.set_status_extra([d = dense.get()](nlohmann::json& status, std::string& metrics) {

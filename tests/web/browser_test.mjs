@@ -46,7 +46,7 @@ try {
   page.on('pageerror', (e) => errors.push(String(e)));
   const t0 = Date.now();
   await page.goto(`${url}#token=${token}`);
-  await page.waitForFunction(() => window.cslamViewer, null, { timeout: 10000 }).catch(() =>
+  await page.waitForFunction(() => window.cslamViewer, null, { timeout: 60000 }).catch(() =>
     fail('the page did not start (does the server serve the viewer modules web/*.js?)'));
 
   // Both clients appear, each with a tracking state, and SLAM is running on them.
@@ -71,8 +71,12 @@ try {
     for (let i = 0; i < d.length; i += 4) if (Math.abs(d[i] - 0x11) + Math.abs(d[i + 1] - 0x18) + Math.abs(d[i + 2] - 0x27) > 60) n++;
     return n;
   }, rect);
+  // three.js (1.3 MB) is parsed by a software-rendering browser that shares two cores with the
+  // server, the robots and the other tests: wait for the canvas itself, then for pixels.
+  await page.waitForSelector('#view canvas', { timeout: 90000 }).catch(async () =>
+    fail(`the 3D view did not start in 90 s (${await page.textContent('#view-msg')})`));
   let drawn = -1;
-  for (let i = 0; i < 40 && drawn < 200; i++) { await page.waitForTimeout(250); drawn = await coloured(); }
+  for (let i = 0; i < 120 && drawn < 200; i++) { await page.waitForTimeout(250); drawn = await coloured(); }
   console.log('non-background canvas pixels:', drawn);
   if (drawn < 200) fail(`3D view not drawn (${drawn} coloured pixels; ${await page.textContent('#view-msg')})`);
 

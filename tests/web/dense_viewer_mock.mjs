@@ -48,7 +48,7 @@ try {
     if (s && r) indexSizes.push([r.status(), s.responseHeadersSize + s.responseBodySize]);
   });
   await page.goto(`http://127.0.0.1:${port}/#token=${TOKEN}&dense_ms=300`);
-  await page.waitForFunction(() => window.cslamViewer, null, { timeout: 10000 });
+  await page.waitForFunction(() => window.cslamViewer, null, { timeout: 60000 });
   const dense = () => page.evaluate(() => window.cslamViewer.denseState());
   async function waitFor(what, fn, timeout = 15000) {
     const t0 = Date.now();
