@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/small_camera.h"
 #include "dense/live_dense_map.h"
 #include "dense/mesh_lod.h"
 
@@ -13,21 +14,9 @@ using namespace cslam;
 
 namespace {
 
-PinholeCamera small_camera() {
-  PinholeCamera c;
-  c.fx = c.fy = 100;
-  c.cx = 79.5;
-  c.cy = 59.5;
-  c.width = 160;
-  c.height = 120;
-  c.depth_factor = 5000;
-  return c;
-}
+using test::small_camera;
 
-DenseImages plane_images(const PinholeCamera& c, double depth_m) {
-  return {cv::Mat(c.height, c.width, CV_8UC3, cv::Scalar(40, 80, 120)),
-          cv::Mat(c.height, c.width, CV_16UC1, cv::Scalar(std::round(depth_m * c.depth_factor)))};
-}
+DenseImages plane_images(const PinholeCamera& c, double depth_m) { return {test::plane_colour(c), test::plane_depth(c, depth_m)}; }
 
 LiveDenseConfig small_config() {
   LiveDenseConfig c;

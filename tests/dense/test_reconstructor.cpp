@@ -6,30 +6,19 @@
 #include <gtest/gtest.h>
 
 #include "cloud/ply_io.h"
+#include "common/small_camera.h"
 #include "dense/reconstructor.h"
 
 using namespace cslam;
 
 namespace {
 
-PinholeCamera small_camera() {
-  PinholeCamera c;
-  c.fx = c.fy = 100;
-  c.cx = 79.5;
-  c.cy = 59.5;
-  c.width = 160;
-  c.height = 120;
-  c.depth_factor = 5000;
-  return c;
-}
+using test::small_camera;
 
 struct Frame {
   cv::Mat bgr, depth;
 };
-Frame plane_frame(const PinholeCamera& c, double depth_m) {
-  return {cv::Mat(c.height, c.width, CV_8UC3, cv::Scalar(40, 80, 120)),
-          cv::Mat(c.height, c.width, CV_16UC1, cv::Scalar(std::round(depth_m * c.depth_factor)))};
-}
+Frame plane_frame(const PinholeCamera& c, double depth_m) { return {test::plane_colour(c), test::plane_depth(c, depth_m)}; }
 
 }  // namespace
 

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <octomap/OcTree.h>
 
+#include "common/small_camera.h"
 #include "core/error.h"
 #include "navmap/map_server_io.h"
 #include "navmap/nav_maps.h"
@@ -40,16 +41,7 @@ std::map<std::string, std::string> yaml_fields(const std::string& yaml) {
   return out;
 }
 
-PinholeCamera small_camera() {
-  PinholeCamera c;
-  c.fx = c.fy = 100;
-  c.cx = 79.5;
-  c.cy = 59.5;
-  c.width = 160;
-  c.height = 120;
-  c.depth_factor = 5000;
-  return c;
-}
+using test::small_camera;
 
 // A camera 1.2 m above a floor (z = 0, z up) looking straight down; depth per pixel.
 struct TopDown {
