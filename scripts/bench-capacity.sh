@@ -8,7 +8,8 @@
 # <= 1.25x its value streaming alone (solo runs of each robot, same live setup).
 # Usage: scripts/bench-capacity.sh [RUNS=3] [OUT=bench_out/capacity] [NS="1 2 3 4 6 8"] [FRAMES=600]
 # Environment: CSLAM_CAPACITY_SOLO=0 skips the solo runs of robots 2..N (robot 1's N=1 run is then
-# every robot's reference; stated in the summary).
+# every robot's reference; stated in the summary). CSLAM_SERVER_ARGS: more cslam-server options
+# (e.g. --no-dense, to measure the live dense map's cost back to back with and without it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 RUNS="${1:-3}"
@@ -36,7 +37,7 @@ run_case() {
   local load_before; load_before=$(loadavg)
   /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
     "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
-    --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn > "$dir/server.log" 2>&1 &
+    --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn ${CSLAM_SERVER_ARGS:-} > "$dir/server.log" 2>&1 &
   local server_pid=$!
   for _ in $(seq 1 600); do [ -s "$dir/endpoint" ] && break; sleep 0.1; done
   local endpoint; endpoint=$(head -1 "$dir/endpoint")

@@ -95,6 +95,10 @@ void CloudEvaluator::evaluate_live(const RunDetail& detail, const ColoredCloud& 
   f.live_hausdorff_bbox = m.hausdorff_symmetric;
   f.live_c2c_mean_bbox = m.test_to_ref.mean;
   f.live_c2c_median_bbox = m.test_to_ref.median;
+  cc.match_bbox = false;
+  const CloudComparison plain = compare_clouds(gt.points, live.points, cc);
+  f.live_c2c_median = plain.test_to_ref.median;
+  f.live_c2c_p95 = plain.test_to_ref.p95;
   if (!scene_ply_.empty()) f.live_scene_median = distance_stats(nearest_distances(live.points, scene_points(), 2)).median;
 }
 

@@ -75,6 +75,8 @@ const std::vector<Metric>& metrics() {
       {"c2c_median_bbox_m", 4, [](const RunRecord& r) { return r.cloud.c2c_median_bbox; }},
       {"live_hausdorff_bbox_m", 4, [](const RunRecord& r) { return r.cloud.live_hausdorff_bbox; }},
       {"live_c2c_median_bbox_m", 4, [](const RunRecord& r) { return r.cloud.live_c2c_median_bbox; }},
+      {"live_c2c_median_m", 4, [](const RunRecord& r) { return r.cloud.live_c2c_median; }},
+      {"live_c2c_p95_m", 4, [](const RunRecord& r) { return r.cloud.live_c2c_p95; }},
       {"bbox_scale", 4, [](const RunRecord& r) { return r.cloud.bbox_scale; }},
       {"hausdorff_m", 4, [](const RunRecord& r) { return r.cloud.hausdorff; }},
       {"c2c_mean_m", 4, [](const RunRecord& r) { return r.cloud.c2c_mean; }},

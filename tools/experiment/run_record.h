@@ -56,6 +56,7 @@ struct CloudFigures {
   // built from the keyframes it received), moved by the same alignment, vs the ground-truth cloud.
   std::size_t live_points = 0;
   double live_hausdorff_bbox = kNaN, live_c2c_mean_bbox = kNaN, live_c2c_median_bbox = kNaN, live_scene_median = kNaN;
+  double live_c2c_median = kNaN, live_c2c_p95 = kNaN;  // without bbox matching (its extent differs: keyframes only)
   double alignment_rotation_deg = kNaN;  // pose alignment vs the APE (position-only) alignment
   double seconds = kNaN;          // reconstruction + metrics time
 };
