@@ -28,7 +28,7 @@ struct DenseImages {
 };
 
 struct LiveDenseConfig {
-  TsdfConfig tsdf{0.02f, 0.08f, 64.0f, 2, 1, 1};  // the meshed volume: voxel, truncation, weight cap, stride
+  TsdfConfig tsdf{0.02f, 0.08f, 64.0f, 4, 1, 1};  // the meshed volume: voxel, truncation, weight cap, block-search stride
   TsdfConfig nav{0.05f, 0.15f, 64.0f, 4, 1, 1};   // coarse volume kept for navigation maps
   double min_depth = 0.3, max_depth = 4.0;         // metres
   int keyframes_per_submap = 8;
@@ -37,7 +37,7 @@ struct LiveDenseConfig {
   double reintegrate_translation = 0.02;  // keyframes moved relative to the submap by more: re-integrate (m)
   double reintegrate_rotation_deg = 1.0;
   double integration_delay_s = 1.0;  // a keyframe waits this long for local BA before it is integrated
-  double mesh_interval_s = 1.0;      // an open submap is re-meshed at most this often
+  double mesh_interval_s = 3.0;      // an open submap is re-meshed at most this often
   std::size_t max_pending_images = 16;  // decoded images held for keyframes waiting to be integrated
   // Throws ConfigError naming the bad value.
   void validate() const;
