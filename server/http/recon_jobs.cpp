@@ -353,10 +353,18 @@ std::vector<std::shared_ptr<ReconJobs::Job>> ReconJobs::expire_locked(SteadyCloc
 
 void ReconJobs::expire() {
   std::vector<std::shared_ptr<Job>> gone;
+  std::vector<std::thread> ended;  // threads of finished jobs kept for download
   {
     std::lock_guard<std::mutex> lock(mutex_);
     gone = expire_locked(SteadyClock::now());
+    for (auto& [id, job] : jobs_) {
+      std::lock_guard<std::mutex> job_lock(job->mutex);
+      if (job->finished() && job->thread.joinable()) ended.push_back(std::move(job->thread));
+    }
   }
+  // A job publishes its state before its thread's last steps (freeing memory, a log line): join
+  // now, so that every finished job's thread is gone once expire() returns.
+  for (std::thread& t : ended) t.join();
   if (gone.empty()) return;
   for (auto& job : gone)
     if (job->thread.joinable()) job->thread.join();  // finished: returns at once
