@@ -30,7 +30,8 @@ constexpr std::size_t kTimingWindow = 512;
 void DenseServiceConfig::validate() const {
   map.validate();
   store.validate();
-  if (!(step_interval_s > 0) || queue_capacity < 1 || max_integrations_per_step < 1 || max_reintegrations_per_step < 0)
+  if (!(step_interval_s > 0) || queue_capacity < 1 || queue_decoded > queue_capacity || max_integrations_per_step < 1 ||
+      max_reintegrations_per_step < 0)
     throw ConfigError("dense map: step interval, queue capacity and integrations per step must be positive");
 }
 
@@ -84,7 +85,6 @@ void DenseService::on_keyframe(const ClientInfo& client, const KeyFrameId& id, c
   job.record.timestamp = frame.timestamp;
   job.record.depth_time_offset = frame.depth_time_offset;
   if (frame.encoded) job.record.images = *frame.encoded;
-  job.images = DenseImages{frame.bgr, frame.depth};  // shared, not copied: the frame is done with them
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++stats_.keyframes_received;
@@ -92,6 +92,9 @@ void DenseService::on_keyframe(const ClientInfo& client, const KeyFrameId& id, c
       ++stats_.queue_dropped;
       return;
     }
+    // Decoded images (shared, not copied) save a decode when the worker keeps up; behind a long
+    // queue only the received bytes wait, and the images are decoded from the store later.
+    if (!frame.encoded || queue_.size() < config_.queue_decoded) job.images = DenseImages{frame.bgr, frame.depth};
     queue_.push_back(std::move(job));
   }
   wake_.notify_one();
@@ -137,7 +140,7 @@ void DenseService::store_jobs(std::deque<Job>& jobs) {
       store_.put_camera(c, job.client.camera);
       map_.set_camera(c, job.client.camera);
     }
-    if (job.record.images.rgb.empty()) {  // frames that did not come over the network: lossless copy
+    if (job.record.images.rgb.empty() && job.images) {  // frames that did not come over the network: lossless copy
       CodecOptions lossless;
       lossless.rgb = RgbCodec::kPng;
       const Bytes rgb = encode_rgb(job.images->bgr, lossless), depth = encode_depth(job.images->depth, lossless);

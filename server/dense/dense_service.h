@@ -25,7 +25,8 @@ struct DenseServiceConfig {
   KeyframeStoreConfig store;        // dir: --state-dir/dense, or a private temporary folder
   bool store_is_temporary = false;  // removed at exit
   double step_interval_s = 0.25;    // poses are re-read at least this often
-  std::size_t queue_capacity = 64;  // keyframes waiting for the worker
+  std::size_t queue_capacity = 512;  // keyframes waiting for the worker (their received bytes, ~0.1 MB each)
+  std::size_t queue_decoded = 16;    // ... of which the first ones also keep their decoded images
   int max_integrations_per_step = 2;
   int max_reintegrations_per_step = 1;
   double log_interval_s = 5;
