@@ -555,6 +555,13 @@ TEST(KeyframeStore, ReadOnlyFolderGivesAClearError) {
 
 TEST(KeyframeStore, ForeignAndDamagedFilesGiveClearErrors) {
   test::TempDir dir("cslam_kfstore_foreign");
+  // Writes into an SQLite file behind the store's back (another program's file, another version).
+  auto run_sql = [](const std::string& path, const char* sql) {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+    sqlite3_exec(db, sql, nullptr, nullptr, nullptr);
+    sqlite3_close(db);
+  };
   auto expect_refused = [&](const std::string& folder, const std::string& expected) {
     const std::string e = open_error(config_for(folder));
     EXPECT_NE(e.find(folder), std::string::npos) << e;
@@ -573,19 +580,13 @@ TEST(KeyframeStore, ForeignAndDamagedFilesGiveClearErrors) {
   {
     const std::string folder = dir / "foreign";
     fs::create_directories(folder);
-    sqlite3* db = nullptr;
-    ASSERT_EQ(sqlite3_open((folder + "/keyframes.sqlite").c_str(), &db), SQLITE_OK);
-    sqlite3_exec(db, "CREATE TABLE notes(text); INSERT INTO notes VALUES('hello');", nullptr, nullptr, nullptr);
-    sqlite3_close(db);
+    run_sql(folder + "/keyframes.sqlite", "CREATE TABLE notes(text); INSERT INTO notes VALUES('hello');");
     expect_refused(folder, "not a keyframe store");
   }
   {
     const std::string folder = dir / "version";
     { KeyframeStore store(config_for(folder)); }
-    sqlite3* db = nullptr;
-    ASSERT_EQ(sqlite3_open((folder + "/keyframes.sqlite").c_str(), &db), SQLITE_OK);
-    sqlite3_exec(db, "PRAGMA user_version=2;", nullptr, nullptr, nullptr);
-    sqlite3_close(db);
+    run_sql(folder + "/keyframes.sqlite", "PRAGMA user_version=2;");
     expect_refused(folder, "schema version 2");
   }
   // A folder where the file should be, a file where the folder should be.

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/process_threads.h"
 #include "client/frame_sender.h"
 #include "net_test_util.h"
 #include "server/http/status_cache.h"
@@ -61,14 +62,7 @@ std::shared_ptr<const http::NetStatus> wait_status(const test::InProcessServer& 
   }
 }
 
-std::size_t thread_count() {
-  std::size_t n = 0;
-  if (DIR* d = opendir("/proc/self/task")) {
-    while (dirent* e = readdir(d)) n += e->d_name[0] != '.';
-    closedir(d);
-  }
-  return n;
-}
+using test::thread_count;
 
 // Case 1: another peer says hello with a live victim's id and camera, then sends seq 2^64-1.
 TEST(Hardening, HelloWithALiveVictimsIdCannotTakeOverItsSession) {

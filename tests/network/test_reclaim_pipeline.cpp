@@ -10,20 +10,14 @@
 #include <opencv2/core.hpp>
 #include <opencv2/core/utility.hpp>
 
+#include "common/process_threads.h"
 #include "net_test_util.h"
 #include "system/collaborative_system.h"
 
 namespace cslam {
 namespace {
 
-std::size_t thread_count() {
-  std::size_t n = 0;
-  if (DIR* d = opendir("/proc/self/task")) {
-    while (dirent* e = readdir(d)) n += e->d_name[0] != '.';
-    closedir(d);
-  }
-  return n;
-}
+using test::thread_count;
 
 TEST(ReclaimPipeline, RetiredClientReleasesItsThreadsAndWritesItsOutputs) {
   const std::string out = test::scratch_dir("retire");

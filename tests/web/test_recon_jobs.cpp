@@ -12,6 +12,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/process_threads.h"
 #include "server/http/recon_jobs.h"
 
 namespace cslam::http {
@@ -63,14 +64,7 @@ DenseConfig server_defaults(double voxel = 0.02, int stride = 4, bool mesh = tru
   return dc;
 }
 
-std::size_t thread_count() {
-  std::size_t n = 0;
-  if (DIR* d = opendir("/proc/self/task")) {
-    while (dirent* e = readdir(d)) n += e->d_name[0] != '.';
-    closedir(d);
-  }
-  return n;
-}
+using test::thread_count;
 
 // Waits (generously, no timing assert) until the job has finished.
 ReconJobView wait_finished(const ReconJobs& jobs, const std::string& id) {
