@@ -29,14 +29,6 @@ std::string error_reason(wire::ErrorCode code) {
   return name.empty() ? "unknown" : name;
 }
 
-// CPU time of the calling thread (ms): a stall's own work, apart from time the thread waited for
-// a core on a loaded machine.
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
-}
-
 // Threads of this process (/proc/self/status), for the live thread count.
 std::uint64_t process_threads() {
   std::ifstream in("/proc/self/status");

@@ -17,12 +17,6 @@ namespace {
 
 auto log() { return logger("dense"); }
 
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
-}
-
 constexpr std::size_t kTimingWindow = 512;
 
 }  // namespace
@@ -171,13 +165,22 @@ std::vector<KeyframePose> DenseService::group_keyframes(int group) const {
 
 std::optional<DenseService::StoredKeyframe> DenseService::stored_keyframe(KeyFrameId id) const {
   try {
-    const auto record = store_.get(id);
     const auto camera = store_.camera(id.client);
-    if (!record || !camera) return std::nullopt;
+    return camera ? decode_stored(id, *camera) : std::nullopt;
+  } catch (const InputError& e) {
+    log()->warn("{}", e.what());
+    return std::nullopt;
+  }
+}
+
+std::optional<DenseService::StoredKeyframe> DenseService::decode_stored(KeyFrameId id, const PinholeCamera& camera) const {
+  try {
+    const auto record = store_.get(id);
+    if (!record) return std::nullopt;
     std::ostringstream source;
     source << "stored keyframe " << id;
-    auto [bgr, depth] = decode_rgbd(record->images, camera->width, camera->height, source.str());
-    return StoredKeyframe{{std::move(bgr), std::move(depth)}, *camera, record->depth_time_offset};
+    auto [bgr, depth] = decode_rgbd(record->images, camera.width, camera.height, source.str());
+    return StoredKeyframe{{std::move(bgr), std::move(depth)}, camera, record->depth_time_offset};
   } catch (const InputError& e) {
     log()->warn("{}", e.what());
     return std::nullopt;
@@ -185,18 +188,10 @@ std::optional<DenseService::StoredKeyframe> DenseService::stored_keyframe(KeyFra
 }
 
 std::optional<DenseImages> DenseService::load(KeyFrameId id) {
-  try {
-    const auto record = store_.get(id);
-    const auto camera = cameras_.find(id.client);
-    if (!record || camera == cameras_.end()) return std::nullopt;
-    std::ostringstream source;
-    source << "stored keyframe " << id;
-    auto [bgr, depth] = decode_rgbd(record->images, camera->second.width, camera->second.height, source.str());
-    return DenseImages{std::move(bgr), std::move(depth)};
-  } catch (const InputError& e) {
-    log()->warn("{}", e.what());
-    return std::nullopt;
-  }
+  const auto camera = cameras_.find(id.client);  // the worker's own copy: no store read for it
+  if (camera == cameras_.end()) return std::nullopt;
+  auto stored = decode_stored(id, camera->second);
+  return stored ? std::optional<DenseImages>(std::move(stored->images)) : std::nullopt;
 }
 
 void DenseService::step(bool final) {

@@ -88,6 +88,8 @@ class DenseService {
   void store_jobs(std::deque<Job>& jobs);
   void step(bool final);
   std::optional<DenseImages> load(KeyFrameId id);
+  // A stored keyframe decoded with the given camera (nullopt: not stored or unreadable, logged).
+  std::optional<StoredKeyframe> decode_stored(KeyFrameId id, const PinholeCamera& camera) const;
   void log_progress();
 
   const DenseServiceConfig config_;

@@ -16,15 +16,6 @@
 using namespace cslam;
 using namespace cslam::synth;
 
-namespace {
-// CPU time of the calling thread in ms: on a loaded machine wall time includes waiting for a core.
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-}  // namespace
-
 int main(int argc, char** argv) {
   try {
     CliArgs args("cslam-synth-bench", "Renders frames of the demo scene along robot 1's path and prints frames/s.");

@@ -18,13 +18,6 @@ using namespace cslam;
 
 namespace {
 
-// CPU time of the calling thread (ms): unaffected by other processes competing for the cores.
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
 void report(const char* what, const std::vector<double>& values, const char* unit = "ms") {
   const Summary s = summarize(values);
   std::printf("%-34s n=%4d  median %8.3f %s  min %8.3f  max %8.3f  mean %8.3f  p95 %8.3f\n", what, s.n, s.median, unit,
