@@ -2,8 +2,9 @@
 # Builds the cslam image with docker or podman (whichever works) and runs what compose.yaml runs:
 # the image's cslam-synth makes a small synthetic scene in the /data volume, the image's
 # cslam-server serves it, two of the image's cslam-client replay robots 1 and 2. Checks
-# /api/status, the viewer page and its three.js, the healthcheck command, both trajectories
-# (ATE with the image's cslam-eval) and the refusal of a read-only --out-dir; reports the image size.
+# /api/status (HTTPS with the token, as the image's CMD serves it), the viewer page and its three.js,
+# the healthcheck command, both trajectories (ATE with the image's cslam-eval) and the refusal of a
+# read-only --out-dir; reports the image size.
 #
 # Where no registry is reachable, the Debian 12 base image is made locally: debootstrap bookworm
 # into a folder, trimmed like debian:bookworm-slim, `podman import`. Where podman's defaults cannot
@@ -102,7 +103,7 @@ USER_=$("${E[@]}" image inspect --format '{{.Config.User}}' "$IMAGE")
 
 # --- run: containers, or the image's files under chroot -----------------------------------------
 DATA="$DIR/data"
-rm -rf "$DATA" && mkdir -p "$DATA" && chown 10001:10001 "$DATA"
+rm -rf "$DATA" && mkdir -p "$DATA/keys" && chown 10001:10001 "$DATA" "$DATA/keys"  # keys: the image's /keys
 MODE=container
 RUN_OPTS=()  # options every `run` of this script gets (set below where the engine's defaults fail)
 if ! "${E[@]}" run --rm "$IMAGE" cslam-server --help > "$DIR/run-probe.log" 2>&1; then
@@ -142,7 +143,7 @@ cleanup() {
   for p in "${PIDS[@]}"; do kill "$p" 2> /dev/null || true; done
   wait 2> /dev/null || true
   if [ "$MODE" = chroot ] && [ -n "${MNT:-}" ]; then
-    for m in data proc dev; do umount "$MNT/$m" 2> /dev/null || true; done
+    for m in keys data proc dev; do umount "$MNT/$m" 2> /dev/null || true; done
     "${E[@]}" image unmount "$IMAGE" > /dev/null 2>&1 || true
   elif [ "$MODE" = container ]; then
     "${E[@]}" rm -f cslam-smoke-server > /dev/null 2>&1 || true
@@ -153,14 +154,15 @@ trap cleanup EXIT
 
 if [ "$MODE" = chroot ]; then
   MNT=$("${E[@]}" image mount "$IMAGE")
-  for m in data proc dev; do [ -d "$MNT/$m" ] || fail "image lacks /$m"; done
+  for m in data proc dev keys; do [ -d "$MNT/$m" ] || fail "image lacks /$m"; done
   mount --bind "$DATA" "$MNT/data"
+  mount --bind "$DATA/keys" "$MNT/keys"
   mount --bind /proc "$MNT/proc"
   mount --bind /dev "$MNT/dev"
   IMG=(chroot --userspec=10001:10001 "$MNT" /usr/bin/env -i PATH=/opt/cslam/bin:/usr/local/bin:/usr/bin:/bin HOME=/data)
   SERVER_HOST=127.0.0.1
   ZMQ_PORT=$(( 20000 + RANDOM % 20000 )); HTTP_PORT=$(( ZMQ_PORT + 1 ))
-  HTTP_URL="http://127.0.0.1:$HTTP_PORT"
+  HTTP_URL="https://127.0.0.1:$HTTP_PORT"
   in_net() { "$@"; }
   IMG_NONET=("${IMG[@]}")
 else
@@ -172,7 +174,7 @@ else
   IMG_NONET=("${E[@]}" run --rm -i "${RUN_OPTS[@]}" --no-healthcheck --network none -v "$DATA:/data" "$IMAGE")
   SERVER_HOST=cslam-smoke-server
   ZMQ_PORT=5555; HTTP_PORT=8080
-  HTTP_URL="http://cslam-smoke-server:8080"
+  HTTP_URL="https://cslam-smoke-server:8080"
   in_net() { img "$@"; }
 fi
 
@@ -195,33 +197,48 @@ if img cslam-server --help 2> /dev/null | grep -q -- --curve-secret; then
   CLIENT_KEYS=(--server-key /data/keys/server.pub)
 fi
 
+# HTTP is bound beyond the container's loopback, so it serves HTTPS and needs a token: a self-signed
+# certificate and a token made by the image's openssl, in /keys as the image's CMD and healthcheck
+# expect (docs/security.md, "HTTP beyond loopback"). The checks below use -k (self-signed).
+say "HTTP certificate and token from the image's openssl in /keys"
+img sh -c 'openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 2 -subj /CN=cslam-server \
+             -addext subjectAltName=DNS:cslam-smoke-server,DNS:localhost,IP:127.0.0.1 \
+             -keyout /keys/http.key -out /keys/http.crt 2> /dev/null &&
+           (umask 077 && head -c 24 /dev/urandom | base64 > /keys/http.token)' || fail "openssl in the image"
+HTTP_TOKEN=$(cat "$DATA/keys/http.token")
+api() { in_net curl -sfk -H "Authorization: Bearer $HTTP_TOKEN" "$@"; }
+
 say "synthetic scene (cslam-synth --preset test-small) into /data/scene"
 img cslam-synth --preset test-small --out /data/scene --log-level warn > "$DIR/synth.log" 2>&1 || { cat "$DIR/synth.log"; fail "cslam-synth"; }
 
 say "starting cslam-server"
 SERVER_CMD=(cslam-server --bind "tcp://*:$ZMQ_PORT" --http "$HTTP_PORT" --http-bind 0.0.0.0 --out-dir /data/out
+            --http-cert /keys/http.crt --http-key /keys/http.key --http-token-file /keys/http.token
             --clients 2 --exit-when-done --log-interval 5 "${SERVER_KEYS[@]}")
 if [ "$MODE" = chroot ]; then
   "${IMG[@]}" "${SERVER_CMD[@]}" > "$DIR/server.log" 2>&1 &
   PIDS+=($!)
 else
-  "${E[@]}" run -d "${RUN_OPTS[@]}" --name cslam-smoke-server --network cslam-smoke -v "$DATA:/data" "$IMAGE" "${SERVER_CMD[@]}" > /dev/null
+  "${E[@]}" run -d "${RUN_OPTS[@]}" --name cslam-smoke-server --network cslam-smoke -v "$DATA:/data" -v "$DATA/keys:/keys" \
+    "$IMAGE" "${SERVER_CMD[@]}" > /dev/null
 fi
 STATUS=""
 for _ in $(seq 1 100); do
-  STATUS=$(in_net curl -sf "$HTTP_URL/api/status" 2> /dev/null) && break
+  STATUS=$(api "$HTTP_URL/api/status" 2> /dev/null) && break
   sleep 0.2
 done
 [ -n "$STATUS" ] || { cat "$DIR/server.log" 2> /dev/null || "${E[@]}" logs cslam-smoke-server; fail "no /api/status answer"; }
 say "/api/status answers: $STATUS"
-in_net curl -sf "$HTTP_URL/" > "$DIR/index.html" && grep -qi "<html" "$DIR/index.html" || fail "the viewer page is not served"
-in_net curl -sf "$HTTP_URL/vendor/three.module.js" > "$DIR/three.module.js" || fail "three.js is not served"
+[ "$(in_net curl -sk -o /dev/null -w '%{http_code}' "$HTTP_URL/api/status")" = 401 ] || fail "/api/status answers without the token"
+in_net curl -sfk "$HTTP_URL/" > "$DIR/index.html" && grep -qi "<html" "$DIR/index.html" || fail "the viewer page is not served"
+in_net curl -sfk "$HTTP_URL/vendor/three.module.js" > "$DIR/three.module.js" || fail "three.js is not served"
 THREE=$(grep -o "REVISION = '[0-9]*'" "$DIR/three.module.js" | head -1)
 [ -n "$THREE" ] || fail "/vendor/three.module.js is not three.js"
 say "viewer page and /vendor/three.module.js served ($(wc -c < "$DIR/three.module.js") bytes, $THREE)"
 if [ "$MODE" = chroot ]; then
   # The image's HEALTHCHECK command, with the port of this run.
-  img curl -sf -o /dev/null "http://127.0.0.1:$HTTP_PORT/api/status" || fail "healthcheck command failed"
+  img sh -c "printf 'header = \"Authorization: Bearer %s\"\\n' \"\$(cat /keys/http.token)\" |
+             curl -sfk -o /dev/null -K - https://127.0.0.1:$HTTP_PORT/api/status" || fail "healthcheck command failed"
 else
   if [ "$ENGINE" = podman ]; then
     # The image's HEALTHCHECK itself, run by the engine in the server's container.
@@ -253,7 +270,7 @@ done
 PIDS+=("${CPIDS[@]}")
 # /api/status while the robots stream (as a service next to them would see it).
 for _ in $(seq 1 150); do
-  LIVE=$(in_net curl -sf "$HTTP_URL/api/status" 2> /dev/null || true)
+  LIVE=$(api "$HTTP_URL/api/status" 2> /dev/null || true)
   [ "$(echo "$LIVE" | grep -o '"id":[0-9]*' | sort -u | wc -l)" -ge 2 ] && break
   sleep 0.2
 done

@@ -209,8 +209,6 @@ void HttpServer::api_routes() {
   });
 
   s.Post("/api/reconstruction", guarded([this](const httplib::Request& req, httplib::Response& res) {
-    if (!config_.loopback() && config_.token.empty())
-      return json_error(res, 403, "POST needs --http-token when the server is bound beyond loopback");
     const auto state = cache_.get();
     int group = -1;
     if (const auto g = int_param(req, "group", -1, 1 << 30)) {

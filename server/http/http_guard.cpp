@@ -15,7 +15,9 @@
 #include <cstring>
 
 #include "core/log.h"
-#include "server/http/json_reply.h"  // httplib.h (after every Eigen include)
+#include "server/http/guard_stream.h"  // httplib.h (after every Eigen include)
+#include "server/http/http_request_parse.h"
+#include "server/http/tls_context.h"
 
 namespace cslam::http {
 
@@ -36,203 +38,29 @@ void set_nonblocking(int fd, bool on) {
   fcntl(fd, F_SETFL, on ? (flags | O_NONBLOCK) : (flags & ~O_NONBLOCK));
 }
 
-// Writes everything within the deadline (poll for writability); false on error or timeout.
-bool write_all(int fd, const char* p, std::size_t n, Clock::time_point deadline) {
-  while (n > 0) {
-    const ssize_t w = ::send(fd, p, n, MSG_NOSIGNAL | MSG_DONTWAIT);
-    if (w > 0) {
-      p += w;
-      n -= std::size_t(w);
-      continue;
-    }
-    if (w < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) return false;
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
-    if (left <= 0) return false;
-    pollfd pfd{fd, POLLOUT, 0};
-    if (::poll(&pfd, 1, int(left)) < 0 && errno != EINTR) return false;
-  }
-  return true;
-}
+std::chrono::milliseconds ms(double seconds) { return std::chrono::milliseconds(long(seconds * 1000)); }
 
-// The request as httplib reads it (from memory), the response straight to the socket.
-class BufferedStream : public httplib::Stream {
- public:
-  BufferedStream(int fd, std::string request, std::string ip, int port, double write_timeout_s)
-      : fd_(fd), in_(std::move(request)), ip_(std::move(ip)), port_(port), write_timeout_s_(write_timeout_s) {}
-  bool is_readable() const override { return pos_ < in_.size(); }
-  bool is_writable() const override { return !failed_; }
-  ssize_t read(char* ptr, size_t size) override {
-    const std::size_t n = std::min(size, in_.size() - pos_);
-    std::memcpy(ptr, in_.data() + pos_, n);
-    pos_ += n;
-    return ssize_t(n);
-  }
-  ssize_t write(const char* ptr, size_t size) override {
-    if (failed_) return -1;
-    const auto deadline = Clock::now() + std::chrono::milliseconds(long(write_timeout_s_ * 1000));
-    if (!write_all(fd_, ptr, size, deadline)) {
-      failed_ = true;
-      return -1;
-    }
-    return ssize_t(size);
-  }
-  void get_remote_ip_and_port(std::string& ip, int& port) const override {
-    ip = ip_;
-    port = port_;
-  }
-  void get_local_ip_and_port(std::string& ip, int& port) const override {
-    ip = "";
-    port = 0;
-  }
-  socket_t socket() const override { return fd_; }
-  bool failed() const { return failed_; }
-
- private:
-  int fd_;
-  std::string in_;
-  std::size_t pos_ = 0;
-  std::string ip_;
-  int port_;
-  double write_timeout_s_;
-  bool failed_ = false;
-};
-
-std::string lower(std::string s) {
-  for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t");
-  if (b == std::string::npos) return "";
-  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
-}
-
-enum class Parse { kIncomplete, kComplete, kHeaderTooLarge, kBodyTooLarge, kBad };
-
-struct Parsed {
-  std::string request;  // normalised: request line, headers, Content-Length, body
-  std::size_t consumed = 0;
-  bool close = false;   // the client asked for Connection: close (or HTTP/1.0 without keep-alive)
-  bool expect_continue = false;
-};
-
-// Decodes a chunked body starting at `pos`; kIncomplete until the last chunk and trailers arrived.
-Parse decode_chunked(const std::string& buf, std::size_t pos, std::size_t max_body, std::string* body, std::size_t* end) {
-  body->clear();
-  for (;;) {
-    const auto eol = buf.find("\r\n", pos);
-    if (eol == std::string::npos) return buf.size() - pos > 64 ? Parse::kBad : Parse::kIncomplete;
-    std::string size_text = buf.substr(pos, eol - pos);
-    if (const auto semi = size_text.find(';'); semi != std::string::npos) size_text.resize(semi);
-    size_text = trim(size_text);
-    if (size_text.empty() || size_text.size() > 8 || size_text.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
-      return Parse::kBad;
-    const std::size_t n = std::stoul(size_text, nullptr, 16);
-    if (body->size() + n > max_body) return Parse::kBodyTooLarge;
-    pos = eol + 2;
-    if (n == 0) {  // trailers until an empty line
-      for (;;) {
-        const auto t = buf.find("\r\n", pos);
-        if (t == std::string::npos) return buf.size() - pos > 8192 ? Parse::kBad : Parse::kIncomplete;
-        if (t == pos) {
-          *end = t + 2;
-          return Parse::kComplete;
-        }
-        pos = t + 2;
-      }
-    }
-    if (buf.size() < pos + n + 2) return Parse::kIncomplete;
-    if (buf.compare(pos + n, 2, "\r\n") != 0) return Parse::kBad;
-    body->append(buf, pos, n);
-    pos += n + 2;
-  }
-}
-
-Parse parse_request(const std::string& buf, const GuardConfig& cfg, Parsed* out) {
-  std::size_t header_end = buf.find("\r\n\r\n");
-  if (header_end == std::string::npos) {
-    if (buf.size() > cfg.max_header_bytes) return Parse::kHeaderTooLarge;
-    std::size_t lines = std::count(buf.begin(), buf.end(), '\n');
-    return lines > cfg.max_header_count + 1 ? Parse::kHeaderTooLarge : Parse::kIncomplete;
-  }
-  if (header_end + 4 > cfg.max_header_bytes) return Parse::kHeaderTooLarge;
-  std::vector<std::string> lines;
-  for (std::size_t pos = 0; pos < header_end;) {
-    const auto eol = buf.find("\r\n", pos);
-    lines.push_back(buf.substr(pos, eol - pos));
-    pos = eol + 2;
-  }
-  if (lines.empty() || lines.size() - 1 > cfg.max_header_count) return Parse::kHeaderTooLarge;
-  const std::string& request_line = lines[0];
-  if (request_line.find(' ') == std::string::npos) return Parse::kBad;
-  const bool http10 = request_line.size() >= 8 && request_line.compare(request_line.size() - 8, 8, "HTTP/1.0") == 0;
-  std::string normalised = request_line + "\r\n";
-  long long content_length = -1;
-  bool chunked = false, keep_alive_10 = false;
-  out->close = http10;
-  out->expect_continue = false;
-  for (std::size_t i = 1; i < lines.size(); ++i) {
-    const auto colon = lines[i].find(':');
-    if (colon == std::string::npos || colon == 0) return Parse::kBad;
-    const std::string name = lower(trim(lines[i].substr(0, colon))), value = trim(lines[i].substr(colon + 1));
-    if (name == "content-length") {
-      if (value.empty() || value.size() > 18 || value.find_first_not_of("0123456789") != std::string::npos) return Parse::kBad;
-      const long long v = std::stoll(value);
-      if (content_length >= 0 && v != content_length) return Parse::kBad;
-      content_length = v;
-      continue;
-    }
-    if (name == "transfer-encoding") {
-      if (lower(value) != "chunked") return Parse::kBad;  // nothing else is accepted
-      chunked = true;
-      continue;
-    }
-    if (name == "expect") {
-      out->expect_continue = lower(value) == "100-continue";
-      continue;  // the guard answers it; httplib must not
-    }
-    if (name == "connection") {
-      const std::string v = lower(value);
-      if (v.find("close") != std::string::npos) out->close = true;
-      if (v.find("keep-alive") != std::string::npos) keep_alive_10 = true;
-    }
-    normalised += lines[i] + "\r\n";
-  }
-  if (http10 && keep_alive_10) out->close = false;
-  if (chunked && content_length >= 0) return Parse::kBad;  // request smuggling shape
-  const std::size_t body_start = header_end + 4;
-  std::string body;
-  std::size_t end = body_start;
-  if (chunked) {
-    const Parse p = decode_chunked(buf, body_start, cfg.max_body_bytes, &body, &end);
-    if (p != Parse::kComplete) return p;
-  } else if (content_length > 0) {
-    if (std::size_t(content_length) > cfg.max_body_bytes) return Parse::kBodyTooLarge;
-    if (buf.size() < body_start + std::size_t(content_length)) return Parse::kIncomplete;
-    body = buf.substr(body_start, std::size_t(content_length));
-    end = body_start + std::size_t(content_length);
-  }
-  if (chunked || content_length >= 0) normalised += "Content-Length: " + std::to_string(body.size()) + "\r\n";
-  normalised += "\r\n";
-  normalised += body;
-  out->request = std::move(normalised);
-  out->consumed = end;
-  return Parse::kComplete;
+std::string error_response(int status, const char* text, const char* message) {
+  const std::string body = std::string("{\"error\":\"") + message + "\"}";
+  return "HTTP/1.1 " + std::to_string(status) + " " + text +
+         "\r\nContent-Type: application/json\r\nConnection: close\r\nContent-Length: " + std::to_string(body.size()) +
+         "\r\n\r\n" + body;
 }
 
 }  // namespace
 
 struct HttpGuard::Connection {
-  int fd = -1;
+  std::unique_ptr<Channel> channel;  // owns the socket (and the TLS state)
   std::string ip;
   int port = 0;
   std::string buffer;
-  Clock::time_point request_start;  // first byte of the current request (deadline)
+  Clock::time_point request_start;  // first byte of the current request, or accept under TLS (deadline)
   Clock::time_point idle_since;     // end of the last response / accept
-  bool in_request = false;          // bytes of a request have arrived
+  bool in_request = false;          // bytes of a request (or a TLS handshake) have arrived
   bool continue_sent = false;
+  bool want_write = false;          // TLS wants the socket writable before it can go on
   std::size_t served = 0;
+  int fd() const { return channel->fd(); }
 };
 
 struct HttpGuard::Job {
@@ -241,7 +69,8 @@ struct HttpGuard::Job {
   bool close = false;
 };
 
-HttpGuard::HttpGuard(httplib::Server& server, GuardConfig config) : server_(server), config_(std::move(config)) {
+HttpGuard::HttpGuard(httplib::Server& server, GuardConfig config, const TlsContext* tls)
+    : server_(server), config_(std::move(config)), tls_(tls) {
   if (::pipe(wake_) != 0) throw std::system_error(errno, std::generic_category(), "pipe");
   set_nonblocking(wake_[0], true);
   set_nonblocking(wake_[1], true);
@@ -301,27 +130,18 @@ void HttpGuard::stop() {
   if (loop_thread_.joinable()) loop_thread_.join();
   for (std::thread& t : workers_)
     if (t.joinable()) t.join();
-  for (auto& [fd, c] : connections_) ::close(fd);
+  // Every thread has ended: the connections (and their sockets) are closed here.
   connections_.clear();
-  for (auto& c : returned_) ::close(c->fd);
   returned_.clear();
-  for (auto& j : jobs_) ::close(j->connection->fd);
   jobs_.clear();
 }
 
-void HttpGuard::close_connection(int fd) {
-  ::close(fd);
-  connections_.erase(fd);
-}
+void HttpGuard::close_connection(int fd) { connections_.erase(fd); }
 
 void HttpGuard::reply_and_close(Connection& c, int status, const char* text) {
-  const std::string body = std::string("{\"error\":\"") + text + "\"}";
-  const std::string response = "HTTP/1.1 " + std::to_string(status) + " " + text +
-                               "\r\nContent-Type: application/json\r\nConnection: close\r\nContent-Length: " +
-                               std::to_string(body.size()) + "\r\n\r\n" + body;
-  // Best effort, never blocks the event loop.
-  [[maybe_unused]] const ssize_t n = ::send(c.fd, response.data(), response.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-  close_connection(c.fd);
+  // Best effort, never blocks the event loop; nothing under TLS before the handshake finished.
+  c.channel->send_once(error_response(status, text, text));
+  close_connection(c.fd());
 }
 
 void HttpGuard::accept_all() {
@@ -332,7 +152,7 @@ void HttpGuard::accept_all() {
     if (fd < 0) return;
     ++stats_.accepted;
     auto c = std::make_unique<Connection>();
-    c->fd = fd;
+    c->channel = std::make_unique<Channel>(fd, tls_ ? tls_->get() : nullptr);
     char ip[INET6_ADDRSTRLEN] = "";
     if (addr.ss_family == AF_INET) {
       inet_ntop(AF_INET, &reinterpret_cast<sockaddr_in*>(&addr)->sin_addr, ip, sizeof ip);
@@ -343,35 +163,53 @@ void HttpGuard::accept_all() {
     }
     c->ip = ip;
     c->idle_since = Clock::now();
+    if (c->channel->tls()) {  // the handshake counts against the first request's deadline
+      c->in_request = true;
+      c->request_start = c->idle_since;
+    }
     const int yes = 1;
     ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof yes);
     Connection& ref = *c;
     connections_[fd] = std::move(c);
     if (connections_.size() > config_.max_connections) {
       ++stats_.connections_refused;
-      reply_and_close(ref, 503, "Service Unavailable");
+      reply_and_close(ref, 503, "Service Unavailable");  // under TLS: closed without a word
     }
   }
 }
 
+bool HttpGuard::on_handshake(Connection& c) {
+  const Io io = c.channel->handshake();
+  c.want_write = io == Io::kWantWrite;
+  if (io == Io::kDone || io == Io::kWantRead || io == Io::kWantWrite) return true;
+  if (c.channel->plain_http()) {
+    ++stats_.plain_http_on_tls;
+    c.channel->send_raw_once(error_response(400, "Bad Request", "this port speaks HTTPS: use https://"));
+  } else {
+    ++stats_.tls_handshake_failed;
+  }
+  return false;
+}
+
 bool HttpGuard::on_readable(Connection& c) {
+  if (!c.channel->ready()) {
+    if (!on_handshake(c)) return false;    // failed: close
+    if (!c.channel->ready()) return true;  // waiting for the peer
+  }
   char buf[16384];
   for (;;) {
-    const ssize_t n = ::recv(c.fd, buf, sizeof buf, 0);
-    if (n > 0) {
-      if (!c.in_request) {
-        c.in_request = true;
-        c.request_start = Clock::now();
-      }
-      c.buffer.append(buf, std::size_t(n));
-      // Never hold more than one request's worth (plus a little pipelining).
-      if (c.buffer.size() > config_.max_header_bytes + config_.max_body_bytes * 3 + 65536) break;
-      continue;
+    std::size_t n = 0;
+    const Io io = c.channel->read(buf, sizeof buf, &n);
+    c.want_write = io == Io::kWantWrite;
+    if (io == Io::kWantRead || io == Io::kWantWrite) break;
+    if (io != Io::kDone) return false;  // peer closed, or an error
+    if (!c.in_request) {
+      c.in_request = true;
+      c.request_start = Clock::now();
     }
-    if (n == 0) return false;  // peer closed
-    if (errno == EAGAIN || errno == EWOULDBLOCK) break;
-    if (errno == EINTR) continue;
-    return false;
+    c.buffer.append(buf, n);
+    // Never hold more than one request's worth (plus a little pipelining).
+    if (c.buffer.size() > config_.max_header_bytes + config_.max_body_bytes * 3 + 65536) break;
   }
   return try_dispatch(c);
 }
@@ -384,8 +222,7 @@ bool HttpGuard::try_dispatch(Connection& c) {
       if (!c.continue_sent && c.buffer.find("\r\n\r\n") != std::string::npos &&
           lower(c.buffer.substr(0, c.buffer.find("\r\n\r\n"))).find("expect: 100-continue") != std::string::npos) {
         c.continue_sent = true;
-        static const char kContinue[] = "HTTP/1.1 100 Continue\r\n\r\n";
-        [[maybe_unused]] const ssize_t n = ::send(c.fd, kContinue, sizeof kContinue - 1, MSG_NOSIGNAL | MSG_DONTWAIT);
+        c.channel->send_once("HTTP/1.1 100 Continue\r\n\r\n");
       }
       return true;
     case Parse::kHeaderTooLarge:
@@ -409,7 +246,7 @@ bool HttpGuard::try_dispatch(Connection& c) {
   job->close = parsed.close || c.served >= config_.keep_alive_max_requests;
   c.in_request = false;
   c.continue_sent = false;
-  const int fd = c.fd;
+  const int fd = c.fd();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (jobs_.size() >= config_.queue_capacity) {
@@ -417,6 +254,7 @@ bool HttpGuard::try_dispatch(Connection& c) {
       reply_and_close(c, 503, "Service Unavailable");
       return true;
     }
+    // From here on one worker owns the connection (its channel included) until it hands it back.
     job->connection = std::move(connections_.at(fd));
     jobs_.push_back(std::move(job));
   }
@@ -426,74 +264,114 @@ bool HttpGuard::try_dispatch(Connection& c) {
   return true;
 }
 
-void HttpGuard::loop() {
-  auto log = logger("http");
-  for (;;) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (stop_) return;
-      for (auto& c : returned_) {
-        c->idle_since = Clock::now();
-        const int fd = c->fd;
-        connections_[fd] = std::move(c);
-      }
-      returned_.clear();
-    }
-    // Requests already buffered (pipelined) behind a returned connection.
-    std::vector<int> pending;
-    for (auto& [fd, c] : connections_)
-      if (!c->buffer.empty() && !c->in_request) pending.push_back(fd);
-    for (int fd : pending) {
-      auto it = connections_.find(fd);
-      if (it == connections_.end()) continue;
-      it->second->in_request = true;
-      it->second->request_start = Clock::now();
-      try_dispatch(*it->second);
-    }
-    std::vector<pollfd> fds;
-    fds.push_back({wake_[0], POLLIN, 0});
-    fds.push_back({listen_fd_, POLLIN, 0});
-    for (const auto& [fd, c] : connections_) fds.push_back({fd, POLLIN, 0});
-    // Wake up at the nearest deadline.
-    const auto now = Clock::now();
-    auto next = now + std::chrono::seconds(1);
-    for (const auto& [fd, c] : connections_) {
-      const auto deadline = c->in_request ? c->request_start + std::chrono::milliseconds(long(config_.request_deadline_s * 1000))
-                                          : c->idle_since + std::chrono::milliseconds(long(config_.keep_alive_idle_s * 1000));
-      next = std::min(next, deadline);
-    }
-    const int timeout = int(std::max<long>(0, std::chrono::duration_cast<std::chrono::milliseconds>(next - now).count() + 1));
-    if (::poll(fds.data(), fds.size(), timeout) < 0 && errno != EINTR) {
-      log->error("HTTP guard: poll failed: {}", std::strerror(errno));
-      return;
-    }
-    if (fds[0].revents & POLLIN) {
-      char drain[64];
-      while (::read(wake_[0], drain, sizeof drain) > 0) {
-      }
-    }
-    if (fds[1].revents & POLLIN) accept_all();
-    for (std::size_t i = 2; i < fds.size(); ++i) {
-      if (!fds[i].revents) continue;
-      auto it = connections_.find(fds[i].fd);
-      if (it == connections_.end()) continue;
-      if (!on_readable(*it->second)) close_connection(fds[i].fd);
-    }
-    // Deadlines: a request not complete in time gets 408; an idle keep-alive connection is closed.
-    const auto t = Clock::now();
-    std::vector<int> expired_request, expired_idle;
-    for (const auto& [fd, c] : connections_) {
-      if (c->in_request && t - c->request_start > std::chrono::milliseconds(long(config_.request_deadline_s * 1000)))
-        expired_request.push_back(fd);
-      else if (!c->in_request && t - c->idle_since > std::chrono::milliseconds(long(config_.keep_alive_idle_s * 1000)))
-        expired_idle.push_back(fd);
-    }
-    for (int fd : expired_request) {
-      ++stats_.timed_out;
-      reply_and_close(*connections_.at(fd), 408, "Request Timeout");
-    }
-    for (int fd : expired_idle) close_connection(fd);
+bool HttpGuard::adopt_returned() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (stop_) return false;
+  for (auto& c : returned_) {
+    c->idle_since = Clock::now();
+    const int fd = c->fd();
+    connections_[fd] = std::move(c);
   }
+  returned_.clear();
+  return true;
+}
+
+void HttpGuard::dispatch_buffered() {
+  // Requests already buffered (pipelined) behind a returned connection.
+  std::vector<int> pending;
+  for (auto& [fd, c] : connections_)
+    if (!c->buffer.empty() && !c->in_request) pending.push_back(fd);
+  for (int fd : pending) {
+    auto it = connections_.find(fd);
+    if (it == connections_.end()) continue;
+    it->second->in_request = true;
+    it->second->request_start = Clock::now();
+    try_dispatch(*it->second);
+  }
+}
+
+Clock::time_point HttpGuard::deadline(const Connection& c) const {
+  return c.in_request ? c.request_start + ms(config_.request_deadline_s) : c.idle_since + ms(config_.keep_alive_idle_s);
+}
+
+bool HttpGuard::poll_once() {
+  std::vector<pollfd> fds;
+  fds.push_back({wake_[0], POLLIN, 0});
+  fds.push_back({listen_fd_, POLLIN, 0});
+  const auto now = Clock::now();
+  auto next = now + std::chrono::seconds(1);  // wake up at the nearest deadline
+  std::vector<int> active;                    // TLS bytes inside OpenSSL: readable whatever poll says
+  for (const auto& [fd, c] : connections_) {
+    fds.push_back({fd, short(POLLIN | (c->want_write ? POLLOUT : 0)), 0});
+    next = std::min(next, deadline(*c));
+    if (c->channel->pending()) active.push_back(fd);
+  }
+  const long wait_ms = std::chrono::duration_cast<std::chrono::milliseconds>(next - now).count() + 1;
+  const int timeout = active.empty() ? int(std::max<long>(0, wait_ms)) : 0;
+  if (::poll(fds.data(), fds.size(), timeout) < 0 && errno != EINTR) {
+    logger("http")->error("HTTP guard: poll failed: {}", std::strerror(errno));
+    return false;
+  }
+  if (fds[0].revents & POLLIN) {
+    char drain[64];
+    while (::read(wake_[0], drain, sizeof drain) > 0) {
+    }
+  }
+  if (fds[1].revents & POLLIN) accept_all();
+  for (std::size_t i = 2; i < fds.size(); ++i)
+    if (fds[i].revents) active.push_back(fds[i].fd);
+  std::sort(active.begin(), active.end());
+  active.erase(std::unique(active.begin(), active.end()), active.end());
+  for (int fd : active) {  // every connection with something to read or write
+    auto it = connections_.find(fd);
+    if (it == connections_.end()) continue;
+    if (!on_readable(*it->second)) close_connection(fd);
+  }
+  return true;
+}
+
+void HttpGuard::expire_deadlines() {
+  // A request not complete in time gets 408 (a TLS handshake not finished: closed); an idle
+  // keep-alive connection is closed.
+  const auto t = Clock::now();
+  std::vector<int> expired_request, expired_idle;
+  for (const auto& [fd, c] : connections_) {
+    if (t <= deadline(*c)) continue;
+    (c->in_request ? expired_request : expired_idle).push_back(fd);
+  }
+  for (int fd : expired_request) {
+    ++stats_.timed_out;
+    reply_and_close(*connections_.at(fd), 408, "Request Timeout");
+  }
+  for (int fd : expired_idle) close_connection(fd);
+}
+
+void HttpGuard::loop() {
+  while (adopt_returned()) {
+    dispatch_buffered();
+    if (!poll_once()) return;
+    expire_deadlines();
+  }
+}
+
+void HttpGuard::serve(Job& job) {
+  Connection& c = *job.connection;
+  BufferedStream stream(*c.channel, std::move(job.request), c.ip, c.port, config_.write_timeout_s);
+  bool closed = false;
+  const std::string ip = c.ip;
+  const int port = c.port;
+  try {
+    ProcessAccess::process(server_, stream, job.close, closed, [&](httplib::Request& req) {
+      req.remote_addr = ip;
+      req.remote_port = port;
+      req.set_header("REMOTE_ADDR", ip);
+      req.set_header("REMOTE_PORT", std::to_string(port));
+    });
+  } catch (const std::exception& e) {
+    logger("http")->warn("HTTP request failed: {}", e.what());
+    closed = true;
+  }
+  if (job.close || closed || stream.failed()) job.connection.reset();  // closed (TLS: close_notify first)
 }
 
 void HttpGuard::worker() {
@@ -506,33 +384,12 @@ void HttpGuard::worker() {
       job = std::move(jobs_.front());
       jobs_.pop_front();
     }
-    Connection& c = *job->connection;
-    BufferedStream stream(c.fd, std::move(job->request), c.ip, c.port, config_.write_timeout_s);
-    bool closed = false;
-    const std::string ip = c.ip;
-    const int port = c.port;
-    try {
-      ProcessAccess::process(server_, stream, job->close, closed, [&](httplib::Request& req) {
-        req.remote_addr = ip;
-        req.remote_port = port;
-        req.set_header("REMOTE_ADDR", ip);
-        req.set_header("REMOTE_PORT", std::to_string(port));
-      });
-    } catch (const std::exception& e) {
-      logger("http")->warn("HTTP request failed: {}", e.what());
-      closed = true;
-    }
-    if (job->close || closed || stream.failed()) {
-      ::close(c.fd);
-      continue;
-    }
+    serve(*job);
+    if (!job->connection) continue;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (stop_) {
-        ::close(c.fd);
-        continue;
-      }
-      returned_.push_back(std::move(job->connection));
+      if (stop_) continue;  // closed with the job
+      returned_.push_back(std::move(job->connection));  // back to the event loop, with its channel
     }
     const char w = 'r';
     [[maybe_unused]] const ssize_t n = ::write(wake_[1], &w, 1);

@@ -9,7 +9,14 @@
 //  - only a complete, normalised request (chunked body decoded, Content-Length set) goes to a
 //    fixed pool of worker threads, which let httplib route it and write the response.
 // A slow or hostile client therefore costs a few kilobytes in the event loop, never a worker.
+//
+// With a TlsContext (--http-cert/--http-key) every connection is TLS: the event loop drives the
+// non-blocking handshake and reads (server/http/tls_channel.h), the handshake counts against the
+// first request's deadline, and the worker writes the response with SSL_write. A connection (and
+// its SSL object) belongs to the event loop or to one worker, never both: it is handed over with
+// the job and handed back under the mutex.
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -41,12 +48,15 @@ struct GuardConfig {
 
 struct GuardStats {
   std::atomic<std::uint64_t> accepted{0}, requests{0}, timed_out{0}, header_too_large{0}, body_too_large{0},
-      bad_request{0}, overloaded{0}, connections_refused{0};
+      bad_request{0}, overloaded{0}, connections_refused{0}, tls_handshake_failed{0}, plain_http_on_tls{0};
 };
+
+class TlsContext;  // server/http/tls_context.h
 
 class HttpGuard {
  public:
-  HttpGuard(httplib::Server& server, GuardConfig config);
+  // tls: null for plain HTTP; else outlives the guard.
+  HttpGuard(httplib::Server& server, GuardConfig config, const TlsContext* tls = nullptr);
   ~HttpGuard();  // stop()
   HttpGuard(const HttpGuard&) = delete;
   HttpGuard& operator=(const HttpGuard&) = delete;
@@ -61,10 +71,18 @@ class HttpGuard {
   struct Connection;
   struct Job;
   void loop();
+  bool adopt_returned();  // false once stopping
+  void dispatch_buffered();
+  bool poll_once();       // false if poll failed
+  void expire_deadlines();
+  std::chrono::steady_clock::time_point deadline(const Connection& c) const;
   void worker();
+  void serve(Job& job);   // resets job.connection if the connection is to be closed
   void accept_all();
-  // Reads what is available; returns false if the connection should be closed now.
+  // Reads what is available (after the TLS handshake); returns false if the connection should be
+  // closed now.
   bool on_readable(Connection& c);
+  bool on_handshake(Connection& c);  // false: the handshake failed
   // Looks for a complete request in c's buffer; answers errors itself. Returns false to close.
   bool try_dispatch(Connection& c);
   void reply_and_close(Connection& c, int status, const char* text);
@@ -72,6 +90,7 @@ class HttpGuard {
 
   httplib::Server& server_;
   const GuardConfig config_;
+  const TlsContext* tls_;
   GuardStats stats_;
   int listen_fd_ = -1;
   int wake_[2] = {-1, -1};

@@ -5,6 +5,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "server/http/tls_context.h"
 // After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
 #include "server/http/json_reply.h"
 
@@ -14,12 +15,48 @@
 
 namespace cslam::http {
 
-bool HttpConfig::loopback() const { return bind == "127.0.0.1" || bind == "localhost" || bind == "::1"; }
+namespace {
+
+constexpr std::size_t kMinExposedTokenLength = 16;
+
+// The first line of a token file, without surrounding blanks.
+std::string read_token_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError("cslam-server: --http-token-file " + path + " cannot be read");
+  std::string line;
+  std::getline(in, line);
+  const auto b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
+  if (b == std::string::npos) throw ConfigError("cslam-server: --http-token-file " + path + " has no token on its first line");
+  return line.substr(b, e - b + 1);
+}
+
+}  // namespace
+
+bool HttpConfig::loopback() const { return bind.rfind("127.", 0) == 0 || bind == "localhost" || bind == "::1"; }
+
+void HttpConfig::validate() const {
+  if (tls_cert.empty() != tls_key.empty()) throw ConfigError("cslam-server: --http-cert and --http-key go together");
+  if (!enabled || loopback()) return;
+  const std::string where = "cslam-server: --http-bind " + (bind.empty() ? std::string("(all addresses)") : bind);
+  if (token.empty())
+    throw ConfigError(where + " reaches beyond this machine: give --http-token or --http-token-file (every /api/* and "
+                      "/metrics request must then carry it), or bind 127.0.0.1");
+  if (token.size() < kMinExposedTokenLength)
+    throw ConfigError(where + " reaches beyond this machine: the token must have at least " +
+                      std::to_string(kMinExposedTokenLength) + " characters (e.g. head -c 24 /dev/urandom | base64)");
+  if (tls_cert.empty() && !insecure)
+    throw ConfigError(where + " would send the token and the maps in clear text: give --http-cert and --http-key "
+                      "(TLS), or --http-insecure (e.g. behind a TLS-terminating proxy)");
+}
 
 void declare_options(CliArgs& cli) {
   cli.option("http", "HTTP status API and web viewer port (0: any free port, off: disabled)", "8080")
-      .option("http-bind", "address the HTTP server binds (beyond loopback POST needs --http-token)", "127.0.0.1")
-      .option("http-token", "require 'Authorization: Bearer TOKEN' on every API request", "")
+      .option("http-bind", "address the HTTP server binds (beyond loopback: --http-token and TLS, or --http-insecure)", "127.0.0.1")
+      .option("http-token", "require 'Authorization: Bearer TOKEN' on every /api/* and /metrics request", "")
+      .option("http-token-file", "read --http-token from the first line of this file (keeps it out of the process list)", "")
+      .option("http-cert", "serve HTTPS with this PEM certificate (chain); needs --http-key", "")
+      .option("http-key", "the PEM private key (unencrypted) of --http-cert", "")
+      .flag("http-insecure", "allow plain HTTP with a --http-bind beyond loopback (e.g. behind a TLS-terminating proxy)")
       .option("web-root", "folder of the web viewer (index.html, viewer.js, node_modules/three)", CSLAM_WEB_DIR)
       .option("http-port-file", "write the bound HTTP port to this file once listening", "")
       .option("datasets-dir", "reconstruction over HTTP: per-client TUM folders DIR/<name>, DIR/robot_K or DIR/client_K", "")
@@ -46,6 +83,13 @@ HttpConfig config_from(const CliArgs& cli) {
   }
   c.bind = cli.get("http-bind");
   c.token = cli.get("http-token");
+  if (const std::string file = cli.get("http-token-file"); !file.empty()) {
+    if (!c.token.empty()) throw ConfigError("cslam-server: give --http-token or --http-token-file, not both");
+    c.token = read_token_file(file);
+  }
+  c.tls_cert = cli.get("http-cert");
+  c.tls_key = cli.get("http-key");
+  c.insecure = cli.flag_set("http-insecure");
   c.web_root = cli.get("web-root");
   c.port_file = cli.get("http-port-file");
   c.datasets_dir = cli.get("datasets-dir");
@@ -59,6 +103,9 @@ HttpConfig config_from(const CliArgs& cli) {
   if (!(c.recon.max_age_s >= 0)) throw ConfigError("cslam-server: --recon-keep-s must be >= 0");
   c.health_snapshot_failing_s = cli.get_double("health-snapshot-failing-s");
   if (!(c.health_snapshot_failing_s > 0)) throw ConfigError("cslam-server: --health-snapshot-failing-s must be positive");
+  c.validate();
+  // Loaded now, so that a bad file stops the program before anything else starts.
+  if (c.enabled && !c.tls_cert.empty()) c.tls = std::make_shared<const TlsContext>(c.tls_cert, c.tls_key);
   return c;
 }
 
@@ -66,9 +113,14 @@ HttpServer::HttpServer(const CollaborativeSystem& system, HttpConfig config)
     : config_(std::move(config)),
       system_(system),
       cache_(system, config_.cache),
+      auth_(config_.token, config_.auth),
       jobs_(config_.recon),
       server_(std::make_unique<httplib::Server>()) {
+  config_.validate();
+  if (config_.enabled && !config_.tls_cert.empty() && !config_.tls)
+    config_.tls = std::make_shared<const TlsContext>(config_.tls_cert, config_.tls_key);
   cache_.set_recon_jobs(&jobs_);
+  cache_.set_auth_gate(&auth_);
   routes();
 }
 
@@ -80,7 +132,7 @@ bool HttpServer::start() {
   if (!std::filesystem::exists(std::filesystem::path(config_.web_root) / "node_modules/three/build/three.module.js"))
     log->warn("three.js not found under {}/node_modules (run scripts/install-web.sh): the viewer shows the client "
               "table only", config_.web_root);
-  guard_ = std::make_unique<HttpGuard>(*server_, config_.guard);
+  guard_ = std::make_unique<HttpGuard>(*server_, config_.guard, config_.tls.get());
   port_ = guard_->bind(config_.bind, config_.port);
   if (port_ < 0) {
     log->error("HTTP: cannot bind {}:{} (in use?); continuing without the HTTP API", config_.bind, config_.port);
@@ -95,7 +147,8 @@ bool HttpServer::start() {
     std::ofstream(tmp) << port_ << "\n";
     std::filesystem::rename(tmp, config_.port_file);
   }
-  log->info("HTTP API and viewer on http://{}:{}/{}", config_.bind, port_, config_.token.empty() ? "" : " (token required)");
+  log->info("HTTP API and viewer on {}://{}:{}/{}", config_.tls ? "https" : "http", config_.bind, port_,
+            config_.token.empty() ? "" : " (token required)");
   return true;
 }
 
@@ -116,12 +169,7 @@ void HttpServer::routes() {
   s.set_tcp_nodelay(true);
   s.set_payload_max_length(config_.guard.max_body_bytes);
   s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-    const bool api = req.path.rfind("/api/", 0) == 0 || req.path == "/metrics";
-    if (api && !config_.token.empty() && req.get_header_value("Authorization") != "Bearer " + config_.token) {
-      res.set_header("WWW-Authenticate", "Bearer");
-      json_error(res, 401, "missing or wrong bearer token");
-      return httplib::Server::HandlerResponse::Handled;
-    }
+    if (refuse_unauthorised(req, res)) return httplib::Server::HandlerResponse::Handled;
     // Every route: a path or parameter that is not clean UTF-8 text is a 400 before any handler.
     if (const auto bad = unclean_request_part(req)) {
       json_error(res, 400, *bad);
@@ -144,6 +192,25 @@ void HttpServer::routes() {
   });
   api_routes();
   static_routes();
+}
+
+// Every /api/* and /metrics request needs the token; the viewer's files (no data) do not. An
+// address that sent too many wrong tokens is refused before its token is looked at.
+bool HttpServer::refuse_unauthorised(const httplib::Request& req, httplib::Response& res) {
+  const bool api = req.path.rfind("/api/", 0) == 0 || req.path == "/metrics";
+  if (!api || !auth_.enabled()) return false;
+  const AuthGate::Result r = auth_.check(req.remote_addr, req.get_header_value("Authorization"));
+  switch (r.verdict) {
+    case AuthGate::Verdict::kOk: return false;
+    case AuthGate::Verdict::kThrottled:
+      res.set_header("Retry-After", std::to_string(r.retry_after_s));
+      json_error(res, 429, "too many wrong tokens from this address: retry after " + std::to_string(r.retry_after_s) + " s");
+      return true;
+    default:
+      res.set_header("WWW-Authenticate", "Bearer");
+      json_error(res, 401, "missing or wrong bearer token");
+      return true;
+  }
 }
 
 void HttpServer::static_routes() {

@@ -1,5 +1,6 @@
 #include "server/http/status_cache.h"
 
+#include "server/http/auth_gate.h"
 #include "server/http/http_guard.h"
 
 #include "core/log.h"
@@ -171,7 +172,8 @@ std::string guard_metrics_text(const GuardStats& g) {
        "# TYPE cslam_http_refused_total counter\n";
   const std::pair<const char*, std::uint64_t> reasons[] = {
       {"timed_out", g.timed_out},   {"header_too_large", g.header_too_large}, {"body_too_large", g.body_too_large},
-      {"bad_request", g.bad_request}, {"overloaded", g.overloaded},       {"connections", g.connections_refused}};
+      {"bad_request", g.bad_request}, {"overloaded", g.overloaded},       {"connections", g.connections_refused},
+      {"tls_handshake", g.tls_handshake_failed}, {"plain_http_on_tls", g.plain_http_on_tls}};
   for (const auto& [reason, n] : reasons) o << "cslam_http_refused_total{reason=\"" << reason << "\"} " << n << "\n";
   return o.str();
 }
@@ -371,6 +373,7 @@ void StatusCache::refresh() {
   next->metrics = metrics_text(snap, fps_of, fusions);
   if (net) next->metrics += network_metrics_text(*net);
   if (guard_) next->metrics += guard_metrics_text(*guard_);
+  if (auth_) next->metrics += auth_->metrics_text();
   add_snapshots(*next);
   add_recon(*next);
   apply_extra(*next);

@@ -24,6 +24,7 @@
 namespace cslam::http {
 
 struct GuardStats;  // server/http/http_guard.h
+class AuthGate;    // server/http/auth_gate.h
 
 struct CacheConfig {
   double refresh_hz = 5.0;           // status, events, metrics, trajectories
@@ -80,6 +81,8 @@ class StatusCache {
   void set_network(const NetStatusBoard* board) { network_ = board; }
   // The HTTP guard's counters (refusals by reason) for /metrics (set before start(); may be null).
   void set_guard_stats(const GuardStats* stats) { guard_ = stats; }
+  // The bearer-token check's counters (cslam_http_auth_*) for /metrics (set before start(); may be null).
+  void set_auth_gate(const AuthGate* gate) { auth_ = gate; }
   // Another component's contribution to /api/status and /metrics, called on every refresh (from
   // the refresh thread, no SLAM lock held): it may add keys to `status` (e.g. status["dense"]) and
   // append Prometheus lines to `metrics`. An exception from it is caught, logged (once per
@@ -104,6 +107,7 @@ class StatusCache {
   const CacheConfig config_;
   const NetStatusBoard* network_ = nullptr;
   const GuardStats* guard_ = nullptr;
+  const AuthGate* auth_ = nullptr;
   StatusExtra extra_;
   const MapStore* map_store_ = nullptr;
   ReconJobs* recon_ = nullptr;

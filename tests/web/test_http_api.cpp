@@ -1,5 +1,5 @@
 // The HTTP API of cslam-server against a real CollaborativeSystem (SLAM off, frames counted):
-// status JSON schema, per-client view, metrics, and the 404 / 400 / 401 / 403 / 503 paths.
+// status JSON schema, per-client view, metrics, and the 404 / 400 / 401 / 503 paths.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -189,15 +189,23 @@ TEST_F(HttpApiTest, TokenRequiredOnEveryApiRequest) {
   EXPECT_NE(page->body.find("<html"), std::string::npos);
 }
 
-TEST_F(HttpApiTest, PostBeyondLoopbackNeedsAToken) {
+// Beyond loopback the token is mandatory (docs/security.md, "HTTP beyond loopback"): a server
+// without one is a configuration error, and with --http-insecure (plain HTTP) every API request,
+// reads included, needs it. (Before, only POST did and every GET was open.)
+TEST_F(HttpApiTest, BeyondLoopbackEveryApiRequestNeedsTheToken) {
   HttpConfig c;
   c.bind = "0.0.0.0";
+  c.insecure = true;
+  EXPECT_THROW(HttpServer server(system_, c), ConfigError);
+  c.token = "a-token-of-24-characters";
   auto server = serve(c);
   auto cli = client(*server);
-  expect_json_error(cli.Post("/api/reconstruction", "", "text/plain"), 403);
-  const auto status = cli.Get("/api/status");
+  expect_json_error(cli.Get("/api/status"), 401);
+  expect_json_error(cli.Get("/api/trajectories?client=all&format=tum"), 401);
+  expect_json_error(cli.Post("/api/reconstruction", "", "text/plain"), 401);
+  const auto status = cli.Get("/api/status", {{"Authorization", "Bearer a-token-of-24-characters"}});
   ASSERT_TRUE(status);
-  EXPECT_EQ(status->status, 200);  // reads stay open without a token
+  EXPECT_EQ(status->status, 200);
 }
 
 TEST_F(HttpApiTest, StatusExtraAddsToStatusAndMetrics) {
