@@ -173,6 +173,8 @@ int run(int argc, char** argv) {
     throw cslam::ConfigError("cslam-server: --bind " + rc.bind + " reaches beyond this machine without keys: give "
                              "--curve-secret and --clients-allowed (see docs/security.md), or --insecure-bind");
   }
+  // Read (and refused, if wrong) before anything starts: a bad HTTP setting is the only line.
+  const cslam::http::HttpConfig http_config = cslam::http::config_from(cli);
   cslam::server::StateStoreConfig state_config;
   state_config.dir = cli.get("state-dir");
   state_config.interval_s = cli.get_double("snapshot-interval");
@@ -214,7 +216,6 @@ int run(int argc, char** argv) {
   cslam::server::Receiver receiver(context, rc, system, done, stop);
   cslam::http::NetStatusBoard net_status;
   receiver.set_status_board(&net_status);
-  const cslam::http::HttpConfig http_config = cslam::http::config_from(cli);
   cslam::http::HttpServer http(system, http_config);  // reads snapshots only
   http.set_network_status(&net_status);
   cslam::http::add_map_routes(http.routes_server(), state, http_config.token);

@@ -1,4 +1,5 @@
 #include "server/server_stats.h"
+#include "server/heap.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -89,6 +90,15 @@ std::vector<std::string> ServerStats::progress_lines(const SystemSnapshot& snaps
                   unsigned(c.id), (unsigned long long)net.frames_accepted, (unsigned long long)c.frames_processed,
                   (unsigned long long)net.dropped_total(), c.queue_depth, fps, mbps, to_string(c.tracking));
     lines.emplace_back(buf);
+  }
+  const HeapStats heap = heap_stats();
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "process: resident %.0f MB", double(resident_bytes()) / 1e6);
+  lines.emplace_back(buf);
+  if (heap.known) {
+    std::snprintf(buf, sizeof buf, " | heap %.0f MB held, %.0f MB free", double(heap.allocated) / 1e6,
+                  double(heap.free_mapped) / 1e6);
+    lines.back() += buf;
   }
   return lines;
 }

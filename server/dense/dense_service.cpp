@@ -1,4 +1,5 @@
 #include "server/dense/dense_service.h"
+#include "server/heap.h"
 
 #include <algorithm>
 #include <ctime>
@@ -222,9 +223,12 @@ void DenseService::step(bool final) {
   stats_.integrate_cpu_ms += thread_cpu_ms() - cpu0;
   if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_log_).count() >= config_.log_interval_s) {
     last_log_ = std::chrono::steady_clock::now();
-    log()->info("dense: {} submaps, {} keyframes integrated ({} pending, {} queued), {} re-integrations, store {} "
-                "keyframes {:.1f} MB{}",
-                stats_.submaps, stats_.integrated, stats_.pending, queue_.size(), stats_.reintegrated,
+    const HeapStats heap = heap_stats();
+    log()->info("dense: {} submaps ({:.1f} MB meshes, {:.1f} MB volumes), {} keyframes integrated ({} pending, {} "
+                "queued), {} re-integrations, heap {:.0f} MB held {:.0f} MB free, store {} keyframes {:.1f} MB{}",
+                stats_.submaps, double(view->mesh_bytes) / 1e6, double(view->volume_bytes) / 1e6, stats_.integrated,
+                stats_.pending, queue_.size(), stats_.reintegrated, double(heap.allocated) / 1e6,
+                double(heap.free_mapped) / 1e6,
                 store_.stats().keyframes, double(store_.stats().payload_bytes) / 1e6,
                 store_.stats().last_error.empty() ? "" : " (store error: " + store_.stats().last_error + ")");
   }

@@ -98,6 +98,7 @@ nlohmann::json dense_status_json(const DenseService* dense) {
   return {{"enabled", true},
           {"version", view->version},
           {"submaps", view->submaps.size()},
+          {"memory_bytes", {{"meshes", view->mesh_bytes}, {"volumes", view->volume_bytes}}},
           {"keyframes_received", st.keyframes_received},
           {"keyframes_integrated", st.integrated},
           {"queue", st.queue},

@@ -11,17 +11,13 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <unistd.h>
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 
 #include "cloud/ply_io.h"
 #include "core/log.h"
 #include "dense/tsdf_volume.h"
 #include "io/tum_dataset.h"
+#include "server/heap.h"
 
-// tcmalloc's C API, weak: null when the program does not allocate through tcmalloc.
-extern "C" void MallocExtension_ReleaseFreeMemory(void) __attribute__((weak));
 
 namespace cslam::http {
 
@@ -66,18 +62,6 @@ std::shared_ptr<const std::string> ply_bytes(const std::string& tag, Writer writ
   return std::make_shared<const std::string>(bytes.str());
 }
 
-// Gives freed heap pages back to the system, so a finished job's memory shows as released:
-// the programs allocate through tcmalloc (cmake/Dependencies.cmake), which keeps freed spans in
-// its page heap (a 0.005 m job left 384 MB there); without tcmalloc, glibc's malloc_trim.
-void release_free_memory() {
-  if (MallocExtension_ReleaseFreeMemory) {
-    MallocExtension_ReleaseFreeMemory();
-    return;
-  }
-#if defined(__GLIBC__)
-  malloc_trim(0);
-#endif
-}
 
 std::string mb(double bytes) {
   char buf[32];
@@ -86,13 +70,6 @@ std::string mb(double bytes) {
 }
 
 }  // namespace
-
-std::size_t resident_bytes() {
-  std::ifstream in("/proc/self/statm");
-  std::size_t pages_total = 0, pages_resident = 0;
-  if (!(in >> pages_total >> pages_resident)) return 0;
-  return pages_resident * std::size_t(::sysconf(_SC_PAGESIZE));
-}
 
 std::string ReconEstimate::summary() const {
   return "images " + mb(images) + ", point chunks " + mb(chunk_points) + ", cloud " + mb(cloud) + ", TSDF " + mb(tsdf) +
@@ -260,7 +237,7 @@ void ReconJobs::run(Job& job, ReconFunction reconstruct, DenseConfig config) {
     std::lock_guard<std::mutex> lock(job.mutex);
     job.state = "running";
   }
-  const std::function<std::size_t()> probe = config_.memory_probe ? config_.memory_probe : std::function<std::size_t()>(resident_bytes);
+  const std::function<std::size_t()> probe = config_.memory_probe ? config_.memory_probe : std::function<std::size_t()>(server::resident_bytes);
   const double rss_start = double(probe());
   auto check_memory = [&] {
     const double rss = double(probe());
@@ -315,7 +292,7 @@ void ReconJobs::run(Job& job, ReconFunction reconstruct, DenseConfig config) {
     job.finished_at = SteadyClock::now();
     job.elapsed_s = std::chrono::duration<double>(job.finished_at - job.start).count();
   }
-  release_free_memory();
+  server::release_free_memory();  // a finished job's memory shows as released (tcmalloc keeps freed spans)
   log->info("reconstruction {} of group {}: {} {} (estimate {:.0f} MB, grew {:.0f} MB)", job.id, job.group, state, message,
             job.estimate_mb, job.peak_growth_mb.load());
 }
@@ -369,7 +346,7 @@ void ReconJobs::expire() {
   for (auto& job : gone)
     if (job->thread.joinable()) job->thread.join();  // finished: returns at once
   gone.clear();  // the PLY bytes go here (unless a download still holds them)
-  release_free_memory();
+  server::release_free_memory();  // a finished job's memory shows as released (tcmalloc keeps freed spans)
 }
 
 std::shared_ptr<ReconJobs::Job> ReconJobs::find(const std::string& id) const {

@@ -82,9 +82,6 @@ struct ReconStart {
   std::string message;   // kBusy / kOverBudget: why
 };
 
-// Resident set size of this process (bytes), from /proc/self/statm; 0 if unreadable.
-std::size_t resident_bytes();
-
 class ReconJobs {
  public:
   explicit ReconJobs(ReconJobsConfig config = {});

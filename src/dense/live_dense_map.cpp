@@ -36,6 +36,21 @@ void LiveDenseMap::add_keyframe(KeyFrameId id, std::optional<DenseImages> images
 
 DenseStepResult LiveDenseMap::step(const std::vector<KeyframePose>& poses, double now_s,
                                    const DenseImageLoader& loader, const DenseStepBudget& budget) {
+  return run_step(poses, now_s, false, loader, budget);
+}
+
+DenseStepResult LiveDenseMap::flush(const std::vector<KeyframePose>& poses, const DenseImageLoader& loader) {
+  DenseStepResult r = run_step(poses, 0.0, true, loader, {1 << 30, 1 << 30});
+  for (auto& [client, id] : open_) submaps_.at(id)->close();
+  open_.clear();
+  remesh_due(0.0, true, r);
+  ++version_;
+  publish();
+  return r;
+}
+
+DenseStepResult LiveDenseMap::run_step(const std::vector<KeyframePose>& poses, double now_s, bool all,
+                                       const DenseImageLoader& loader, const DenseStepBudget& budget) {
   DenseStepResult r;
   PoseIndex index;
   for (const KeyframePose& p : poses) {
@@ -47,27 +62,15 @@ DenseStepResult LiveDenseMap::step(const std::vector<KeyframePose>& poses, doubl
   find_culled(index, r);
   apply_poses(index, r, distorted);
   if (r.moved > 0 || r.removed > 0) publish();  // corrections reach readers before the slower work below
-  integrate_pending(index, now_s, false, loader, budget.max_integrations, r);
+  const int due_left = integrate_pending(index, now_s, all, loader, budget.max_integrations, r);
+  // New keyframes first: a submap is rebuilt only when no keyframe waits that is due.
   std::sort(distorted.rbegin(), distorted.rend());  // most distorted first
   for (const auto& [deviation, id] : distorted) {
-    if (r.reintegrated >= budget.max_reintegrations) break;
+    if (due_left > 0 || r.reintegrated >= budget.max_reintegrations) break;
     const auto it = submaps_.find(id);
     if (it != submaps_.end()) reintegrate(*it->second, index, loader, r);
   }
-  remesh_due(now_s, false, r);
-  publish();
-  return r;
-}
-
-DenseStepResult LiveDenseMap::flush(const std::vector<KeyframePose>& poses, const DenseImageLoader& loader) {
-  DenseStepResult r = step(poses, 0.0, loader, {0, 1 << 30});
-  PoseIndex index;
-  for (const KeyframePose& p : poses) index.emplace(p.id, &p);
-  integrate_pending(index, 0.0, true, loader, 1 << 30, r);
-  for (auto& [client, id] : open_) submaps_.at(id)->close();
-  open_.clear();
-  remesh_due(0.0, true, r);
-  ++version_;
+  remesh_due(now_s, all, r);
   publish();
   return r;
 }
@@ -129,29 +132,32 @@ void LiveDenseMap::apply_poses(const PoseIndex& poses, DenseStepResult& r,
       ++r.moved;
       ++version_;
     }
-    double worst_t = 0, worst_r = 0;
+    double worst = 0;  // largest displacement of a member's observed surface relative to the submap
     for (const auto& m : submap->members()) {
       const auto it = poses.find(m.id);
       if (it == poses.end()) continue;
       const SE3 error = (T_world_submap * m.T_submap_kf).inverse() * it->second->T_world_cam;
-      worst_t = std::max(worst_t, error.translation().norm());
-      worst_r = std::max(worst_r, angle_of(error));
+      worst = std::max(worst, error.translation().norm() + angle_of(error) * m.median_depth);
     }
-    r.max_deviation_m = std::max(r.max_deviation_m, worst_t);
-    if (worst_t > config_.reintegrate_translation || worst_r > config_.reintegrate_rotation_deg * kDegree)
-      distorted.emplace_back(worst_t / config_.reintegrate_translation + worst_r / (config_.reintegrate_rotation_deg * kDegree),
-                             id);
+    r.max_deviation_m = std::max(r.max_deviation_m, worst);
+    if (worst > config_.reintegrate_displacement) distorted.emplace_back(worst, id);
   }
 }
 
-void LiveDenseMap::integrate_pending(const PoseIndex& poses, double now_s, bool all, const DenseImageLoader& loader,
-                                     int budget, DenseStepResult& r) {
+int LiveDenseMap::integrate_pending(const PoseIndex& poses, double now_s, bool all, const DenseImageLoader& loader,
+                                    int budget, DenseStepResult& r) {
   std::sort(pending_.begin(), pending_.end(), [](const Pending& a, const Pending& b) { return a.id < b.id; });
-  for (auto it = pending_.begin(); it != pending_.end() && r.integrated < budget;) {
+  int due_left = 0;
+  for (auto it = pending_.begin(); it != pending_.end();) {
     const auto pose = poses.find(it->id);
     const bool due = all || now_s - it->added_s >= config_.integration_delay_s;
     if (pose == poses.end() || !due || !rays_.count(it->id.client)) {
       ++it;  // not mapped yet, too young, or no camera yet
+      continue;
+    }
+    if (r.integrated >= budget) {  // due, but over this step's budget
+      ++due_left;
+      ++it;
       continue;
     }
     std::optional<DenseImages> images = std::move(it->images);
@@ -163,6 +169,7 @@ void LiveDenseMap::integrate_pending(const PoseIndex& poses, double now_s, bool 
     }
     it = pending_.erase(it);
   }
+  return due_left;
 }
 
 bool LiveDenseMap::integrate_one(const KeyframePose& pose, const DenseImages& images, const SE3& T_cam_depthcam,
@@ -241,7 +248,11 @@ void LiveDenseMap::remesh_due(double now_s, bool all, DenseStepResult& r) {
 void LiveDenseMap::publish() {
   auto v = std::make_shared<DenseMapView>();
   v->version = version_;
-  for (const auto& [id, submap] : submaps_) v->submaps.push_back(submap->view());
+  for (const auto& [id, submap] : submaps_) {
+    v->submaps.push_back(submap->view());
+    v->mesh_bytes += v->submaps.back().mesh_bytes;
+    v->volume_bytes += v->submaps.back().volume_bytes;
+  }
   v->keyframes_integrated = integrated_;
   v->keyframes_pending = pending_.size();
   std::lock_guard<std::mutex> lock(view_mutex_);

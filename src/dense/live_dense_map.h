@@ -7,8 +7,8 @@
 //   2. keyframes culled by local mapping are forgotten (reported, so their images can be dropped);
 //   3. keyframes that have waited integration_delay_s (local BA has refined them) are integrated
 //      into their client's open submap, a new one opening when the window is full;
-//   4. submaps whose keyframes moved relative to each other beyond the thresholds are
-//      re-integrated from their images, the most distorted first;
+//   4. if no due keyframe is left waiting, submaps whose keyframes moved relative to each other
+//      beyond the threshold are re-integrated from their images, the most distorted first;
 //   5. open submaps are re-meshed at most every mesh_interval_s.
 // One thread owns the map (the dense worker); readers take view(), an immutable snapshot.
 #include <functional>
@@ -29,6 +29,7 @@ struct DenseMapView {
   std::uint64_t version = 0;  // increases with every change a reader can see
   std::vector<DenseSubmapView> submaps;  // sorted by id
   std::size_t keyframes_integrated = 0, keyframes_pending = 0;
+  std::size_t mesh_bytes = 0, volume_bytes = 0;  // summed over the submaps
 };
 
 // Finds a keyframe's images (e.g. decodes them from the keyframe store); nullopt if it has none.
@@ -79,10 +80,15 @@ class LiveDenseMap {
   };
   using PoseIndex = std::map<KeyFrameId, const KeyframePose*>;
 
+  // One step; `all`: every pending keyframe is due and every stale mesh is redone (flush).
+  DenseStepResult run_step(const std::vector<KeyframePose>& poses, double now_s, bool all,
+                           const DenseImageLoader& loader, const DenseStepBudget& budget);
+
   void apply_poses(const PoseIndex& poses, DenseStepResult& r, std::vector<std::pair<double, SubmapId>>& distorted);
   void find_culled(const PoseIndex& poses, DenseStepResult& r);
-  void integrate_pending(const PoseIndex& poses, double now_s, bool all, const DenseImageLoader& loader, int budget,
-                         DenseStepResult& r);
+  // Returns how many due keyframes were left for a later step (over the budget).
+  int integrate_pending(const PoseIndex& poses, double now_s, bool all, const DenseImageLoader& loader, int budget,
+                        DenseStepResult& r);
   bool integrate_one(const KeyframePose& pose, const DenseImages& images, const SE3& T_cam_depthcam, DenseStepResult& r);
   void reintegrate(DenseSubmap& submap, const PoseIndex& poses, const DenseImageLoader& loader, DenseStepResult& r);
   void remesh_due(double now_s, bool all, DenseStepResult& r);

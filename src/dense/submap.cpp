@@ -7,6 +7,26 @@
 
 namespace cslam {
 
+namespace {
+
+// Median of the valid depths (m) on a sparse grid of the image; 0 if none.
+double median_depth(const cv::Mat& depth, double scale, double min_depth, double max_depth) {
+  std::vector<float> z;
+  z.reserve(std::size_t(depth.rows / 8 + 1) * std::size_t(depth.cols / 8 + 1));
+  for (int v = 0; v < depth.rows; v += 8) {
+    const std::uint16_t* row = depth.ptr<std::uint16_t>(v);
+    for (int u = 0; u < depth.cols; u += 8) {
+      const double d = row[u] * scale;
+      if (row[u] != 0 && d >= min_depth && d <= max_depth) z.push_back(float(d));
+    }
+  }
+  if (z.empty()) return 0;
+  std::nth_element(z.begin(), z.begin() + std::ptrdiff_t(z.size() / 2), z.end());
+  return z[z.size() / 2];
+}
+
+}  // namespace
+
 void LiveDenseConfig::validate() const {
   auto check_tsdf = [](const TsdfConfig& c, const char* what) {
     if (!(c.voxel_size > 0) || !(c.truncation >= c.voxel_size) || !(c.max_weight >= 1) || c.stride < 1)
@@ -18,8 +38,7 @@ void LiveDenseConfig::validate() const {
   if (keyframes_per_submap < 1) throw ConfigError("dense map: keyframes_per_submap must be >= 1");
   if (!(submap_max_distance > 0) || !(submap_max_angle_deg > 0))
     throw ConfigError("dense map: submap_max_distance and submap_max_angle_deg must be positive");
-  if (!(reintegrate_translation > 0) || !(reintegrate_rotation_deg > 0))
-    throw ConfigError("dense map: re-integration thresholds must be positive");
+  if (!(reintegrate_displacement > 0)) throw ConfigError("dense map: reintegrate_displacement must be positive");
   if (!(integration_delay_s >= 0) || !(mesh_interval_s >= 0)) throw ConfigError("dense map: delays must be >= 0");
   if (max_pending_images < 1) throw ConfigError("dense map: max_pending_images must be >= 1");
 }
@@ -42,7 +61,10 @@ void DenseSubmap::integrate(KeyFrameId id, const SE3& T_world_cam, const DenseIm
   nav_->integrate(images.bgr, images.depth, rays, T_submap_depthcam, config_.min_depth, config_.max_depth,
                   T_colourcam_depthcam);
   if (members_.empty()) T_world_first_ = T_world_cam;
-  members_.push_back({id, T_submap_cam, T_cam_depthcam});
+  const PinholeCamera& cam = rays.camera();
+  members_.push_back({id, T_submap_cam, T_cam_depthcam,
+                      median_depth(images.depth, cam.depth_scale_correction / cam.depth_factor, config_.min_depth,
+                                   config_.max_depth)});
   ++version_;
   mesh_stale_ = true;
 }
@@ -104,6 +126,10 @@ DenseSubmapView DenseSubmap::view() const {
   v.mesh = mesh_;
   v.nav_volume = nav_published_;
   v.voxel_size = config_.tsdf.voxel_size;
+  if (mesh_)
+    v.mesh_bytes = mesh_->vertices.size() * (sizeof(Eigen::Vector3f) + sizeof(Rgb8)) +
+                   mesh_->triangles.size() * sizeof(mesh_->triangles[0]);
+  v.volume_bytes = (fine_ ? fine_->memory_bytes() : 0) + (nav_ ? nav_->memory_bytes() : 0);
   return v;
 }
 

@@ -34,8 +34,9 @@ struct LiveDenseConfig {
   int keyframes_per_submap = 8;
   double submap_max_distance = 1.0;     // a keyframe farther than this from the submap's first one opens a new submap (m)
   double submap_max_angle_deg = 45.0;   // ... or turned further than this
-  double reintegrate_translation = 0.02;  // keyframes moved relative to the submap by more: re-integrate (m)
-  double reintegrate_rotation_deg = 1.0;
+  // A submap is re-integrated when one of its keyframes moved relative to it so that the surface
+  // it saw moved by more than this (m): translation + rotation angle x the keyframe's median depth.
+  double reintegrate_displacement = 0.01;
   double integration_delay_s = 1.0;  // a keyframe waits this long for local BA before it is integrated
   double mesh_interval_s = 3.0;      // an open submap is re-meshed at most this often
   std::size_t max_pending_images = 16;  // decoded images held for keyframes waiting to be integrated
@@ -55,6 +56,7 @@ struct DenseSubmapView {
   std::shared_ptr<const TriangleMesh> mesh;       // submap frame
   std::shared_ptr<const TsdfVolume> nav_volume;   // submap frame, coarse
   float voxel_size = 0;
+  std::size_t mesh_bytes = 0, volume_bytes = 0;    // held by this submap (fine volume while open, nav volume)
 };
 
 class DenseSubmap {
@@ -63,6 +65,7 @@ class DenseSubmap {
     KeyFrameId id;
     SE3 T_submap_kf;     // where its colour image was integrated, in the submap frame
     SE3 T_cam_depthcam;  // where its depth image was taken, from the colour image's pose
+    double median_depth = 0;  // of its depth image (m): how far a rotation moves what it saw
   };
 
   DenseSubmap(SubmapId id, int group, int map, const SE3& T_world_submap, const LiveDenseConfig& config);

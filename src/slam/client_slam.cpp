@@ -137,6 +137,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   snapshot_.state = tracker_->state();
   if (t.ok && t.reference) {
     records_.push_back({frame.timestamp, t.reference, t.T_cam_ref, tracker_->map()->index()});
+    if (++records_since_reanchor_ >= kReanchorEvery && reanchor_records()) records_since_reanchor_ = 0;
     ++snapshot_.frames_tracked;
     snapshot_.T_world_cam = t.T_cam_world.inverse();
   } else if (r.outcome == FrameOutcome::kLost) {
@@ -147,6 +148,18 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   snapshot_.keyframes = int(tracker_->map()->num_keyframes());
   snapshot_.map_points = int(tracker_->map()->num_map_points());
   return r;
+}
+
+bool ClientSlam::reanchor_records() {
+  // Never waits for a map's writer (bundle adjustment may hold it): tried again with a later frame.
+  std::vector<std::shared_lock<std::shared_mutex>> locks;
+  for (const auto& m : maps_) {
+    std::shared_lock<std::shared_mutex> lock(m->mutex, std::try_to_lock);
+    if (!lock.owns_lock()) return false;
+    locks.push_back(std::move(lock));
+  }
+  reanchor_culled(records_);
+  return true;
 }
 
 ClientSlamSnapshot ClientSlam::snapshot() const {
@@ -194,15 +207,9 @@ Trajectory ClientSlam::trajectory(const MapFrameOf& frame_of) const {
   Trajectory out;
   for (const auto& r : records_) {
     if (std::size_t(r.map_index) >= maps_.size() || !in_frame(maps_[std::size_t(r.map_index)].get())) continue;
-    // Follow culled reference keyframes up the spanning tree.
-    SE3 T_cam_ref = r.T_cam_ref;
-    KeyFrame* ref = r.reference.get();
-    while (ref && ref->bad && ref->parent) {
-      T_cam_ref = T_cam_ref * ref->T_cam_parent;
-      ref = ref->parent.get();
-    }
-    if (!ref) continue;
-    out.push_back({r.timestamp, (T_cam_ref * ref->T_cam_world).inverse()});
+    const LiveReference ref = live_reference(r);
+    if (!ref.keyframe) continue;
+    out.push_back({r.timestamp, (ref.T_cam_ref * ref.keyframe->T_cam_world).inverse()});
   }
   return out;
 }
@@ -212,14 +219,9 @@ std::optional<ClientSlam::FramePose> ClientSlam::last_frame_pose(double timestam
   if (records_.empty() || records_.back().timestamp != timestamp) return std::nullopt;
   const FrameRecord& r = records_.back();
   std::shared_lock<std::shared_mutex> map_lock(maps_[r.map_index]->mutex);
-  SE3 T_cam_ref = r.T_cam_ref;
-  KeyFrame* ref = r.reference.get();
-  while (ref && ref->bad && ref->parent) {
-    T_cam_ref = T_cam_ref * ref->T_cam_parent;
-    ref = ref->parent.get();
-  }
-  if (!ref) return std::nullopt;
-  return FramePose{(T_cam_ref * ref->T_cam_world).inverse(), r.map_index};
+  const LiveReference ref = live_reference(r);
+  if (!ref.keyframe) return std::nullopt;
+  return FramePose{(ref.T_cam_ref * ref.keyframe->T_cam_world).inverse(), r.map_index};
 }
 
 std::shared_ptr<Map> ClientSlam::main_map() const {

@@ -11,6 +11,7 @@
 
 #include "bow/vocabulary.h"
 #include "io/trajectory_io.h"
+#include "slam/frame_record.h"
 #include "slam/slam_config.h"
 #include "system/rgbd_frame.h"
 
@@ -103,13 +104,11 @@ class ClientSlam {
   void start_new_session();
 
  private:
-  struct FrameRecord {
-    double timestamp;
-    KeyFramePtr reference;
-    SE3 T_cam_ref;
-    int map_index;
-  };
   void start_new_map();
+  // reanchor_culled() over the records (frame_record.h) with every map's lock held shared,
+  // taken without waiting. Caller holds mutex_; false if a map was busy (tried again later).
+  bool reanchor_records();
+  static constexpr int kReanchorEvery = 30;  // frames between passes
   int main_map_index() const;
   // The maps that share the frame holding most tracked frames (never locks a map; calls
   // frame_of without holding mutex_).
@@ -131,6 +130,7 @@ class ClientSlam {
 
   mutable std::mutex mutex_;  // guards records_, snapshot_, timings_, maps_ (list only)
   std::vector<FrameRecord> records_;
+  int records_since_reanchor_ = 0;
   ClientSlamSnapshot snapshot_;
   std::vector<double> extract_ms_, track_ms_;
   bool finished_ = false;

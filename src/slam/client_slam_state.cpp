@@ -44,14 +44,9 @@ ClientSlamState ClientSlam::export_state() const {
     s.maps.push_back(export_map_state_yielding(*maps[m], kMaxSnapshotYields, [&] {
       for (std::size_t i : by_map[m]) {
         const FrameRecord& r = records[i];
-        SE3 T_cam_ref = r.T_cam_ref;
-        KeyFrame* ref = r.reference.get();
-        while (ref && ref->bad && ref->parent) {
-          T_cam_ref = T_cam_ref * ref->T_cam_parent;
-          ref = ref->parent.get();
-        }
-        if (!ref || ref->bad || maps[m]->keyframe(ref->id).get() != ref) continue;
-        resolved[i] = FrameRecordState{r.timestamp, int(m), ref->id, T_cam_ref};
+        const LiveReference ref = live_reference(r);
+        if (!ref.keyframe || ref.keyframe->bad || maps[m]->keyframe(ref.keyframe->id).get() != ref.keyframe) continue;
+        resolved[i] = FrameRecordState{r.timestamp, int(m), ref.keyframe->id, ref.T_cam_ref};
       }
     }));
   }

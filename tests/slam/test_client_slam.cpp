@@ -181,3 +181,4 @@ TEST_F(ClientSlamTest, FinalGlobalBaOffByConfig) {
   slam.finish();
   EXPECT_EQ(slam.final_global_ba(), 0);
 }
+

@@ -25,8 +25,12 @@ async function startMock() {
   rmSync(portFile, { force: true });
   mock = spawn(process.execPath, [path.join(here, 'mock_dense_server.mjs'), '--web', webDir, '--port', String(port),
     '--port-file', portFile, '--token', TOKEN, '--clients', '3', '--submaps', '4', '--triangles', '3000'], { stdio: ['ignore', 'ignore', 'inherit'] });
-  for (let i = 0; i < 100 && !existsSync(portFile); i++) await sleep(50);
-  port = Number(readFileSync(portFile, 'utf8'));
+  port = 0;
+  for (let i = 0; i < 100 && !(port > 0); i++) {
+    if (existsSync(portFile)) port = Number(readFileSync(portFile, 'utf8'));
+    if (!(port > 0)) await sleep(50);
+  }
+  if (!(port > 0)) throw new Error('the mock server did not write its port');
 }
 const control = async (p) => (await fetch(`http://127.0.0.1:${port}/mock/${p}`)).json();
 

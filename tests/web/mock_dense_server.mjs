@@ -9,7 +9,7 @@
 // Usage: node mock_dense_server.mjs --web DIR [--port 0] [--port-file F] [--token T]
 //        [--clients 3] [--submaps 4] [--triangles 2000] [--tick-ms 0]
 import http from 'node:http';
-import { readFileSync, writeFileSync, existsSync } from 'node:fs';
+import { readFileSync, writeFileSync, existsSync, renameSync } from 'node:fs';
 import path from 'node:path';
 
 const arg = (k, d) => { const i = process.argv.indexOf(`--${k}`); return i > 0 ? process.argv[i + 1] : d; };
@@ -227,7 +227,10 @@ const server = http.createServer((req, res) => {
 });
 server.listen(cfg.port, '127.0.0.1', () => {
   const port = server.address().port;
-  if (arg('port-file')) writeFileSync(arg('port-file'), String(port));
+  if (arg('port-file')) {  // written whole, then renamed: a reader never sees an empty file
+    writeFileSync(arg('port-file') + '.tmp', String(port));
+    renameSync(arg('port-file') + '.tmp', arg('port-file'));
+  }
   console.log(`mock dense server on http://127.0.0.1:${port}/ (${state.submaps.size} submaps x ${cfg.triangles} triangles)`);
 });
 if (cfg.tickMs > 0) {  // a live map: every tick one submap grows, one moves
