@@ -113,6 +113,9 @@ int run(int argc, char** argv) {
       .option("queue-capacity", "frames queued per client before the SLAM worker (>= window)", "8")
       .option("max-msg-bytes", "largest accepted message (ZMQ_MAXMSGSIZE); larger ones drop the connection", "16777216")
       .option("heartbeat-timeout", "seconds of silence before a client is marked disconnected", "5")
+      .option("max-timestamp-jump", "a frame stamped more than max(this, 100 x the session's median frame interval) "
+              "+ 2 x the wall-clock time since its last frame past that frame is refused (ERROR_TIMESTAMP_JUMP); 0: off",
+              "10")
       .option("log-interval", "seconds between progress lines", "5")
       .option("endpoint-file", "write the bound endpoint to this file once listening", "")
       .option("log-level", "trace, debug, info, warn, error, off", "info")
@@ -141,6 +144,9 @@ int run(int argc, char** argv) {
   rc.window = std::uint32_t(cli.get_int("window"));
   rc.max_message_bytes = std::stoll(cli.get("max-msg-bytes"));
   rc.heartbeat_timeout_s = cli.get_double("heartbeat-timeout");
+  rc.timestamp_bound.min_jump_s = cli.get_double("max-timestamp-jump");
+  if (!(rc.timestamp_bound.min_jump_s >= 0))
+    throw cslam::ConfigError("cslam-server: --max-timestamp-jump must be >= 0 (0 turns the bound off)");
   rc.log_interval_s = cli.get_double("log-interval");
   rc.expected_clients = std::size_t(std::max(1, cli.get_int("clients")));
   rc.exit_when_done = cli.flag_set("exit-when-done");

@@ -81,3 +81,29 @@ TEST(ReconCli, EmptyResultFailsAndWritesNothing) {
   EXPECT_NE(run(bin + "/cslam-eval cloud " + ds.p("missing.ply") + " " + ds.p("missing.ply")), 0);
   EXPECT_EQ(run(bin + "/cslam-recon --help"), 0);
 }
+
+// cslam-dense-replay: the live dense map rebuilt from keyframe trajectories (two clients here)
+// through the server's LiveDenseMap: its cloud lies on the plane (1 m) and the box (0.8 m).
+TEST(DenseReplayCli, RebuildsTheLiveMapFromKeyframes) {
+  TinyDataset ds;
+  const std::string bin = CSLAM_BIN_DIR;
+  {
+    std::ifstream in(ds.p("poses.txt"));
+    std::ofstream a(ds.p("kf_1.txt")), b(ds.p("kf_2.txt"));
+    std::string line;
+    for (int i = 0; std::getline(in, line); ++i) (i < 3 ? a : b) << line << "\n";
+  }
+  ASSERT_EQ(run(bin + "/cslam-dense-replay --dataset " + ds.root.string() + " --keyframes " + ds.p("kf_1.txt") + " " +
+                ds.p("kf_2.txt") + " --voxel 0.01 --submap-keyframes 2 --out " + ds.p("r.ply") + " --mesh " + ds.p("rm.ply")),
+            0);
+  const ColoredCloud c = read_ply(ds.p("r.ply"));
+  ASSERT_GT(c.size(), 100u);
+  int on_surface = 0;
+  for (const auto& q : c.points) on_surface += std::abs(q.z() - 1.0f) < 0.006f || std::abs(q.z() - 0.8f) < 0.006f;
+  EXPECT_GT(on_surface, int(0.95 * double(c.size())));
+  EXPECT_GT(read_ply_mesh(ds.p("rm.ply")).triangles.size(), 100u);
+  // A missing trajectory file is a clear error, not an empty map.
+  EXPECT_NE(run(bin + "/cslam-dense-replay --dataset " + ds.root.string() + " --keyframes " + ds.p("missing.txt") +
+                " --out " + ds.p("x.ply")),
+            0);
+}

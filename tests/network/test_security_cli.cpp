@@ -21,6 +21,12 @@ TEST(SecurityCli, WideBindWithoutKeysIsRefused) {
   EXPECT_EQ(half.status, 2) << half.output;
 }
 
+TEST(SecurityCli, TimestampJumpBoundIsAnOption) {
+  const auto r = test::run_program("cslam-server", "--max-timestamp-jump -1 --http off --no-slam");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--max-timestamp-jump must be >= 0"), std::string::npos) << r.output;
+}
+
 TEST(SecurityCli, KeygenWritesKeysAndDoesNotOverwrite) {
   const std::string dir = test::scratch_dir("keygen");
   auto r = test::run_program("cslam-keygen", "--out " + dir + "/robot --client-ids 3,4");

@@ -1,5 +1,6 @@
 #include "cloud_evaluation.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -25,6 +26,10 @@ DenseConfig dense_config(const ReconOptions& o) {
   return c;
 }
 
+void move_cloud(ColoredCloud& cloud, const Sim3& S) {
+  for (auto& p : cloud.points) p = (S.scale() * (S.R() * p.cast<double>()) + S.translation()).cast<float>();
+}
+
 std::vector<double> timestamps_of(const Trajectory& t) {
   std::vector<double> out;
   for (const auto& p : t) out.push_back(p.timestamp);
@@ -32,6 +37,34 @@ std::vector<double> timestamps_of(const Trajectory& t) {
 }
 
 }  // namespace
+
+DenseResult CloudEvaluator::slam_cloud(const RunDetail& detail, const std::vector<ClientSpec>& specs) const {
+  // Clients sharing a transform (a fused group) are reconstructed together.
+  std::vector<std::pair<Sim3, std::vector<DatasetPoses>>> groups;
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    DatasetPoses s;
+    s.dataset_dir = specs[i].dataset;
+    s.camera = dataset_camera(specs[i].dataset, camera_).camera;
+    s.poses = detail.tracks[i].raw_estimate;
+    const Sim3& T = detail.tracks[i].T_gt_est_cloud;
+    auto same = [&](const auto& g) { return g.first.matrix().isApprox(T.matrix(), 0.0); };
+    auto it = std::find_if(groups.begin(), groups.end(), same);
+    if (it == groups.end()) it = groups.insert(groups.end(), {T, {}});
+    it->second.push_back(std::move(s));
+  }
+  DenseResult out;
+  for (auto& [T, sources] : groups) {
+    DenseResult r = reconstruct_from_trajectories(sources, dense_config(options_));
+    move_cloud(r.cloud, T);
+    if (out.cloud.empty()) {
+      out = std::move(r);
+    } else {
+      out.cloud.points.insert(out.cloud.points.end(), r.cloud.points.begin(), r.cloud.points.end());
+      out.cloud.colors.insert(out.cloud.colors.end(), r.cloud.colors.begin(), r.cloud.colors.end());
+    }
+  }
+  return out;
+}
 
 CloudEvaluator::CloudEvaluator(ReconOptions options, std::string scene_ply, std::string camera, std::string cache_dir)
     : options_(options), scene_ply_(std::move(scene_ply)), camera_(std::move(camera)),
@@ -85,8 +118,7 @@ void CloudEvaluator::evaluate_live(const RunDetail& detail, const ColoredCloud& 
     if (e.path().filename().string().rfind("dense_cloud_", 0) == 0) files.push_back(e.path().string());
   if (files.size() != 1) return;
   ColoredCloud live = read_ply(files[0]);
-  const Sim3& S = detail.tracks[0].T_gt_est_cloud;
-  for (auto& p : live.points) p = (S.scale() * (S.R() * p.cast<double>()) + S.translation()).cast<float>();
+  move_cloud(live, detail.tracks[0].T_gt_est_cloud);
   CloudCompareConfig cc;
   cc.threads = 2;
   cc.match_bbox = true;
@@ -115,16 +147,11 @@ CloudFigures CloudEvaluator::evaluate(const RunDetail& detail, const std::vector
   }
   Stopwatch sw;
   try {
-    std::vector<DatasetPoses> sources;
-    for (std::size_t i = 0; i < specs.size(); ++i) {
-      DatasetPoses s;
-      s.dataset_dir = specs[i].dataset;
-      s.camera = dataset_camera(specs[i].dataset, camera_).camera;
-      s.poses = detail.tracks[i].raw_estimate;
-      for (auto& p : s.poses) p.T_world_cam = apply_sim3_to_pose(detail.tracks[i].T_gt_est_cloud, p.T_world_cam);
-      sources.push_back(std::move(s));
-    }
-    const DenseResult slam = reconstruct_from_trajectories(sources, dense_config(options_));
+    // The cloud as the system would output it: voxel-filtered in the SLAM's own frame, then moved
+    // into the ground-truth frame (one rigid transform per fused group). Filtering after the move
+    // would put its points on the reference cloud's voxel lattice, which flatters every nearest-
+    // neighbour distance (fr1/desk: median 9.3 mm on the lattice, 11.5 mm off it).
+    const DenseResult slam = slam_cloud(detail, specs);
     if (slam.cloud.empty()) {
       f.note = "the SLAM poses gave an empty cloud";
       return f;

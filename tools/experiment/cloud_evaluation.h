@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "cloud/point_cloud.h"
+#include "dense/reconstructor.h"
 #include "experiment_config.h"
 #include "run_evaluation.h"
 #include "run_record.h"
@@ -31,6 +32,8 @@ class CloudEvaluator {
   const std::vector<Eigen::Vector3f>& scene_points();
   // Network runs: the server's live dense cloud against the same ground-truth cloud.
   void evaluate_live(const RunDetail& detail, const ColoredCloud& gt, const std::string& run_dir, CloudFigures& f);
+  // The SLAM poses' cloud, built in the SLAM's frame and moved into the ground truth's.
+  DenseResult slam_cloud(const RunDetail& detail, const std::vector<ClientSpec>& specs) const;
 
   ReconOptions options_;
   std::string scene_ply_, camera_, cache_dir_;
