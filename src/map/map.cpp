@@ -162,8 +162,12 @@ void Map::set_keyframe_bad(KeyFrame* kf) {
     kf->erase_requested = true;
     return;
   }
-  for (const auto& [other, w] : kf->connections) {
-    other->connections.erase(kf);
+  // Every keyframe that still lists it, not only its own partners: a keyframe whose connections
+  // were recomputed without this one kept its edge to it (the graph is updated one side at a
+  // time), and a culled keyframe is freed once no frame refers to it.
+  for (const auto& [id, other] : keyframes_) {
+    if (other.get() == kf) continue;
+    if (other->connections.erase(kf) == 0) continue;
     auto& oc = other->ordered_connections;
     oc.erase(std::remove_if(oc.begin(), oc.end(), [&](const auto& e) { return e.second == kf; }), oc.end());
   }

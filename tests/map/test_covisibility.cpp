@@ -94,6 +94,26 @@ TEST(Covisibility, CullingKeyframeRepairsGraphTreeAndObservations) {
   EXPECT_NE(b->parent, nullptr);
 }
 
+// The graph is updated one side at a time: a keyframe whose connections were recomputed without a
+// neighbour leaves the neighbour's edge to it in place. Culling it must remove that edge too, or
+// the neighbour would point at a freed keyframe once no frame refers to the culled one.
+TEST(Covisibility, CullingRemovesEdgesTheCulledKeyframeNoLongerListed) {
+  Fixture fx;
+  auto a = fx.add_keyframe(), b = fx.add_keyframe(), c = fx.add_keyframe();
+  fx.share({a, b}, 0, 40);
+  const auto bc = fx.share({b, c}, 40, 40);
+  for (auto& kf : {a, b, c}) fx.map.update_connections(kf.get());
+  ASSERT_EQ(c->weight(b.get()), 40);
+  for (const auto& mp : bc) fx.map.erase_observation(b.get(), mp);  // b stops seeing them
+  fx.map.update_connections(b.get());
+  ASSERT_EQ(b->weight(c.get()), 0);
+  ASSERT_EQ(c->weight(b.get()), 40);  // c's side is stale until c is updated
+  fx.map.set_keyframe_bad(b.get());
+  EXPECT_EQ(c->weight(b.get()), 0);
+  for (const auto& [w, kf] : c->ordered_connections) EXPECT_NE(kf, b.get());
+  EXPECT_EQ(a->weight(b.get()), 0);
+}
+
 TEST(Covisibility, OriginIsNeverCulledAndLockedKeyframesAreDeferred) {
   Fixture fx;
   auto a = fx.add_keyframe(), b = fx.add_keyframe();
