@@ -5,12 +5,14 @@
 # processed, and samples of resident memory, the allocator's held/free bytes and the dense map's
 # mesh/volume bytes every 30 s (the server's own progress lines).
 # Usage: scripts/bench-memory.sh [ROBOTS=4] [FRAMES=18000 (10 min at 30 Hz)] [OUT=bench_out/memory] [RUNS=1]
+#        [CASES="dense nodense"]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROBOTS="${1:-4}"
 FRAMES="${2:-18000}"
 OUT="${3:-bench_out/memory}"
 RUNS="${4:-1}"
+CASES="${5:-dense nodense}"
 BIN="$PWD/build/bin"
 SCENE="$OUT/scene_${ROBOTS}x${FRAMES}"
 mkdir -p "$OUT"
@@ -53,6 +55,11 @@ run_case() {
 
 for r in $(seq 1 "$RUNS"); do
   echo "-- run $r"
-  run_case "dense_r$r"
-  run_case "nodense_r$r" --no-dense
+  for c in $CASES; do
+    case "$c" in
+      dense) run_case "dense_r$r" ;;
+      nodense) run_case "nodense_r$r" --no-dense ;;
+      *) echo "bench-memory.sh: unknown case $c (dense, nodense)" >&2; exit 2 ;;
+    esac
+  done
 done
