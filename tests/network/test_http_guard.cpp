@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "raw_socket.h"
 #include "server/http/http_server.h"
 #include "system/collaborative_system.h"
 #include <httplib.h>  // after every Eigen include
@@ -37,15 +38,7 @@ int connect_to(int port) {
   return fd;
 }
 
-bool send_all(int fd, const std::string& s) {
-  std::size_t off = 0;
-  while (off < s.size()) {
-    const ssize_t n = ::send(fd, s.data() + off, s.size() - off, MSG_NOSIGNAL);
-    if (n <= 0) return false;
-    off += std::size_t(n);
-  }
-  return true;
-}
+using test::send_all;
 
 // Reads until the peer closes or timeout; returns what arrived.
 std::string read_until_close(int fd, double timeout_s, bool* closed = nullptr) {

@@ -1,3 +1,4 @@
+#include "raw_socket.h"
 #include "network/tls_test_util.h"
 
 #include <arpa/inet.h>
@@ -85,15 +86,7 @@ TlsConn::~TlsConn() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-bool TlsConn::send_raw(const std::string& bytes) {
-  std::size_t off = 0;
-  while (off < bytes.size()) {
-    const ssize_t n = ::send(fd_, bytes.data() + off, bytes.size() - off, MSG_NOSIGNAL);
-    if (n <= 0) return false;
-    off += std::size_t(n);
-  }
-  return true;
-}
+bool TlsConn::send_raw(const std::string& bytes) { return send_all(fd_, bytes); }
 
 bool TlsConn::handshake(double timeout_s) {
   if (fd_ < 0) return false;
