@@ -15,6 +15,9 @@ find_package(ZLIB REQUIRED)  # bounded PNG pre-check (src/codec/png_guard.cpp)
 pkg_check_modules(TURBOJPEG REQUIRED IMPORTED_TARGET libturbojpeg)
 # 16-bit depth PNGs (src/codec/png16_decode.cpp): whole-buffer inflate, ~3.7x faster than zlib's on TUM depth.
 pkg_check_modules(LIBDEFLATE REQUIRED IMPORTED_TARGET libdeflate)
+# Inter-frame H.264 colour (src/codec/video_codec.cpp): libx264 and the H.264 decoder through
+# Debian's libavcodec. gcc links --as-needed, so only programs using the video codec load it.
+pkg_check_modules(LIBAVCODEC REQUIRED IMPORTED_TARGET libavcodec libavutil)
 # Allocator of every program and test (cmake/CslamTargets.cmake): each frame allocates and frees
 # hundreds of short-lived buffers (frame data, BA problems, match lists) across threads; glibc's
 # malloc spent ~3 % of the SLAM's CPU in consolidation and page faults, tcmalloc's per-thread

@@ -10,13 +10,14 @@ PKGS=(
   build-essential cmake pkg-config git ca-certificates ccache
   libopencv-dev libeigen3-dev libceres-dev libpcl-dev libboost-dev
   libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler
-  libcpp-httplib-dev libgtest-dev libspdlog-dev nlohmann-json3-dev libzstd-dev libsqlite3-dev liboctomap-dev zlib1g-dev libturbojpeg0-dev libdeflate-dev libgoogle-perftools-dev
+  libcpp-httplib-dev libgtest-dev libspdlog-dev nlohmann-json3-dev libzstd-dev libsqlite3-dev liboctomap-dev zlib1g-dev libturbojpeg0-dev libdeflate-dev libgoogle-perftools-dev libavcodec-dev
   nodejs chromium curl
 )
 # liboctomap-dev: 3D occupancy maps in OctoMap's .bt format (src/navmap).
 # libsqlite3-dev: the keyframe image store (server/dense/keyframe_store.h; WAL commits survive kill -9).
 # libturbojpeg0-dev: JPEG decoded straight to BGR (src/codec/jpeg_decode.cpp).
 # libdeflate-dev: 16-bit depth PNGs inflated in one call, ~3.7x faster than zlib (src/codec/png16_decode.cpp).
+# libavcodec-dev: inter-frame H.264 colour with libx264 (src/codec/video_codec.cpp).
 # libgoogle-perftools-dev: tcmalloc, the programs' allocator (cmake/Dependencies.cmake).
 # nodejs: the web viewer's npm packages (scripts/install-web.sh); chromium: its browser test.
 TEST_PKGS=(
