@@ -1,5 +1,6 @@
 #include "client/frame_sender.h"
 
+#include "codec/depth_subsample.h"
 #include "core/log.h"
 
 namespace cslam::client {
@@ -15,6 +16,15 @@ std::chrono::milliseconds to_ms(double seconds) { return std::chrono::millisecon
 FrameSender::FrameSender(SenderConfig config) : config_(std::move(config)), context_(1) {
   config_.codecs.validate();
   config_.info.camera.validate();
+  if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");
+  if (config_.light_depth_subsample < 0 || config_.light_depth_subsample == 1 ||
+      config_.light_depth_subsample > kMaxDepthSubsample)
+    throw ConfigError("SenderConfig::light_depth_subsample must be 0 (no depth) or 2.." + std::to_string(kMaxDepthSubsample));
+  if (config_.depth_every > 1) {
+    config_.colour_stream.validate();
+    colour_encoder_ = std::make_unique<video::H264Encoder>(config_.info.camera.width, config_.info.camera.height,
+                                                           config_.colour_stream);
+  }
 }
 
 FrameSender::~FrameSender() = default;
@@ -34,6 +44,7 @@ void FrameSender::open_socket() {
 void FrameSender::connect() {
   open_socket();
   welcomed_ = false;
+  key_wanted_ = true;  // a restarted server has no colour stream of ours; frames in flight may be lost
   wire::ClientMessage hello;
   *hello.mutable_hello() = wire::to_hello(config_.info);
   hello.mutable_hello()->set_new_session(config_.new_session && !session_started_);
@@ -72,8 +83,35 @@ wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) const {
   return out;
 }
 
+wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
+  const bool with_depth = !colour_encoder_ || depth_wanted_ || ++frames_since_depth_ >= config_.depth_every;
+  if (with_depth) {
+    frames_since_depth_ = 0;
+    depth_wanted_ = false;
+    last_full_seq_ = seq_ + 1;  // encode_next runs right before the frame is sent with the next seq
+    return encode(frame);
+  }
+  wire::RgbdFrame out;
+  const bool key = key_wanted_;
+  wire::to_wire_light_frame(frame, colour_encoder_->encode(frame.bgr, key), config_.light_depth_subsample, config_.codecs,
+                            &out);
+  key_wanted_ = false;
+  ++stats_.frames_light;
+  if (key) {
+    ++stats_.colour_key_packets;
+    last_key_seq_ = seq_ + 1;  // encode_next runs right before the frame is sent with the next seq
+  }
+  return out;
+}
+
 std::size_t FrameSender::send_frame(const RgbdFrame& frame) {
-  wire::RgbdFrame encoded = encode(frame);
+  // Credits first: a lean stream's frame is encoded only once it can leave.
+  for (;;) {
+    send_resends(true);
+    wait_for_credit();
+    if (resend_.empty()) break;
+  }
+  wire::RgbdFrame encoded = encode_next(frame);
   return send_encoded(encoded);
 }
 
@@ -100,6 +138,7 @@ std::size_t FrameSender::send_now(wire::RgbdFrame& frame, Clock::time_point capt
   send_body(body);
   ++stats_.frames_sent;
   stats_.bytes_sent += body.size();
+  if (frame.rgb().encoding() == wire::RGB_H264) stats_.bytes_light += body.size();
   captured_at_[seq_] = captured;
   if (!frame.live() && config_.resend_buffer_bytes > 0) {
     kept_bytes_ += body.size();
@@ -152,14 +191,33 @@ void FrameSender::send_resends(bool wait) {
   }
 }
 
-void FrameSender::offer_frame(const RgbdFrame& frame) { offer_encoded(encode(frame), Clock::now()); }
+void FrameSender::offer_frame(const RgbdFrame& frame, Clock::time_point captured) {
+  if (!colour_encoder_) {
+    offer_encoded(encode(frame), captured);
+    return;
+  }
+  if (!socket_) throw std::logic_error("FrameSender: offer before connect()");
+  ++stats_.frames_offered;
+  while (handle_reply(std::chrono::milliseconds(0))) {
+  }
+  if (has_waiting_frame()) ++stats_.frames_dropped_live;
+  waiting_.reset();
+  RgbdFrame kept = frame;  // the caller may reuse its buffers before the frame leaves
+  kept.bgr = frame.bgr.clone();
+  kept.depth = frame.depth.clone();
+  kept.live = true;
+  waiting_raw_ = std::move(kept);
+  waiting_captured_ = captured;
+  send_waiting_if_credit();
+}
 
 void FrameSender::offer_encoded(wire::RgbdFrame frame, Clock::time_point captured) {
   if (!socket_) throw std::logic_error("FrameSender: offer before connect()");
   ++stats_.frames_offered;
   while (handle_reply(std::chrono::milliseconds(0))) {
   }
-  if (waiting_) ++stats_.frames_dropped_live;  // a newer frame makes the waiting one stale
+  if (has_waiting_frame()) ++stats_.frames_dropped_live;  // a newer frame makes the waiting one stale
+  waiting_raw_.reset();
   frame.set_live(true);
   waiting_ = std::move(frame);
   waiting_captured_ = captured;
@@ -167,7 +225,15 @@ void FrameSender::offer_encoded(wire::RgbdFrame frame, Clock::time_point capture
 }
 
 void FrameSender::send_waiting_if_credit() {
-  if (!waiting_ || credits_ == 0) return;
+  if (credits_ == 0) return;
+  if (waiting_raw_) {
+    wire::RgbdFrame encoded = encode_next(*waiting_raw_);
+    encoded.set_live(true);
+    waiting_raw_.reset();
+    send_now(encoded, waiting_captured_);
+    return;
+  }
+  if (!waiting_) return;
   send_now(*waiting_, waiting_captured_);
   waiting_.reset();
 }
@@ -177,7 +243,7 @@ void FrameSender::service_until(Clock::time_point until) {
   for (;;) {
     send_waiting_if_credit();
     const auto now = Clock::now();
-    if ((in_flight_ > 0 || waiting_) && now - last_reply_ > to_ms(config_.reply_timeout_s)) {
+    if ((in_flight_ > 0 || has_waiting_frame()) && now - last_reply_ > to_ms(config_.reply_timeout_s)) {
       reconnect();
       continue;
     }
@@ -222,6 +288,12 @@ void FrameSender::on_ack(const wire::Ack& ack) {
     f.latency_ms = std::chrono::duration<double, std::milli>(now - it->second).count();
     captured_at_.erase(captured_at_.begin(), std::next(it));  // older seqs cannot be acked any more
   }
+  // A request about a frame sent before the last full frame is already met by it (the acks of
+  // the frames in flight may all ask).
+  if (f.want_depth && colour_encoder_ && ack.seq() > last_full_seq_) {
+    depth_wanted_ = true;
+    ++stats_.depth_requests;
+  }
   latest_pose_ = f;
   if (pose_callback_) {
     pose_callback_(f);
@@ -247,12 +319,12 @@ void FrameSender::keep_alive(double timeout_s) {
 bool FrameSender::goodbye(double timeout_s) {
   if (!socket_) return false;
   const auto deadline = Clock::now() + to_ms(timeout_s);
-  while ((in_flight_ > 0 || waiting_ || !resend_.empty()) && Clock::now() < deadline) {
+  while ((in_flight_ > 0 || has_waiting_frame() || !resend_.empty()) && Clock::now() < deadline) {
     send_resends(false);
     send_waiting_if_credit();  // live: the last frame still goes out when its credit comes
     handle_reply(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
   }
-  const bool all_acked = in_flight_ == 0 && !waiting_ && resend_.empty();
+  const bool all_acked = in_flight_ == 0 && !has_waiting_frame() && resend_.empty();
   if (!all_acked)
     log()->warn("client {}: {} frame(s) not acknowledged before goodbye", config_.info.id, in_flight_);
   wire::ClientMessage bye;
@@ -315,6 +387,10 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       if (e.seq() != 0) captured_at_.erase(e.seq());
       log()->warn("client {}: server error {} for seq {}: {}", config_.info.id, code, e.seq(), e.message());
       if (e.code() == wire::ERROR_SESSION_BUSY && !welcomed_) hello_busy_ = true;
+      if (e.code() == wire::ERROR_STREAM_GAP) {  // the server's colour stream lost its reference
+        ++stats_.stream_gaps;
+        if (e.seq() > last_key_seq_) key_wanted_ = true;  // else a key packet sent since heals it
+      }
       if (e.code() == wire::ERROR_BAD_VERSION || e.code() == wire::ERROR_BAD_HELLO ||
           e.code() == wire::ERROR_SHUTTING_DOWN || e.code() == wire::ERROR_TOO_MANY_CLIENTS ||
           (e.code() == wire::ERROR_NOT_AUTHORIZED && e.seq() == 0))

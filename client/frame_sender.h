@@ -26,6 +26,7 @@
 #include <zmq.hpp>
 
 #include "codec/image_codec.h"
+#include "codec/video_codec.h"
 #include "proto/adapter.h"
 #include "proto/pose_feedback.h"
 #include "system/rgbd_frame.h"
@@ -47,6 +48,21 @@ struct SenderConfig {
   // so that a server which restarted from an older snapshot, or lost frames in flight, gets
   // them again: a resumed Welcome's last_seq says where the server stands. 0: keep none.
   std::size_t resend_buffer_bytes = std::size_t(128) << 20;
+  // Lean stream (docs/network.md): only every depth_every-th frame, and the next frame after an
+  // ack asks for it (want_depth: a keyframe is due), is a full frame: full depth with standalone
+  // colour (`codecs`). The frames between are light: colour as packets of one H.264 stream, and
+  // depth at every light_depth_subsample-th pixel of every such row (0: no depth). Keyframes
+  // come from full frames alone, so the map and the dense model see full-quality images.
+  // depth_every 1: every frame is full (no colour stream).
+  int depth_every = 1;
+  int light_depth_subsample = 4;
+  // Light frames are only tracked, never stored: a coarser colour stream than H264Options'
+  // default (CRF 17, JPEG q75's PSNR) is 40 % smaller at no measured cost in ATE (docs/network.md).
+  video::H264Options colour_stream = [] {
+    video::H264Options o;
+    o.crf = 26;
+    return o;
+  }();
 };
 
 struct SenderStats {
@@ -58,6 +74,10 @@ struct SenderStats {
   std::uint64_t frames_refused = 0;  // errors about a sent frame (seq != 0): frames not delivered
   std::uint64_t frames_resent = 0;   // sent again after a resumed session said the server lacked them
   std::uint64_t frames_lost = 0;     // the server lacked them and they were no longer kept (or live)
+  // Lean stream: light frames sent, key packets of the colour stream, acks asking for full
+  // depth, and stream gaps the server reported (each answered with a key packet).
+  std::uint64_t frames_light = 0, colour_key_packets = 0, depth_requests = 0, stream_gaps = 0;
+  std::uint64_t bytes_light = 0;  // wire bytes of the light frames
 };
 
 // The server refused us or stopped answering.
@@ -79,8 +99,11 @@ class FrameSender {
   void reconnect();
 
   // Encodes the frame's images with config.codecs (the frame's client/seq are ignored: the
-  // sender stamps its own id and the next sequence number).
+  // sender stamps its own id and the next sequence number). Always with depth.
   wire::RgbdFrame encode(const RgbdFrame& frame) const;
+  // The next frame of the stream: with depth (encode()) or, in a lean stream, colour only as the
+  // colour stream's next packet. Call it only for a frame that is sent right away.
+  wire::RgbdFrame encode_next(const RgbdFrame& frame);
   // Waits for a credit, stamps id + seq, sends. Returns the message size in bytes.
   std::size_t send_encoded(wire::RgbdFrame& frame);
   std::size_t send_frame(const RgbdFrame& frame);
@@ -90,11 +113,11 @@ class FrameSender {
   // counting) the frame that waited before. `captured` is when the camera took it (pose latency
   // is measured from there).
   void offer_encoded(wire::RgbdFrame frame, std::chrono::steady_clock::time_point captured);
-  void offer_frame(const RgbdFrame& frame);
+  void offer_frame(const RgbdFrame& frame, std::chrono::steady_clock::time_point captured = std::chrono::steady_clock::now());
   // Live mode, between captures: handles replies until `until`, sending the waiting frame as
   // soon as a credit comes back (heartbeats and reconnects as in lossless mode).
   void service_until(std::chrono::steady_clock::time_point until);
-  bool has_waiting_frame() const { return waiting_.has_value(); }
+  bool has_waiting_frame() const { return waiting_.has_value() || waiting_raw_.has_value(); }
 
   // Pose feedback. With a callback set, every ack's feedback goes there (on the calling thread,
   // from inside the sender's calls); otherwise it is queued (bounded) for take_poses().
@@ -145,6 +168,15 @@ class FrameSender {
   Clock::time_point last_reply_, last_heartbeat_;
   SenderStats stats_;
   std::optional<wire::RgbdFrame> waiting_;          // live: the newest frame without a credit
+  // Live, lean stream: the waiting frame is encoded only when it is sent (a colour packet that
+  // never leaves would break the stream).
+  std::optional<RgbdFrame> waiting_raw_;
+  std::unique_ptr<video::H264Encoder> colour_encoder_;
+  int frames_since_depth_ = 0;
+  bool depth_wanted_ = true;   // the first frame carries depth
+  bool key_wanted_ = true;     // the first colour packet, and the first after a gap or reconnect, is a key
+  std::uint64_t last_key_seq_ = 0;  // seq of the last key packet sent (a gap before it is healed)
+  std::uint64_t last_full_seq_ = 0;  // seq of the last full frame sent (a request before it is met)
   Clock::time_point waiting_captured_;
   std::map<std::uint64_t, Clock::time_point> captured_at_;  // seq -> capture time, until acked
   std::function<void(const wire::PoseFeedback&)> pose_callback_;

@@ -39,6 +39,9 @@ int run(int argc, char** argv) {
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")
+      .option("depth-every", "lean stream: depth (with --rgb-codec colour) on every K-th frame and when the server asks; the light frames between send colour as an H.264 stream and depth subsampled (--light-depth); 1: every frame full", "1")
+      .option("light-depth", "lean stream: light frames carry depth at every S-th pixel of every S-th row (lossless); 0: no depth", "4")
+      .option("colour-crf", "lean stream: H.264 constant rate factor of the colour stream (lower: better, larger)", std::to_string(cslam::client::SenderConfig().colour_stream.crf))
       .flag("new-session", "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload", "load and encode every frame before sending (measures the network path only)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")
@@ -69,6 +72,11 @@ int run(int argc, char** argv) {
   config.codecs.rgb = cslam::parse_rgb_codec(cli.get("rgb-codec"));
   config.codecs.jpeg_quality = cli.get_int("jpeg-quality");
   config.codecs.depth = cslam::parse_depth_codec(cli.get("depth-codec"));
+  config.depth_every = cli.get_int("depth-every");
+  config.colour_stream.crf = cli.get_int("colour-crf");
+  config.light_depth_subsample = cli.get_int("light-depth");
+  if (config.depth_every > 1 && cli.flag_set("preload"))
+    throw cslam::ConfigError("cslam-client: --preload encodes every frame with depth; it does not go with --depth-every");
   config.reply_timeout_s = cli.get_double("reply-timeout");
   {
     const double mb = cli.get_double("resend-buffer");
@@ -115,9 +123,15 @@ int run(int argc, char** argv) {
       // The camera's clock: frame i is captured at its dataset time after the first frame's.
       const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                    std::chrono::duration<double>(pairs[i].rgb_time - pairs[0].rgb_time));
-      cslam::wire::RgbdFrame frame = preloaded.empty() ? sender.encode(cslam::load_dataset_frame(pairs[i], config.info.id)) : preloaded[i];
-      sender.service_until(due);
-      sender.offer_encoded(std::move(frame), due);
+      if (config.depth_every > 1) {  // the lean stream encodes a frame when it leaves
+        const cslam::RgbdFrame frame = cslam::load_dataset_frame(pairs[i], config.info.id);
+        sender.service_until(due);
+        sender.offer_frame(frame, due);
+      } else {
+        cslam::wire::RgbdFrame frame = preloaded.empty() ? sender.encode(cslam::load_dataset_frame(pairs[i], config.info.id)) : preloaded[i];
+        sender.service_until(due);
+        sender.offer_encoded(std::move(frame), due);
+      }
     } else {
       if (rate > 0) std::this_thread::sleep_until(start + std::chrono::duration<double>(double(i) / rate));
       if (preloaded.empty()) {
@@ -128,9 +142,12 @@ int run(int argc, char** argv) {
     }
     const auto& s = sender.stats();
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    char extra[96];
-    std::snprintf(extra, sizeof extra, "%.2f MB/s, %.1f KB/frame", double(s.bytes_sent) / std::max(elapsed, 1e-9) / 1e6,
-                  double(s.bytes_sent) / double(s.frames_sent) / 1e3);
+    char extra[160];
+    int used = std::snprintf(extra, sizeof extra, "%.2f MB/s, %.1f KB/frame", double(s.bytes_sent) / std::max(elapsed, 1e-9) / 1e6,
+                             double(s.bytes_sent) / double(s.frames_sent) / 1e3);
+    if (config.depth_every > 1 && used > 0)
+      std::snprintf(extra + used, sizeof extra - std::size_t(used), ", %llu light, %llu depth requests",
+                    (unsigned long long)s.frames_light, (unsigned long long)s.depth_requests);
     progress.update(s.frames_sent, extra);
   }
   progress.finish();
@@ -147,6 +164,16 @@ int run(int argc, char** argv) {
   log->info("client {}: pose feedback {}, {} dropped without credit, latency p50 {:.1f} ms p99 {:.1f} ms", id,
             summary["states"].dump(), s.frames_dropped_live, summary["latency_ms"]["p50"].get<double>(),
             summary["latency_ms"]["p99"].get<double>());
+  if (config.depth_every > 1)
+    log->info("client {}: lean stream: {} of {} frames light ({:.1f} KB each), {} full ({:.1f} KB each), {} depth "
+              "requests, {} key packets, {} stream gaps",
+              id, s.frames_light, s.frames_sent,
+              s.frames_light ? double(s.bytes_light) / double(s.frames_light) / 1e3 : 0.0,
+              s.frames_sent - s.frames_light,
+              s.frames_sent > s.frames_light
+                  ? double(s.bytes_sent - s.bytes_light) / double(s.frames_sent - s.frames_light) / 1e3
+                  : 0.0,
+              s.depth_requests, s.colour_key_packets, s.stream_gaps);
   if (!cli.get("poses-out").empty()) pose_log.write(cli.get("poses-out"));
   if (!cli.get("summary-out").empty()) std::ofstream(cli.get("summary-out")) << summary.dump(2) << "\n";
   // Session-level errors the sender recovered from (e.g. a frame that reached a restarted server

@@ -1,5 +1,8 @@
 #include "proto/adapter.h"
 
+#include "codec/depth_subsample.h"
+#include "codec/video_codec.h"
+
 #include <cmath>
 #include <exception>
 
@@ -150,23 +153,85 @@ void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, R
   d->set_data(depth.data(), depth.size());
 }
 
+void to_wire_light_frame(const cslam::RgbdFrame& frame, const Bytes& colour_packet, int depth_subsample,
+                         const CodecOptions& options, RgbdFrame* out) {
+  out->set_client_id(frame.client);
+  out->set_seq(frame.seq);
+  out->set_timestamp(frame.timestamp);
+  out->set_live(frame.live);
+  Image* r = out->mutable_rgb();
+  r->set_width(std::uint32_t(frame.bgr.cols));
+  r->set_height(std::uint32_t(frame.bgr.rows));
+  r->set_encoding(RGB_H264);
+  r->set_data(colour_packet.data(), colour_packet.size());
+  if (depth_subsample < 2 || frame.depth.empty()) {
+    out->clear_depth();
+    out->set_depth_subsample(0);
+    out->set_depth_time_offset(0);
+    return;
+  }
+  const cv::Mat coarse = subsample_depth(frame.depth, depth_subsample);
+  const Bytes depth = encode_depth(coarse, options);
+  Image* d = out->mutable_depth();
+  d->set_width(std::uint32_t(coarse.cols));
+  d->set_height(std::uint32_t(coarse.rows));
+  d->set_encoding(to_wire(options.depth));
+  d->set_data(depth.data(), depth.size());
+  out->set_depth_subsample(std::uint32_t(depth_subsample));
+  out->set_depth_time_offset(frame.depth_time_offset);
+}
+
+namespace {
+
+// The depth image's subsampling (1: full image), after check_frame accepted the frame.
+int depth_subsample_of(const RgbdFrame& frame) { return std::max<int>(1, int(frame.depth_subsample())); }
+
+}  // namespace
+
 void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source) {
   RgbCodec rgb_codec;
   DepthCodec depth_codec;
-  if (!frame.has_rgb() || !frame.has_depth()) throw WireError(ERROR_MALFORMED, source, "frame without rgb or depth image");
-  if (!rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec))
+  if (!frame.has_rgb()) throw WireError(ERROR_MALFORMED, source, "frame without a colour image");
+  const bool inter_coded = frame.rgb().encoding() == RGB_H264;
+  if (!inter_coded && !rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec))
     throw WireError(ERROR_UNKNOWN_ENCODING, source,
                     "unknown RGB encoding " + std::to_string(int(frame.rgb().encoding())));
-  if (!depth_codec_from_wire(frame.depth().encoding(), &depth_codec))
-    throw WireError(ERROR_UNKNOWN_ENCODING, source,
-                    "unknown depth encoding " + std::to_string(int(frame.depth().encoding())));
   check_size(frame.rgb(), camera, "RGB", source);
-  check_size(frame.depth(), camera, "depth", source);
+  if (frame.depth_subsample() > std::uint32_t(kMaxDepthSubsample))
+    throw WireError(ERROR_MALFORMED, source,
+                    "depth_subsample " + std::to_string(frame.depth_subsample()) + " is not 0.." +
+                        std::to_string(kMaxDepthSubsample));
+  if (!frame.has_depth()) {
+    if (frame.depth_subsample() > 1) throw WireError(ERROR_MALFORMED, source, "depth_subsample without a depth image");
+  } else {
+    if (!depth_codec_from_wire(frame.depth().encoding(), &depth_codec))
+      throw WireError(ERROR_UNKNOWN_ENCODING, source,
+                      "unknown depth encoding " + std::to_string(int(frame.depth().encoding())));
+    const int s = depth_subsample_of(frame);
+    if (s == 1 && inter_coded)
+      throw WireError(ERROR_MALFORMED, source,
+                      "a frame with full depth may become a keyframe, so its colour must decode on its own (JPEG, PNG or "
+                      "raw), not as an inter-coded (RGB_H264) packet");
+    if (s == 1) {
+      check_size(frame.depth(), camera, "depth", source);
+    } else {
+      const cv::Size size = subsampled_depth_size(camera.width, camera.height, s);
+      if (frame.depth().width() != std::uint32_t(size.width) || frame.depth().height() != std::uint32_t(size.height))
+        throw WireError(ERROR_SIZE_MISMATCH, source,
+                        "depth image subsampled by " + std::to_string(s) + " is " + std::to_string(frame.depth().width()) +
+                            "x" + std::to_string(frame.depth().height()) + ", not " + std::to_string(size.width) + "x" +
+                            std::to_string(size.height));
+    }
+  }
   if (!std::isfinite(frame.timestamp())) throw WireError(ERROR_MALFORMED, source, "non-finite timestamp");
   if (!std::isfinite(frame.depth_time_offset()) || std::abs(frame.depth_time_offset()) > kMaxDepthTimeOffset)
     throw WireError(ERROR_MALFORMED, source,
                     "depth_time_offset " + std::to_string(frame.depth_time_offset()) + " s is not within +-" +
                         std::to_string(kMaxDepthTimeOffset) + " s");
+}
+
+bool keyframe_eligible(const RgbdFrame& frame) {
+  return frame.has_depth() && depth_subsample_of(frame) == 1 && frame.rgb().encoding() != RGB_H264;
 }
 
 EncodedRgbd take_encoded(RgbdFrame& frame) {
@@ -179,17 +244,24 @@ EncodedRgbd take_encoded(RgbdFrame& frame) {
   return e;
 }
 
-cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source) {
+cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source,
+                                 video::H264Decoder* colour_stream) {
   check_frame(frame, camera, source);
-  RgbCodec rgb_codec;
-  DepthCodec depth_codec;
-  rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec);
-  depth_codec_from_wire(frame.depth().encoding(), &depth_codec);
+  const bool inter_coded = frame.rgb().encoding() == RGB_H264;
+  if (inter_coded && !colour_stream)
+    throw WireError(ERROR_UNKNOWN_ENCODING, source, "inter-coded colour (RGB_H264) is not accepted on this path");
+  RgbCodec rgb_codec = RgbCodec::kRaw;
+  DepthCodec depth_codec = DepthCodec::kRaw;
+  if (!inter_coded) rgb_codec_from_wire(frame.rgb().encoding(), &rgb_codec);
+  if (frame.has_depth()) depth_codec_from_wire(frame.depth().encoding(), &depth_codec);
+  const int subsample = frame.has_depth() ? depth_subsample_of(frame) : 1;
+  const cv::Size depth_size = subsampled_depth_size(camera.width, camera.height, subsample);
   cslam::RgbdFrame out;
   out.client = ClientId(frame.client_id());
   out.seq = frame.seq();
   out.timestamp = frame.timestamp();
-  out.depth_time_offset = frame.depth_time_offset();
+  out.depth_time_offset = frame.has_depth() ? frame.depth_time_offset() : 0.0;
+  out.depth_subsample = subsample;
   out.live = frame.live();
   const std::string& rgb = frame.rgb().data();
   const std::string& depth = frame.depth().data();
@@ -198,28 +270,36 @@ cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& ca
   cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
     for (int task = range.start; task < range.end; ++task) {
       try {
-        if (task == 0) {
+        if (task == 0 && inter_coded) {
+          out.bgr = colour_stream->decode(reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), source + " rgb");
+        } else if (task == 0) {
           out.bgr = decode_rgb(rgb_codec, reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), camera.width,
                                camera.height, source + " rgb");
-        } else {
+        } else if (frame.has_depth()) {
           out.depth = decode_depth(depth_codec, reinterpret_cast<const std::uint8_t*>(depth.data()), depth.size(),
-                                   camera.width, camera.height, source + " depth");
+                                   depth_size.width, depth_size.height, source + " depth");
+          if (subsample > 1) out.depth = expand_depth(out.depth, subsample, camera.width, camera.height);
         }
       } catch (...) {
         errors[task] = std::current_exception();
       }
     }
   });
-  for (const auto& error : errors) {
-    if (!error) continue;
+  for (int task = 0; task < 2; ++task) {
+    if (!errors[task]) continue;
     try {
-      std::rethrow_exception(error);
+      std::rethrow_exception(errors[task]);
     } catch (const WireError&) {
       throw;
     } catch (const InputError& e) {
-      throw WireError(ERROR_CORRUPT_IMAGE, e.source(), e.what());
+      // A colour packet the stream could not take leaves it without its reference: the robot
+      // must send a key packet (ERROR_STREAM_GAP).
+      const bool gap = task == 0 && inter_coded && colour_stream->waiting_for_key();
+      throw WireError(gap ? ERROR_STREAM_GAP : ERROR_CORRUPT_IMAGE, e.source(), e.what());
     }
   }
+  if (out.bgr.cols != camera.width || out.bgr.rows != camera.height)
+    throw WireError(ERROR_SIZE_MISMATCH, source, "decoded colour is not the camera's size");
   return out;
 }
 

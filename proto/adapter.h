@@ -8,6 +8,10 @@
 #include "core/error.h"
 #include "system/rgbd_frame.h"
 
+namespace cslam::video {
+class H264Decoder;
+}
+
 namespace cslam::wire {
 
 constexpr ProtocolVersion kProtocolVersion = PROTOCOL_VERSION_2;
@@ -39,16 +43,29 @@ ClientInfo from_hello(const Hello& hello, const std::string& source, std::uint64
 
 // Encodes a frame's images with the given codecs into `out` (reused to avoid reallocations).
 void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, RgbdFrame* out);
+// A light frame: `colour_packet` is the next packet of the robot's colour stream
+// (video::H264Encoder), sent as RGB_H264; with depth_subsample >= 2 the frame's depth goes
+// along at every S-th pixel of every S-th row (options.depth, lossless), else no depth.
+void to_wire_light_frame(const cslam::RgbdFrame& frame, const Bytes& colour_packet, int depth_subsample,
+                         const CodecOptions& options, RgbdFrame* out);
+// Whether a frame (accepted by check_frame) may become a keyframe: full depth and colour that
+// decodes on its own. Only such frames are kept for the dense map.
+bool keyframe_eligible(const RgbdFrame& frame);
 
-// The cheap checks of from_wire_frame (both images present, known encodings, sizes equal to the
-// camera, finite timestamp), without decoding. Throws WireError like from_wire_frame.
+// The cheap checks of from_wire_frame (colour present; known encodings; sizes equal to the
+// camera's, or its subsampled size for subsampled depth; full depth only with colour that decodes
+// on its own; finite timestamp), without decoding. Throws WireError like from_wire_frame.
 void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source);
 
 // Checks encodings and sizes against the client's camera, then decodes both images. Decoders
 // are bounded: each produces exactly width x height pixels or fails (a compressed stream that
 // wants more output is corrupt), so work and memory per frame are bounded by the camera size.
-// Throws WireError: ERROR_UNKNOWN_ENCODING, ERROR_SIZE_MISMATCH or ERROR_CORRUPT_IMAGE.
-cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source);
+// RGB_H264 colour is decoded by the client's `colour_stream` (null: refused). A light frame comes
+// back with an empty depth image, or subsampled depth spread to full size (depth_subsample > 1).
+// Throws WireError: ERROR_UNKNOWN_ENCODING, ERROR_SIZE_MISMATCH, ERROR_CORRUPT_IMAGE, or
+// ERROR_STREAM_GAP (the stream lacks this packet's reference).
+cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std::string& source,
+                                 video::H264Decoder* colour_stream = nullptr);
 
 // Moves a frame's image bytes out of the message (after from_wire_frame accepted it) into the
 // form the keyframe store keeps: the received payload, never re-encoded.

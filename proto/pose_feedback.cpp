@@ -55,6 +55,7 @@ void to_wire_ack(const FrameDone& done, std::uint32_t credits, Ack* out) {
   out->set_timestamp(done.timestamp);
   out->set_frames_skipped(done.frames_skipped);
   out->set_server_ms(done.server_ms);
+  out->set_want_depth(done.wants_depth);
 }
 
 PoseFeedback from_wire_ack(const Ack& ack) {
@@ -71,6 +72,7 @@ PoseFeedback from_wire_ack(const Ack& ack) {
   f.map_epoch = ack.map_epoch();
   f.frames_skipped = ack.frames_skipped();
   f.server_ms = ack.server_ms();
+  f.want_depth = ack.want_depth();
   return f;
 }
 

@@ -61,8 +61,11 @@ void DecodePool::run() {
     DecodeJob job = std::move(*next);
     queue_.erase(next);
     busy_.insert(job.client);
+    // A map node stays where it is while other clients' nodes come and go.
+    std::unique_ptr<video::H264Decoder>* colour_stream =
+        job.frame->rgb().encoding() == wire::RGB_H264 ? &colour_streams_[job.client] : nullptr;
     lock.unlock();
-    DecodeResult result = process(job);
+    DecodeResult result = process(job, colour_stream);
     job.frame.reset();
     {
       std::lock_guard<std::mutex> results_lock(results_mutex_);
@@ -75,15 +78,19 @@ void DecodePool::run() {
   }
 }
 
-DecodeResult DecodePool::process(DecodeJob& job) {
+DecodeResult DecodePool::process(DecodeJob& job, std::unique_ptr<video::H264Decoder>* colour_stream) {
   const Stopwatch timer;
   DecodeResult r;
   r.client = job.client;
   r.seq = job.seq;
   try {
-    RgbdFrame decoded = wire::from_wire_frame(*job.frame, job.camera, job.source);
+    if (colour_stream && !*colour_stream)
+      *colour_stream = std::make_unique<video::H264Decoder>(job.camera.width, job.camera.height);
+    RgbdFrame decoded =
+        wire::from_wire_frame(*job.frame, job.camera, job.source, colour_stream ? colour_stream->get() : nullptr);
     decoded.client = job.client;
-    decoded.encoded = std::make_shared<const EncodedRgbd>(wire::take_encoded(*job.frame));
+    // Only frames that may become keyframes are kept for the dense map.
+    if (wire::keyframe_eligible(*job.frame)) decoded.encoded = std::make_shared<const EncodedRgbd>(wire::take_encoded(*job.frame));
     if (!submit_(std::move(decoded))) {
       r.outcome = DecodeResult::Outcome::kShuttingDown;
       r.code = wire::ERROR_SHUTTING_DOWN;

@@ -8,6 +8,7 @@
 #include <condition_variable>
 #include <deque>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -15,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "codec/video_codec.h"
 #include "proto/adapter.h"
 #include "server/wake_pipe.h"
 
@@ -59,7 +61,7 @@ class DecodePool {
 
  private:
   void run();
-  DecodeResult process(DecodeJob& job);
+  DecodeResult process(DecodeJob& job, std::unique_ptr<video::H264Decoder>* colour_stream);
 
   const std::size_t capacity_;
   Submit submit_;
@@ -67,6 +69,10 @@ class DecodePool {
   std::condition_variable wake_;
   std::deque<DecodeJob> queue_;
   std::set<ClientId> busy_;  // clients with a job being decoded right now
+  // Each client's colour-stream decoder (light frames' RGB_H264 colour), made at its first such packet. Only
+  // the thread that holds the client in busy_ touches it; the map itself is guarded by mutex_.
+  // At most one per session (the server bounds sessions with --max-clients).
+  std::map<ClientId, std::unique_ptr<video::H264Decoder>> colour_streams_;
   bool stop_ = false;
   std::vector<std::thread> threads_;
 

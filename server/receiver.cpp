@@ -322,8 +322,11 @@ void Receiver::on_frame(const std::string& routing_id, std::unique_ptr<wire::Rgb
   job.seq = seq;
   job.camera = session->info.camera;
   job.source = source;
+  const bool light = !wire::keyframe_eligible(*frame);
   job.frame = std::move(frame);
   if (!pool_.post(std::move(job))) return refuse(wire::ERROR_OVERLOADED, "decode queue full", 1);
+  if (light) ++net.frames_light;
+  net.raw_bytes += std::uint64_t(session->info.camera.width) * std::uint64_t(session->info.camera.height) * 5u;
   if (verdict.new_epoch) log()->warn("{}: {}", source, verdict.message);
   session->stamps.accept(stamp, now);
   session->decoding.insert(seq);

@@ -42,7 +42,8 @@ std::map<std::string, std::uint64_t> client_counters(const ClientNetStats& net) 
   return {{"frames_accepted", net.frames_accepted}, {"bytes_received", net.bytes_received},
           {"messages", net.messages},               {"heartbeats", net.heartbeats},
           {"reconnects", net.reconnects},           {"timeouts", net.timeouts},
-          {"goodbyes", net.goodbyes},               {"dropped", net.dropped_total()}};
+          {"goodbyes", net.goodbyes},               {"dropped", net.dropped_total()},
+          {"frames_light", net.frames_light}, {"raw_bytes", net.raw_bytes}};
 }
 
 }  // namespace
@@ -84,11 +85,13 @@ std::vector<std::string> ServerStats::progress_lines(const SystemSnapshot& snaps
     const double mbps = double(net.bytes_received - last_bytes) / dt / 1e6;
     last_processed = c.frames_processed;
     last_bytes = net.bytes_received;
-    char buf[256];
+    char buf[320];
     std::snprintf(buf, sizeof buf,
-                  "client %u: received %llu processed %llu dropped %llu queue %zu | %.1f fps %.2f MB/s | %s",
+                  "client %u: received %llu processed %llu dropped %llu queue %zu | %.1f fps %.2f MB/s (1:%.0f, %llu light) | %s",
                   unsigned(c.id), (unsigned long long)net.frames_accepted, (unsigned long long)c.frames_processed,
-                  (unsigned long long)net.dropped_total(), c.queue_depth, fps, mbps, to_string(c.tracking));
+                  (unsigned long long)net.dropped_total(), c.queue_depth, fps, mbps,
+                  net.bytes_received > 0 ? double(net.raw_bytes) / double(net.bytes_received) : 0.0,
+                  (unsigned long long)net.frames_light, to_string(c.tracking));
     lines.emplace_back(buf);
   }
   const HeapStats heap = heap_stats();

@@ -21,6 +21,9 @@ constexpr std::size_t kMaxTimingSamples = 1000000;
 
 struct ClientNetStats {
   std::uint64_t frames_accepted = 0, bytes_received = 0, messages = 0;
+  // Frames handed to decoding: a lean stream's light frames (H.264 colour, subsampled or no
+  // depth), and the bytes all frames' images would take raw (BGR8 + depth16): the ratio.
+  std::uint64_t frames_light = 0, raw_bytes = 0;
   std::uint64_t heartbeats = 0, reconnects = 0, timeouts = 0, goodbyes = 0;
   std::map<std::string, std::uint64_t> dropped;  // reason -> count (decode errors, duplicates, ...)
   std::vector<double> decode_dispatch_ms;        // per accepted frame: parse + decode + submit

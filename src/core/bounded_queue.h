@@ -54,6 +54,17 @@ class BoundedQueue {
     return item;
   }
 
+  // The front item if there is one and `pred` holds for it.
+  template <class Pred>
+  std::optional<T> try_pop_if(Pred pred) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (items_.empty() || !pred(items_.front())) return std::nullopt;
+    T item = std::move(items_.front());
+    items_.pop_front();
+    not_full_.notify_one();
+    return item;
+  }
+
   void close() {
     std::lock_guard<std::mutex> lock(mutex_);
     closed_ = true;

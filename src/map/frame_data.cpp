@@ -92,7 +92,7 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
                                                  const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
                                                  const std::optional<SE3>& T_depthcam_cam,
-                                                 const std::optional<SE3>& T_lastrow_cam) {
+                                                 const std::optional<SE3>& T_lastrow_cam, bool keyframe_depth) {
   auto f = std::make_shared<FrameData>();
   f->id = id;
   f->timestamp = timestamp;
@@ -104,6 +104,7 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
   else gray = bgr;
   f->features = extractor.extract(gray, &camera);
   const size_t n = f->features.size();
+  f->keyframe_depth = keyframe_depth && !depth_raw.empty();
   f->depth.assign(n, -1.f);
   f->u_right.assign(n, -1.f);
   f->colors.assign(n, cv::Vec3b(0, 0, 0));

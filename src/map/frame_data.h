@@ -61,6 +61,10 @@ struct FrameData {
   RgbdParams rgbd;
   std::shared_ptr<const ScalePyramid> pyramid;
   OrbFeatures features;
+  // False for a frame without its full depth image (a robot that saves bandwidth sends it only
+  // every few frames: colour only, or depth at a fraction of the pixels, between): the frame is
+  // tracked but never becomes a keyframe.
+  bool keyframe_depth = true;
   std::vector<float> depth;    // metric depth per keypoint, -1 if missing
   std::vector<float> u_right;  // virtual right coordinate u - bf/depth, -1 if missing
   std::vector<cv::Vec3b> colors;
@@ -96,7 +100,8 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
                                                  const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up = 4,
                                                  const std::optional<SE3>& T_depthcam_cam = std::nullopt,
-                                                 const std::optional<SE3>& T_lastrow_cam = std::nullopt);
+                                                 const std::optional<SE3>& T_lastrow_cam = std::nullopt,
+                                                 bool keyframe_depth = true);
 
 // `data` with its bag-of-words vectors: `data` itself if none are pending, else a copy with them
 // computed (the copy costs far less than the transform it stands for).

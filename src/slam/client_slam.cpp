@@ -78,7 +78,9 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   if (finished_) return reject("worker finished");
   if (frame.bgr.empty() || frame.bgr.type() != CV_8UC3 || frame.bgr.cols != cam.width || frame.bgr.rows != cam.height)
     return reject("colour image is not " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " BGR8");
-  if (frame.depth.empty() || frame.depth.type() != CV_16UC1 || frame.depth.cols != cam.width || frame.depth.rows != cam.height)
+  // No depth image: a colour-only frame (tracked, never a keyframe; see ProcessResult::wants_depth).
+  // Subsampled depth (depth_subsample > 1) comes spread to full size: tracked, never a keyframe.
+  if (!frame.depth.empty() && (frame.depth.type() != CV_16UC1 || frame.depth.cols != cam.width || frame.depth.rows != cam.height))
     return reject("depth image is not " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " 16-bit");
   if (!std::isfinite(frame.timestamp) || frame.timestamp <= last_timestamp_)
     return reject("timestamp " + std::to_string(frame.timestamp) + " does not increase");
@@ -90,7 +92,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   Stopwatch sw;
   // Where the camera moved between the colour and the depth image (none known: read in place).
   const std::optional<SE3> T_depthcam_motion =
-      frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset) : std::nullopt;
+      frame.depth_time_offset != 0 && !frame.depth.empty() ? tracker_->predicted_motion(frame.depth_time_offset) : std::nullopt;
   const std::optional<SE3> T_depthcam_cam =
       config_.rgbd.depth_time_compensation && frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset)
                                                                              : std::nullopt;
@@ -99,7 +101,8 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
       cam.readout_time > 0 ? tracker_->predicted_motion(0.5 * cam.readout_time) : std::nullopt;
   auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
                               pyramid_, vocabulary_,
-                              std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam, T_lastrow_cam);
+                              std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam, T_lastrow_cam,
+                              frame.keyframe_eligible());
   r.extract_ms = sw.ms();
   r.features = int(data->size());
   sw.reset();
@@ -112,6 +115,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   }
   r.track_ms = sw.ms();
   r.new_keyframe = t.new_keyframe;
+  r.wants_depth = t.wants_depth;
   r.keyframe = t.keyframe;
   if (T_depthcam_motion) r.T_cam_depthcam = T_depthcam_motion->inverse();
   r.inliers = t.inliers;

@@ -25,6 +25,9 @@ struct ProcessResult {
   std::string reject_reason;
   bool new_keyframe = false;
   std::optional<KeyFrameId> keyframe;  // the keyframe this frame became (also a new map's first)
+  // A light frame (no full depth) on which tracking needed full depth (a keyframe deferred, or no map yet): the
+  // robot's next frame should carry depth.
+  bool wants_depth = false;
   // Where the camera was when the depth image was taken (frame.depth_time_offset away), relative
   // to the colour image's pose, as the motion model predicts it (identity without one).
   SE3 T_cam_depthcam;

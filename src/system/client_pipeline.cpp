@@ -67,9 +67,12 @@ void ClientPipeline::finish() {
 void ClientPipeline::run() {
   lower_current_thread_priority();
   while (auto frame = queue_.pop()) {
-    // Live: only the newest queued frame is worth processing; older ones are skipped (acked).
+    // Live: only the newest queued frame is worth processing; older ones are skipped (acked). A
+    // frame with full depth (a possible keyframe) gives way only to a newer such frame.
     while (frame->live) {
-      auto newer = queue_.try_pop();
+      auto newer = !frame->keyframe_eligible()
+                       ? queue_.try_pop()
+                       : queue_.try_pop_if([](const RgbdFrame& f) { return f.keyframe_eligible(); });
       if (!newer) break;
       FrameDone skipped;
       skipped.fate = FrameFate::kSkipped;
@@ -98,6 +101,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame) {
   }
   if (new_session_.exchange(false)) slam_->start_new_session();
   const ProcessResult r = slam_->process(frame);
+  done.wants_depth = r.wants_depth;
   if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame, r.T_cam_depthcam);
   if (r.outcome == FrameOutcome::kRejected)
     logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);

@@ -104,8 +104,9 @@ bool CollaborativeSystem::submit(RgbdFrame frame) {
     pipeline = it->second.get();
   }
   const PinholeCamera& cam = pipeline->info().camera;
-  if (frame.bgr.type() != CV_8UC3 || frame.depth.type() != CV_16UC1 || frame.bgr.cols != cam.width ||
-      frame.bgr.rows != cam.height || frame.depth.cols != cam.width || frame.depth.rows != cam.height) {
+  const bool depth_ok = frame.depth.empty() ||  // a colour-only frame
+                        (frame.depth.type() == CV_16UC1 && frame.depth.cols == cam.width && frame.depth.rows == cam.height);
+  if (frame.bgr.type() != CV_8UC3 || frame.bgr.cols != cam.width || frame.bgr.rows != cam.height || !depth_ok) {
     throw std::invalid_argument("frame of client " + std::to_string(frame.client) + " does not match its camera (" +
                                 std::to_string(cam.width) + "x" + std::to_string(cam.height) + ", BGR8 + depth16)");
   }

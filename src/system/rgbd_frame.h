@@ -32,6 +32,12 @@ struct RgbdFrame {
   double depth_time_offset = 0;  // |offset| <= kMaxDepthTimeOffset, else the frame is rejected
   cv::Mat bgr;             // CV_8UC3
   cv::Mat depth;           // CV_16UC1, raw units (camera.depth_factor per metre)
+  // 1: the depth image as the camera took it. S > 1: every S-th pixel of every S-th row was sent
+  // and `depth` holds them spread back to full size (each sample over its S x S block): good for
+  // tracking, not for a keyframe (the map and the dense model need every pixel).
+  int depth_subsample = 1;
+  // Full depth: the frame may become a keyframe (a light frame of a lean stream may not).
+  bool keyframe_eligible() const { return !depth.empty() && depth_subsample == 1; }
   // Live stream: the worker may skip this frame when a newer one of the client is already queued.
   bool live = false;
   // When the system got the frame (stamped by submit() if left at the epoch); pose latency.

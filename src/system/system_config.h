@@ -29,6 +29,8 @@ struct FrameDone {
   std::uint64_t map_epoch = 0;       // bumps when a fusion, group BA or loop correction may move maps
   std::uint64_t frames_skipped = 0;  // live frames of this client skipped so far
   double server_ms = 0;              // submit() to done, milliseconds
+  // A light frame on which tracking needed full depth: the robot's next frame should carry it.
+  bool wants_depth = false;
 };
 
 struct SystemConfig {

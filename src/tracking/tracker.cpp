@@ -24,6 +24,7 @@ void Tracker::reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink) {
   has_velocity_ = false;
   reference_kf_.reset();
   last_keyframe_.reset();
+  keyframe_deferred_ = false;
 }
 
 StereoIntrinsics Tracker::intrinsics(const FrameData& f) const {
@@ -39,6 +40,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
     result.initialized_map = ok;
     if (ok) result.keyframe = reference_kf_->id;
     if (!ok) {
+      result.wants_depth = !frame.data->keyframe_depth;
       result.state = state_;
       return result;
     }
@@ -74,11 +76,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       }
       ++frames_since_keyframe_;
       ++frames_since_reloc_;
-      if (need_new_keyframe(frame))
-        if (const KeyFramePtr kf = create_keyframe(frame)) {
-          result.new_keyframe = true;
-          result.keyframe = kf->id;
-        }
+      decide_keyframe(frame, result);
     } else {
       has_velocity_ = false;
     }
@@ -316,6 +314,21 @@ bool Tracker::track_local_map(Frame& frame) {
                          ? config_.min_local_map_inliers_after_reloc
                          : config_.min_local_map_inliers;
   return inliers >= needed;
+}
+
+void Tracker::decide_keyframe(Frame& frame, TrackResult& result) {
+  const bool deferred_due = keyframe_deferred_ && last_inliers_ > 15 && sink_ && sink_->accepts_keyframes();
+  if (!deferred_due && !need_new_keyframe(frame)) return;
+  if (!frame.data->keyframe_depth) {
+    keyframe_deferred_ = true;
+    result.wants_depth = true;
+    return;
+  }
+  keyframe_deferred_ = false;
+  if (const KeyFramePtr kf = create_keyframe(frame)) {
+    result.new_keyframe = true;
+    result.keyframe = kf->id;
+  }
 }
 
 bool Tracker::need_new_keyframe(const Frame& frame) const {

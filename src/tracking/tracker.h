@@ -61,6 +61,9 @@ struct TrackResult {
   bool new_keyframe = false;
   bool relocalized = false;
   bool initialized_map = false;
+  // The frame had no depth image and tracking needs one: a keyframe is due (deferred to the next
+  // frame with depth) or the map is not initialised yet. The server asks the robot for depth.
+  bool wants_depth = false;
   // The keyframe this frame became (new_keyframe or initialized_map).
   std::optional<KeyFrameId> keyframe;
   int inliers = 0;
@@ -100,6 +103,8 @@ class Tracker {
                         KeyFramePtr& reference);
   int optimize_frame_pose(Frame& frame) const;
   bool need_new_keyframe(const Frame& frame) const;
+  // Makes the keyframe that the rule (or a deferral) asks for; a frame without full depth (FrameData::keyframe_depth) defers it.
+  void decide_keyframe(Frame& frame, TrackResult& result);
   KeyFramePtr create_keyframe(Frame& frame);
   StereoIntrinsics intrinsics(const FrameData& f) const;
 
@@ -109,6 +114,8 @@ class Tracker {
   TrackState state_ = TrackState::kNotInitialized;
   std::unique_ptr<Frame> last_;
   bool last_is_keyframe_ = false;
+  // A keyframe was due on a frame without full depth: the next frame with it becomes one.
+  bool keyframe_deferred_ = false;
   bool has_velocity_ = false;
   SE3 velocity_;  // T_cur_world = velocity * T_last_world, over velocity_dt_ seconds
   double velocity_dt_ = 0;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "net_test_util.h"
+#include "codec/video_codec.h"
 #include "proto/adapter.h"
 
 namespace cslam {
@@ -150,6 +151,67 @@ TEST(Adapter, CorruptImagesAreClassified) {
     m.mutable_frame()->mutable_depth()->set_data("garbage");
     EXPECT_EQ(code_of([&] { wire::from_wire_frame(m.frame(), cam, "t"); }), wire::ERROR_CORRUPT_IMAGE);
   }
+}
+
+// Light frames: the colour stream's packets, decoded by the client's stream decoder, with
+// subsampled depth spread back to full size, or none.
+TEST(Adapter, LightFramesGoThroughTheClientsColourStream) {
+  const PinholeCamera cam = small_camera();
+  video::H264Encoder encoder(cam.width, cam.height, video::H264Options{});
+  video::H264Decoder decoder(cam.width, cam.height);
+  std::vector<wire::RgbdFrame> packets;
+  for (int i = 0; i < 4; ++i) {
+    RgbdFrame f;
+    f.seq = std::uint64_t(i + 1);
+    f.timestamp = 1.0 + i;
+    f.bgr = cv::Mat(cam.height, cam.width, CV_8UC3, cv::Scalar(40 + 10 * i, 90, 160));
+    f.depth = cv::Mat(cam.height, cam.width, CV_16UC1);
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x) f.depth.at<std::uint16_t>(y, x) = std::uint16_t(1000 + 7 * x + 3 * y);
+    wire::RgbdFrame out;
+    wire::to_wire_light_frame(f, encoder.encode(f.bgr, i == 0), i == 0 ? 4 : 0, CodecOptions(), &out);
+    EXPECT_EQ(out.has_depth(), i == 0);
+    EXPECT_EQ(out.rgb().encoding(), wire::RGB_H264);
+    EXPECT_FALSE(wire::keyframe_eligible(out));
+    packets.push_back(out);
+  }
+  // The first: depth at every 4th pixel of every 4th row (16 x 12), spread over its blocks.
+  EXPECT_EQ(packets[0].depth().width(), 16u);
+  EXPECT_EQ(packets[0].depth().height(), 12u);
+  const RgbdFrame first = wire::from_wire_frame(packets[0], cam, "t", &decoder);
+  EXPECT_EQ(first.depth_subsample, 4);
+  EXPECT_FALSE(first.keyframe_eligible());
+  ASSERT_EQ(first.depth.size(), cv::Size(cam.width, cam.height));
+  EXPECT_EQ(first.depth.at<std::uint16_t>(0, 0), 1000);
+  EXPECT_EQ(first.depth.at<std::uint16_t>(7, 6), std::uint16_t(1000 + 7 * 4 + 3 * 4));  // block (1, 1)'s sample
+  EXPECT_EQ(first.depth.at<std::uint16_t>(47, 63), std::uint16_t(1000 + 7 * 60 + 3 * 44));
+  EXPECT_EQ(first.bgr.size(), cv::Size(cam.width, cam.height));
+  EXPECT_EQ(first.timestamp, 1.0);
+  EXPECT_TRUE(wire::from_wire_frame(packets[1], cam, "t", &decoder).depth.empty());  // colour only
+  // Subsampled depth of the wrong size, and a subsample beyond the limit.
+  wire::RgbdFrame bad = packets[0];
+  bad.mutable_depth()->set_width(17);
+  EXPECT_EQ(code_of([&] { wire::check_frame(bad, cam, "t"); }), wire::ERROR_SIZE_MISMATCH);
+  bad = packets[0];
+  bad.set_depth_subsample(17);
+  EXPECT_EQ(code_of([&] { wire::check_frame(bad, cam, "t"); }), wire::ERROR_MALFORMED);
+  bad = packets[1];
+  bad.set_depth_subsample(4);  // without a depth image
+  EXPECT_EQ(code_of([&] { wire::check_frame(bad, cam, "t"); }), wire::ERROR_MALFORMED);
+  // Without a stream decoder the path refuses inter-coded colour.
+  EXPECT_EQ(code_of([&] { wire::from_wire_frame(packets[1], cam, "t"); }), wire::ERROR_UNKNOWN_ENCODING);
+  // A lost packet (packets[2]): the next one lacks its reference, and so does every one until a key packet.
+  EXPECT_EQ(code_of([&] { wire::from_wire_frame(packets[3], cam, "t", &decoder); }), wire::ERROR_STREAM_GAP);
+  EXPECT_EQ(code_of([&] { wire::from_wire_frame(packets[2], cam, "t", &decoder); }), wire::ERROR_STREAM_GAP);
+  // Full depth needs colour that decodes on its own.
+  EXPECT_TRUE(wire::keyframe_eligible(test::make_frame(1, 1, 0, cam).frame()));
+  wire::RgbdFrame h264_with_depth = test::make_frame(1, 1, 0, cam).frame();
+  *h264_with_depth.mutable_rgb() = packets[0].rgb();
+  EXPECT_EQ(code_of([&] { wire::check_frame(h264_with_depth, cam, "t"); }), wire::ERROR_MALFORMED);
+  // A packet of another size than the camera's.
+  wire::RgbdFrame wrong = packets[0];
+  wrong.mutable_rgb()->set_width(32);
+  EXPECT_EQ(code_of([&] { wire::check_frame(wrong, cam, "t"); }), wire::ERROR_SIZE_MISMATCH);
 }
 
 TEST(Adapter, RandomBytesAndTruncatedMessagesAreMalformed) {

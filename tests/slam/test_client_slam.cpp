@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "bow/vocabulary.h"
+#include "codec/depth_subsample.h"
 #include "common/run_program.h"
 #include "eval/trajectory_eval.h"
 #include "io/tum_dataset.h"
@@ -182,3 +183,53 @@ TEST_F(ClientSlamTest, FinalGlobalBaOffByConfig) {
   EXPECT_EQ(slam.final_global_ba(), 0);
 }
 
+
+// A robot that saves bandwidth sends full depth only every few frames (and when asked): the
+// light frames between (no depth, or depth at every 4th pixel of every 4th row spread back to
+// full size) are tracked, a keyframe that falls due on one of them waits for the next frame with
+// full depth (which the result asks for), and the trajectory stays as good.
+TEST_F(ClientSlamTest, LightFramesAreTrackedAndKeyframesWaitForFullDepth) {
+  RgbdFrame first = frame(0);
+  first.depth = cv::Mat();
+  ProcessResult r = slam_->process(first);
+  EXPECT_EQ(r.outcome, FrameOutcome::kNotInitialized);
+  EXPECT_TRUE(r.wants_depth);  // no map without depth
+  r = slam_->process(frame(1));
+  ASSERT_EQ(r.outcome, FrameOutcome::kTracked);
+  EXPECT_FALSE(r.wants_depth);
+
+  const int n = std::min<int>(int(dataset_.pairs.size()), 90);
+  int colour_only = 0, asked = 0, keyframes_on_request = 0;
+  bool asked_before = false;
+  for (int i = 2; i < n; ++i) {
+    RgbdFrame f = frame(i);
+    const bool with_depth = i % 7 == 0;
+    if (!with_depth && i % 2 == 0) {
+      f.depth = cv::Mat();
+      ++colour_only;
+    } else if (!with_depth) {
+      f.depth = expand_depth(subsample_depth(f.depth, 4), 4, f.depth.cols, f.depth.rows);
+      f.depth_subsample = 4;
+      ++colour_only;
+    }
+    r = slam_->process(f);
+    EXPECT_EQ(r.outcome, FrameOutcome::kTracked) << i;
+    if (!with_depth) {
+      EXPECT_FALSE(r.new_keyframe) << "light frame " << i << " became a keyframe";
+    } else {
+      EXPECT_FALSE(r.wants_depth) << i;
+    }
+    if (r.wants_depth) ++asked;
+    if (with_depth && asked_before && r.new_keyframe) ++keyframes_on_request;
+    if (with_depth) asked_before = false;
+    if (r.wants_depth) asked_before = true;
+  }
+  ASSERT_GE(n, 50);  // the scene is long enough for several keyframes
+  EXPECT_GE(colour_only, (n - 2) * 5 / 6);
+  EXPECT_GT(asked, 0);                 // keyframes fell due on colour-only frames
+  EXPECT_GT(keyframes_on_request, 0);  // and the next frame with depth became one
+  EXPECT_EQ(slam_->snapshot().maps, 1);
+  const auto ate = compute_ate(*dataset_.groundtruth, slam_->trajectory(), Alignment::kSE3);
+  EXPECT_EQ(ate.timestamps.size(), std::size_t(n - 1));  // every frame but the first (no map yet)
+  EXPECT_LT(ate.stats.rmse, 0.02);
+}

@@ -35,6 +35,7 @@ struct ExperimentOptions {
   bool quick = false;
   double timeout_s = 900;  // per run (SLAM processes only)
   std::string rate = "max";
+  int depth_every = 1;     // network/live: cslam-client --depth-every (lean stream when > 1)
   std::string camera;      // passed to the SLAM programs if set
   std::string bin_dir;     // where cslam-slam, cslam-server, cslam-client, cslam-synth live
   ReconOptions recon;

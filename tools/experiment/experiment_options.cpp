@@ -35,6 +35,7 @@ void declare_options(CliArgs& args) {
                      "it generates and uses the small synthetic scene (cslam-synth --preset test-small) in OUT")
       .option("timeout", "seconds per run before its processes are stopped and the run is reported as failed; --quick: 180", "")
       .option("rate", "client send rate in network mode: frames/s or 'max'", "max")
+      .option("depth-every", "network/live: every cslam-client sends a lean stream (cslam-client --depth-every K): full frames every K-th frame and when the server asks, light frames (H.264 colour, depth at 1/4 of each axis) between; 1: every frame full", "1")
       .option("camera", "camera preset or file for the dataset (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
       .option("bin-dir", "folder of cslam-slam, cslam-server, cslam-client, cslam-synth (default: this program's folder)", "")
       .option("recon-voxel", "voxel size (m) of the reconstructions for Table III; --quick: 0.04", "")
@@ -93,6 +94,8 @@ ExperimentOptions options_from(const CliArgs& args, int argc, char** argv) {
     const double r = args.get_double("rate");
     if (!(r > 0)) throw ConfigError(p + "--rate must be positive frames/s or 'max'");
   }
+  o.depth_every = args.get_int("depth-every");
+  if (o.depth_every < 1) throw ConfigError(p + "--depth-every must be >= 1");
   o.camera = args.get("camera");
   o.bin_dir = args.has("bin-dir") ? args.get("bin-dir") : own_directory();
   o.recon.enabled = !args.flag_set("no-recon");

@@ -150,8 +150,12 @@ RunOutcome run_network(const RunConfig& cfg, const ExperimentOptions& opt, const
         std::vector<std::string> argv{opt.bin_dir + "/cslam-client", "--server", endpoint, "--id", std::to_string(s.id), "--name",
                                       "client" + std::to_string(s.id), "--dataset", s.dataset, "--range",
                                       std::to_string(s.first) + ":" + std::to_string(s.last), "--progress-interval", "10"};
-        if (opt.mode == RunMode::kLive) argv.insert(argv.end(), {"--live", "--preload"});
-        else argv.insert(argv.end(), {"--rate", opt.rate});
+        if (opt.mode == RunMode::kLive) argv.push_back("--live");
+        // A lean stream encodes each frame when it leaves, so it cannot be preloaded.
+        if (opt.mode == RunMode::kLive && opt.depth_every == 1) argv.push_back("--preload");
+        if (opt.mode != RunMode::kLive) argv.insert(argv.end(), {"--rate", opt.rate});
+        if (opt.depth_every > 1) argv.insert(argv.end(), {"--depth-every", std::to_string(opt.depth_every)});
+        argv.insert(argv.end(), {"--summary-out", dir + "/client_" + std::to_string(s.id) + "_summary.json"});
         if (!opt.camera.empty()) argv.insert(argv.end(), {"--camera", opt.camera});
         owned.push_back(std::make_unique<ChildProcess>(argv, dir + "/client_" + std::to_string(s.id) + ".log"));
         children.push_back(owned.back().get());

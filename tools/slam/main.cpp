@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "codec/depth_subsample.h"
 #include "core/bounded_queue.h"
 #include "core/cli.h"
 #include "core/error.h"
@@ -64,6 +65,9 @@ int run(int argc, char** argv) {
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
       .flag("depth-time", "read keypoint depth where the predicted motion carried it over the depth image's time offset")
       .option("tracking-wait", "threaded: after a new keyframe, tracking waits until local mapping has fully processed it (keyframe: the same output as --sync, run after run), created and fused its points (new-points: the server's choice, lower latency) or not at all (none)", "keyframe")
+      .option("depth-every", "full depth with every K-th frame only, as a lean stream sends it (the light frames between: --light-depth); 1: every frame", "1")
+      .option("light-depth", "with --depth-every: the light frames carry depth at every S-th pixel of every S-th row (0: none)", "4")
+      .option("depth-request-delay", "with --depth-every: frames between tracking asking for full depth and the robot sending it (the acks in flight)", "3")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -126,8 +130,26 @@ int run(int argc, char** argv) {
   int n = 0, lost = 0, rejected = 0;
   std::vector<double> inliers, features;
   const bool quiet = args.flag_set("quiet");
+  const int depth_every = args.get_int("depth-every"), depth_delay = args.get_int("depth-request-delay");
+  const int light_depth = args.get_int("light-depth");
+  if (depth_every < 1 || depth_delay < 0) throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
+  int depth_requested_at = -1, light_frames = 0;
   while (auto item = loaded.pop()) {
-    const ProcessResult r = slam.process(dataset_frame(item->first, std::move(item->second), info.id, std::uint64_t(n)));
+    RgbdFrame frame = dataset_frame(item->first, std::move(item->second), info.id, std::uint64_t(n));
+    const bool requested = depth_requested_at >= 0 && n > depth_requested_at + depth_delay;
+    if (n % depth_every != 0 && !requested) {
+      if (light_depth > 1) {  // what the server makes of a light frame's depth
+        frame.depth = expand_depth(subsample_depth(frame.depth, light_depth), light_depth, frame.depth.cols, frame.depth.rows);
+        frame.depth_subsample = light_depth;
+      } else {
+        frame.depth = cv::Mat();
+      }
+      ++light_frames;
+    } else {
+      depth_requested_at = -1;
+    }
+    const ProcessResult r = slam.process(frame);
+    if (r.wants_depth && depth_requested_at < 0) depth_requested_at = n;
     inliers.push_back(r.inliers);
     features.push_back(r.features);
     if (std::getenv("CSLAM_TRACE")) std::fprintf(stderr, "frame %d feats %d inliers %d kf %d\n", n, r.features, r.inliers, int(r.new_keyframe));
@@ -176,6 +198,7 @@ int run(int argc, char** argv) {
       {"frames_tracked", snap.frames_tracked},
       {"frames_lost", lost},
       {"frames_rejected", rejected},
+      {"frames_light", light_frames},
       {"trajectory_poses", traj.size()},
       {"maps", snap.maps},
       {"map_fusions", fusion_events.size()},
@@ -203,6 +226,7 @@ int run(int argc, char** argv) {
                 l.query_timestamp, l.candidate_timestamp, l.inliers, l.T_correction.translation().norm(),
                 l.T_correction.rotation_angle() * 180.0 / M_PI, l.correction_ms);
   if (args.has("stats")) std::ofstream(args.get("stats")) << stats.dump(2) << "\n";
+  if (light_frames > 0) std::printf("light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d)\n", light_frames, n, depth_every, depth_delay, light_depth);
   std::printf("frames %d tracked %llu lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
               "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",
               n, (unsigned long long)snap.frames_tracked, lost, rejected, snap.keyframes, snap.map_points, snap.maps, wall_s,

@@ -1,0 +1,134 @@
+// The lean stream over a real socket (counting-only workers): full frames every K-th frame,
+// light frames between (packets of one H.264 stream, subsampled depth); a packet the server never
+// decoded (refused before decoding) breaks the stream, the server says so (ERROR_STREAM_GAP)
+// and the robot's next packet is a key packet, after which every frame is taken again.
+#include <mutex>
+
+#include <gtest/gtest.h>
+
+#include "client/frame_sender.h"
+#include "net_test_util.h"
+
+namespace cslam {
+namespace {
+
+PinholeCamera camera_64x48() {
+  PinholeCamera c;
+  c.name = "small";
+  c.width = 64;
+  c.height = 48;
+  c.fx = c.fy = 50;
+  c.cx = 31.5;
+  c.cy = 23.5;
+  return c;
+}
+
+// A textured image that moves one pixel per frame (something for the inter coder to predict).
+RgbdFrame moving_frame(int i, const PinholeCamera& cam) {
+  RgbdFrame f;
+  f.timestamp = 1.0 + i / 30.0;
+  f.bgr = cv::Mat(cam.height, cam.width, CV_8UC3);
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const int u = x + i;
+      f.bgr.at<cv::Vec3b>(y, x) = cv::Vec3b(std::uint8_t((u * 37 + y * 11) % 251), std::uint8_t((u * y) % 253),
+                                            std::uint8_t((u ^ y) * 5 % 255));
+    }
+  f.depth = cv::Mat(cam.height, cam.width, CV_16UC1, cv::Scalar(4000));
+  return f;
+}
+
+client::SenderConfig lean_config(const std::string& endpoint, ClientId id, int depth_every) {
+  client::SenderConfig cc;
+  cc.server = endpoint;
+  cc.info.id = id;
+  cc.info.name = "robot" + std::to_string(id);
+  cc.info.camera = camera_64x48();
+  cc.codecs.rgb = RgbCodec::kJpeg;
+  cc.reply_timeout_s = 60;
+  cc.depth_every = depth_every;
+  return cc;
+}
+
+TEST(LeanStream, LightFramesBetweenFullFramesAreAllTaken) {
+  SystemConfig sc;
+  sc.run_slam = false;
+  std::mutex mutex;
+  std::vector<FrameDone> done;
+  sc.on_frame_done = [&](const FrameDone& d) {
+    std::lock_guard<std::mutex> lock(mutex);
+    done.push_back(d);
+  };
+  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  client::FrameSender sender(lean_config(srv.endpoint(), 4, 4));
+  sender.connect();
+  for (int i = 0; i < 20; ++i) sender.send_frame(moving_frame(i, camera_64x48()));
+  ASSERT_TRUE(sender.goodbye());
+  const auto& s = sender.stats();
+  EXPECT_EQ(s.acks, 20u);
+  EXPECT_EQ(s.frames_refused, 0u);
+  EXPECT_EQ(s.frames_light, 15u);  // full frames 0, 4, 8, 12, 16
+  EXPECT_EQ(s.colour_key_packets, 1u);   // the stream's first packet
+  EXPECT_EQ(s.stream_gaps, 0u);
+  EXPECT_LT(double(s.bytes_light) / 15.0, double(s.bytes_sent - s.bytes_light) / 5.0);  // a light frame is smaller
+  srv.stop();
+  EXPECT_EQ(srv.stats().clients().at(4).frames_light, 15u);
+  std::lock_guard<std::mutex> lock(mutex);
+  EXPECT_EQ(done.size(), 20u);
+}
+
+TEST(LeanStream, APacketRefusedBeforeDecodingIsHealedByTheNextKeyPacket) {
+  server::ReceiverConfig rc;
+  rc.timestamp_bound.min_jump_s = 5.0;
+  rc.timestamp_bound.wall_factor = 0.0;
+  SystemConfig sc;
+  sc.run_slam = false;
+  test::InProcessServer srv(rc, sc);
+  const PinholeCamera cam = camera_64x48();
+  client::FrameSender sender(lean_config(srv.endpoint(), 5, 100));  // full depth only with the first frame
+  sender.connect();
+  for (int i = 0; i < 6; ++i) sender.send_frame(moving_frame(i, cam));
+  // A wild timestamp: the receiver refuses the frame before it is decoded, so the server's colour
+  // stream never sees this packet and the next one lacks its reference.
+  RgbdFrame wild = moving_frame(6, cam);
+  wild.timestamp += 1000.0;
+  sender.send_frame(wild);
+  for (int i = 7; i < 16; ++i) sender.send_frame(moving_frame(i, cam));
+  EXPECT_TRUE(sender.goodbye());  // every frame answered: acked or refused
+  const auto& s = sender.stats();
+  EXPECT_EQ(s.errors.at("ERROR_TIMESTAMP_JUMP"), 1u);
+  EXPECT_GE(s.stream_gaps, 1u);
+  EXPECT_EQ(s.errors.at("ERROR_STREAM_GAP"), s.stream_gaps);
+  EXPECT_EQ(s.colour_key_packets, 2u);  // the first packet, and one after the gap
+  // Lossless sending keeps up to `window` frames in flight, so the gap is reported up to that
+  // many frames late; every frame after the key packet is taken.
+  EXPECT_EQ(s.frames_refused, 1u + s.stream_gaps);
+  EXPECT_EQ(s.acks, 16u - s.frames_refused);
+  EXPECT_LE(s.stream_gaps, std::uint64_t(server::ReceiverConfig{}.window));
+  srv.stop();
+  EXPECT_EQ(srv.stats().clients().at(5).dropped.at("stream_gap"), s.stream_gaps);  // counted on the server too
+}
+
+TEST(LeanStream, AFrameWithDepthMustCarryStandaloneColour) {
+  SystemConfig sc;
+  sc.run_slam = false;
+  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  client::FrameSender sender(lean_config(srv.endpoint(), 6, 1));
+  sender.connect();
+  const PinholeCamera cam = camera_64x48();
+  video::H264Encoder encoder(cam.width, cam.height, video::H264Options{});
+  // An inter-coded colour packet together with a depth image: refused, the session goes on.
+  wire::RgbdFrame bad = sender.encode(moving_frame(0, cam));
+  const Bytes packet = encoder.encode(moving_frame(0, cam).bgr, true);
+  bad.mutable_rgb()->set_encoding(wire::RGB_H264);
+  bad.mutable_rgb()->set_data(packet.data(), packet.size());
+  sender.send_encoded(bad);
+  sender.send_frame(moving_frame(1, cam));
+  sender.goodbye();
+  EXPECT_EQ(sender.stats().errors.at("ERROR_MALFORMED"), 1u);
+  EXPECT_EQ(sender.stats().acks, 1u);
+  srv.stop();
+}
+
+}  // namespace
+}  // namespace cslam
