@@ -43,7 +43,7 @@ int run(int argc, char** argv) {
       .option("light-depth", "lean stream: light frames carry depth at every S-th pixel of every S-th row (lossless); 0: no depth", "4")
       .option("colour-crf", "lean stream: H.264 constant rate factor of the colour stream (lower: better, larger)", std::to_string(cslam::client::SenderConfig().colour_stream.crf))
       .flag("new-session", "start a new recording session (a new map, fused by the server) even if the server knows this id")
-      .flag("preload", "load and encode every frame before sending (measures the network path only)")
+      .flag("preload", "load and encode every frame before sending (measures the network path only; a lean stream preloads decoded frames and encodes each as it leaves)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")
       .option("resend-buffer", "MB of sent frames kept for a server that resumes behind (restarted from a snapshot); 0: none", "128")
       .option("progress-interval", "seconds between progress lines", "2")
@@ -75,8 +75,6 @@ int run(int argc, char** argv) {
   config.depth_every = cli.get_int("depth-every");
   config.colour_stream.crf = cli.get_int("colour-crf");
   config.light_depth_subsample = cli.get_int("light-depth");
-  if (config.depth_every > 1 && cli.flag_set("preload"))
-    throw cslam::ConfigError("cslam-client: --preload encodes every frame with depth; it does not go with --depth-every");
   config.reply_timeout_s = cli.get_double("reply-timeout");
   {
     const double mb = cli.get_double("resend-buffer");
@@ -96,9 +94,13 @@ int run(int argc, char** argv) {
 
   cslam::client::FrameSender sender(config);
   std::vector<cslam::wire::RgbdFrame> preloaded;
+  std::vector<cslam::RgbdFrame> preloaded_raw;  // a lean stream encodes each frame when it leaves
   if (cli.flag_set("preload")) {
-    for (const auto& pair : pairs) preloaded.push_back(sender.encode(cslam::load_dataset_frame(pair, config.info.id)));
-    log->info("client {}: preloaded {} encoded frames", id, preloaded.size());
+    for (const auto& pair : pairs) {
+      if (config.depth_every > 1) preloaded_raw.push_back(cslam::load_dataset_frame(pair, config.info.id));
+      else preloaded.push_back(sender.encode(cslam::load_dataset_frame(pair, config.info.id)));
+    }
+    log->info("client {}: preloaded {} {} frames", id, pairs.size(), config.depth_every > 1 ? "decoded" : "encoded");
   }
   sender.connect();
   log->info("client {}: sending frames {}..{} ({} frames) of {} at {}, codecs {}/{}", id, first, last, pairs.size(),
@@ -124,7 +126,8 @@ int run(int argc, char** argv) {
       const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                    std::chrono::duration<double>(pairs[i].rgb_time - pairs[0].rgb_time));
       if (config.depth_every > 1) {  // the lean stream encodes a frame when it leaves
-        const cslam::RgbdFrame frame = cslam::load_dataset_frame(pairs[i], config.info.id);
+        const cslam::RgbdFrame frame =
+            preloaded_raw.empty() ? cslam::load_dataset_frame(pairs[i], config.info.id) : preloaded_raw[i];
         sender.service_until(due);
         sender.offer_frame(frame, due);
       } else {
@@ -134,7 +137,9 @@ int run(int argc, char** argv) {
       }
     } else {
       if (rate > 0) std::this_thread::sleep_until(start + std::chrono::duration<double>(double(i) / rate));
-      if (preloaded.empty()) {
+      if (!preloaded_raw.empty()) {
+        sender.send_frame(preloaded_raw[i]);
+      } else if (preloaded.empty()) {
         sender.send_frame(cslam::load_dataset_frame(pairs[i], config.info.id));
       } else {
         sender.send_encoded(preloaded[i]);

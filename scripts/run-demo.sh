@@ -5,11 +5,14 @@
 # The web viewer (http://127.0.0.1:8080/, CSLAM_HTTP_PORT to change) stays up until Ctrl-C.
 # Options: --exit    stop at the end instead of serving the viewer (for scripts)
 #          --rate R  client send rate (frames/s or 'max', default max; 30 = real time)
+#          --depth-every K  lean stream: full frames every K-th frame and on request, light frames
+#                   (H.264 colour, 1/4 depth) between (default 1: every frame full, the default pair)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=build/bin
 OUT="${CSLAM_DEMO_OUT:-demo_out}"
 RATE=max
+DEPTH_EVERY=1
 EXIT=0
 FUSED=""
 HTTP_PORT="${CSLAM_HTTP_PORT:-8080}"
@@ -17,7 +20,8 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --exit) EXIT=1; shift ;;
     --rate) RATE="$2"; shift 2 ;;
-    *) echo "run-demo.sh: unknown option $1 (use --exit, --rate R)" >&2; exit 2 ;;
+    --depth-every) DEPTH_EVERY="$2"; shift 2 ;;
+    *) echo "run-demo.sh: unknown option $1 (use --exit, --rate R, --depth-every K)" >&2; exit 2 ;;
   esac
 done
 SCENE="$OUT/scene"
@@ -45,7 +49,7 @@ ENDPOINT=$(cat "$RUN/endpoint")
 CLIENTS=()
 for k in 1 2 3; do
   "$BIN/cslam-client" --server "$ENDPOINT" --id "$k" --name "robot$k" --dataset "$SCENE/robot_$k" --rate "$RATE" \
-    --progress-interval 5 > "$RUN/client_$k.log" 2>&1 &
+    --depth-every "$DEPTH_EVERY" --summary-out "$RUN/client_${k}_summary.json" --progress-interval 5 > "$RUN/client_$k.log" 2>&1 &
   CLIENTS+=($!)
 done
 for pid in "${CLIENTS[@]}"; do wait "$pid" || { echo "a client failed; see $RUN/client_*.log" >&2; exit 1; }; done
@@ -75,6 +79,15 @@ PY
 )
 fi
 grep -E "fused client|final client" "$RUN/server.log" || true
+
+if [ "$DEPTH_EVERY" -gt 1 ]; then
+  echo "== bandwidth (lean stream: full frames every $DEPTH_EVERY and on request, light frames between; the default pair sends ~87 KB per frame here)"
+else
+  echo "== bandwidth (every frame full: JPEG q75 + lossless depth)"
+fi
+for k in 1 2 3; do
+  python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); n=max(1,s["frames_sent"]); print("client %s: %.1f KB/frame, %.2f MB/s at 30 Hz, %d of %d frames light, %d depth requests" % (sys.argv[2], s["bytes_sent"]/n/1e3, s["bytes_sent"]/n*30/1e6, s["frames_light"], n, s["depth_requests"]))' "$RUN/client_${k}_summary.json" "$k" || true
+done
 
 echo "== accuracy (APE, metres, SE3 alignment)"
 for k in 1 2 3; do

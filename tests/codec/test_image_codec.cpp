@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "codec/depth_subsample.h"
 #include "codec/image_codec.h"
 #include "core/error.h"
 
@@ -184,4 +185,31 @@ TEST(EncodeRejectsWrongTypes, ThrowsInvalidArgument) {
 }
 
 }  // namespace
+}  // namespace cslam
+
+namespace cslam {
+
+// Light frames' depth: every S-th pixel of every S-th row, and back, each sample over its block.
+TEST(DepthSubsample, KeepsEverySthPixelAndSpreadsItOverItsBlock) {
+  cv::Mat depth(7, 10, CV_16UC1);
+  for (int y = 0; y < depth.rows; ++y)
+    for (int x = 0; x < depth.cols; ++x) depth.at<std::uint16_t>(y, x) = std::uint16_t(100 * y + x);
+  const cv::Mat coarse = subsample_depth(depth, 4);
+  ASSERT_EQ(coarse.size(), cv::Size(3, 2));  // ceil(10/4) x ceil(7/4)
+  EXPECT_EQ(subsampled_depth_size(10, 7, 4), cv::Size(3, 2));
+  EXPECT_EQ(coarse.at<std::uint16_t>(1, 2), 408);  // row 4, column 8
+  const cv::Mat back = expand_depth(coarse, 4, 10, 7);
+  ASSERT_EQ(back.size(), depth.size());
+  for (int y = 0; y < depth.rows; ++y)
+    for (int x = 0; x < depth.cols; ++x)
+      EXPECT_EQ(back.at<std::uint16_t>(y, x), depth.at<std::uint16_t>(y / 4 * 4, x / 4 * 4)) << x << "," << y;
+  EXPECT_EQ(cv::norm(expand_depth(subsample_depth(depth, 1), 1, 10, 7), depth, cv::NORM_INF), 0.0);  // 1: as is
+  EXPECT_THROW(subsample_depth(depth, 0), std::invalid_argument);
+  EXPECT_THROW(subsample_depth(depth, kMaxDepthSubsample + 1), std::invalid_argument);
+  EXPECT_THROW(expand_depth(coarse, 4, 13, 7), std::invalid_argument);  // 13 wide subsamples to 4 columns, not 3
+  cv::Mat wrong_type;
+  depth.convertTo(wrong_type, CV_32F);
+  EXPECT_THROW(subsample_depth(wrong_type, 2), std::invalid_argument);
+}
+
 }  // namespace cslam

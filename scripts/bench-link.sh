@@ -1,0 +1,100 @@
+#!/usr/bin/env bash
+# Link-limited benchmark: N synthetic robots stream live at 30 Hz (preloaded frames, started
+# together) to one cslam-server through ONE shared link of RATE: the script creates a network
+# namespace whose loopback (MTU 1500) is shaped by a token-bucket filter (tc tbf), and runs the
+# server and the robots inside it. Each run streams once with the default pair (every frame
+# JPEG q75 + lossless depth) and once with the lean stream (cslam-client --depth-every K),
+# alternated. Reports per robot: frames processed (of those captured), pose latency p50/p99
+# (capture to ack, client side), MB/s sent and ATE; medians and min-max over the runs.
+# Needs root (ip netns, tc). Usage:
+#   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT="${1:-bench_out/link}"
+RUNS="${2:-3}"
+N="${3:-4}"
+RATE="${4:-40mbit}"
+FRAMES="${5:-600}"
+K="${6:-5}"
+BIN="$PWD/build/bin"
+[ "$(id -u)" = 0 ] || { echo "bench-link.sh needs root (it creates a network namespace and shapes its loopback)" >&2; exit 2; }
+mkdir -p "$OUT"
+OUT="$(cd "$OUT" && pwd)"
+NS="cslam-link-$$"
+ip netns add "$NS"
+trap 'ip netns del "$NS" 2>/dev/null || true' EXIT
+ip netns exec "$NS" ip link set lo mtu 1500
+ip netns exec "$NS" ip link set lo up
+ip netns exec "$NS" tc qdisc add dev lo root tbf rate "$RATE" burst 64kb latency 400ms
+inns() { ip netns exec "$NS" "$@"; }
+loadavg() { cut -d' ' -f1-3 /proc/loadavg; }
+echo "== machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), load $(loadavg)"
+echo "== revision $(git rev-parse --short HEAD)$(git diff --quiet || echo '+dirty'), $RUNS run(s), $N robots x $FRAMES frames, one link of $RATE (tc tbf in netns $NS), lean K=$K"
+SCENE="$OUT/scene_${N}x${FRAMES}"
+if [ ! -f "$SCENE/robot_${N}/groundtruth.txt" ]; then
+  echo "-- rendering $N robots x $FRAMES frames (cslam-synth, 640x480, 10 % of each path shared)"
+  "$BIN/cslam-synth" --robots "$N" --frames "$FRAMES" --overlap 0.1 --no-loop --seed 11 --out "$SCENE" --force --log-level warn > /dev/null
+fi
+
+run_case() {
+  local dir="$1" mode="$2"
+  rm -rf "$dir"; mkdir -p "$dir"
+  inns /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
+    "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$N" --exit-when-done \
+    --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn > "$dir/server.log" 2>&1 &
+  local server_pid=$!
+  for _ in $(seq 1 600); do [ -s "$dir/endpoint" ] && break; sleep 0.1; done
+  local endpoint; endpoint=$(head -1 "$dir/endpoint")
+  local start_at; start_at=$(python3 -c "import time; print(time.time() + 8 + 5 * $N)")
+  local extra=()
+  [ "$mode" = lean ] && extra=(--depth-every "$K")
+  local pids=() k
+  for k in $(seq 1 "$N"); do
+    inns "$BIN/cslam-client" --server "$endpoint" --id "$k" --dataset "$SCENE/robot_$k" --live --preload --start-at "$start_at" \
+      "${extra[@]}" --reply-timeout 60 --summary-out "$dir/client_$k.json" --progress-interval 1000 --log-level warn \
+      > "$dir/client_$k.log" 2>&1 &
+    pids+=($!)
+  done
+  local rc=0 p
+  for p in "${pids[@]}"; do wait "$p" || rc=1; done
+  wait "$server_pid" || rc=1
+  [ "$rc" = 0 ] || echo "   (a process exited non-zero: see $dir/*.log)"
+  for k in $(seq 1 "$N"); do
+    "$BIN/cslam-eval" ate "$SCENE/robot_$k/groundtruth.txt" "$dir/out/client_$k.txt" --json > "$dir/ate_$k.json" 2>/dev/null || echo '{}' > "$dir/ate_$k.json"
+  done
+}
+
+for r in $(seq 1 "$RUNS"); do
+  for mode in default lean; do
+    echo "-- run $r $mode (load $(loadavg))"
+    run_case "$OUT/${mode}_r$r" "$mode"
+  done
+done
+
+python3 - "$OUT" "$RUNS" "$N" <<'EOF'
+import json, os, statistics, sys
+out, runs, n = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+def med(v, f="{:.3g}"):
+    return (f.format(statistics.median(v)) + " (" + f.format(min(v)) + "-" + f.format(max(v)) + ")") if v else "n/a"
+print("\n| stream | worst robot processed % | pose latency p99 ms (worst robot) | MB/s per robot (mean) | ATE m (worst robot) |")
+print("|---|---|---|---|---|")
+for mode in ("default", "lean"):
+    proc, p99, mbs, ate = [], [], [], []
+    for r in range(1, runs + 1):
+        d = f"{out}/{mode}_r{r}"
+        if not os.path.isdir(d): continue
+        ps, ls, bs, es = [], [], [], []
+        for k in range(1, n + 1):
+            try:
+                s = json.load(open(f"{d}/client_{k}.json"))
+            except Exception:
+                ps.append(0.0); continue
+            ps.append(100.0 * s["frames_processed"] / max(1, s["dataset_frames"]))
+            ls.append(s["latency_ms"]["p99"])
+            bs.append(s["bytes_per_s"] / 1e6)
+            a = json.load(open(f"{d}/ate_{k}.json"))
+            es.append(a.get("rmse", float("nan")))
+        proc.append(min(ps)); p99.append(max(ls) if ls else float("nan")); mbs.append(statistics.mean(bs) if bs else 0)
+        ate.append(max(es) if es else float("nan"))
+    print(f"| {mode} | {med(proc, '{:.1f}')} | {med(p99, '{:.0f}')} | {med(mbs, '{:.2f}')} | {med(ate, '{:.4f}')} |")
+EOF
