@@ -15,6 +15,17 @@
 
 namespace cslam::test {
 
+PinholeCamera small_camera() {
+  PinholeCamera c;
+  c.name = "small";
+  c.width = 64;
+  c.height = 48;
+  c.fx = c.fy = 50;
+  c.cx = 31.5;
+  c.cy = 23.5;
+  return c;
+}
+
 PinholeCamera write_tiny_dataset(const std::string& dir, int frames, int width, int height, unsigned seed) {
   namespace fs = std::filesystem;
   fs::create_directories(dir + "/rgb");

@@ -17,6 +17,9 @@
 
 namespace cslam::test {
 
+// The 64x48 pinhole camera (fx = fy = 50, centred) the network tests' frames use.
+PinholeCamera small_camera();
+
 // Writes `frames` random-texture w x h RGB PNGs + 16-bit depth PNGs, rgb.txt, depth.txt and
 // camera.yaml (synthetic camera of that size) into dir. Returns the camera.
 PinholeCamera write_tiny_dataset(const std::string& dir, int frames, int width = 64, int height = 48,

@@ -15,16 +15,7 @@
 namespace cslam {
 namespace {
 
-PinholeCamera small_camera() {
-  PinholeCamera c;
-  c.name = "small";
-  c.width = 64;
-  c.height = 48;
-  c.fx = c.fy = 50;
-  c.cx = 31.5;
-  c.cy = 23.5;
-  return c;
-}
+using test::small_camera;
 
 SystemConfig counting_system() {
   SystemConfig sc;

@@ -12,16 +12,7 @@
 namespace cslam {
 namespace {
 
-PinholeCamera camera_64x48() {
-  PinholeCamera c;
-  c.name = "small";
-  c.width = 64;
-  c.height = 48;
-  c.fx = c.fy = 50;
-  c.cx = 31.5;
-  c.cy = 23.5;
-  return c;
-}
+using test::small_camera;
 
 // A textured image that moves one pixel per frame (something for the inter coder to predict).
 RgbdFrame moving_frame(int i, const PinholeCamera& cam) {
@@ -43,7 +34,7 @@ client::SenderConfig lean_config(const std::string& endpoint, ClientId id, int d
   cc.server = endpoint;
   cc.info.id = id;
   cc.info.name = "robot" + std::to_string(id);
-  cc.info.camera = camera_64x48();
+  cc.info.camera = small_camera();
   cc.codecs.rgb = RgbCodec::kJpeg;
   cc.reply_timeout_s = 60;
   cc.depth_every = depth_every;
@@ -62,7 +53,7 @@ TEST(LeanStream, LightFramesBetweenFullFramesAreAllTaken) {
   test::InProcessServer srv(server::ReceiverConfig{}, sc);
   client::FrameSender sender(lean_config(srv.endpoint(), 4, 4));
   sender.connect();
-  for (int i = 0; i < 20; ++i) sender.send_frame(moving_frame(i, camera_64x48()));
+  for (int i = 0; i < 20; ++i) sender.send_frame(moving_frame(i, small_camera()));
   ASSERT_TRUE(sender.goodbye());
   const auto& s = sender.stats();
   EXPECT_EQ(s.acks, 20u);
@@ -84,7 +75,7 @@ TEST(LeanStream, APacketRefusedBeforeDecodingIsHealedByTheNextKeyPacket) {
   SystemConfig sc;
   sc.run_slam = false;
   test::InProcessServer srv(rc, sc);
-  const PinholeCamera cam = camera_64x48();
+  const PinholeCamera cam = small_camera();
   client::FrameSender sender(lean_config(srv.endpoint(), 5, 100));  // full depth only with the first frame
   sender.connect();
   for (int i = 0; i < 6; ++i) sender.send_frame(moving_frame(i, cam));
@@ -115,7 +106,7 @@ TEST(LeanStream, AFrameWithDepthMustCarryStandaloneColour) {
   test::InProcessServer srv(server::ReceiverConfig{}, sc);
   client::FrameSender sender(lean_config(srv.endpoint(), 6, 1));
   sender.connect();
-  const PinholeCamera cam = camera_64x48();
+  const PinholeCamera cam = small_camera();
   video::H264Encoder encoder(cam.width, cam.height, video::H264Options{});
   // An inter-coded colour packet together with a depth image: refused, the session goes on.
   wire::RgbdFrame bad = sender.encode(moving_frame(0, cam));

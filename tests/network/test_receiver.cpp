@@ -10,16 +10,7 @@
 namespace cslam {
 namespace {
 
-PinholeCamera small_camera() {
-  PinholeCamera c;
-  c.name = "small";
-  c.width = 64;
-  c.height = 48;
-  c.fx = c.fy = 50;
-  c.cx = 31.5;
-  c.cy = 23.5;
-  return c;
-}
+using test::small_camera;
 
 // Reads replies until an error arrives (acks may interleave); returns its code.
 wire::ErrorCode next_error(test::RawPeer& peer, std::uint32_t* credits = nullptr) {
