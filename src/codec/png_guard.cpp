@@ -2,11 +2,11 @@
 
 #include <zlib.h>
 
-#include <chrono>
 #include <cstring>
 #include <vector>
 
 #include "core/error.h"
+#include "core/stopwatch.h"
 
 namespace cslam {
 
@@ -91,7 +91,7 @@ void check_png_stream(const std::uint8_t* d, std::size_t size, const PngLimits& 
   std::vector<std::uint8_t> scratch(64 * 1024);
   std::size_t produced = 0;
   bool stream_end = false, seen_iend = false;
-  const auto start = std::chrono::steady_clock::now();
+  const double start_cpu_ms = thread_cpu_ms();
   std::size_t pos = 8;
   while (pos < size && !seen_iend) {
     if (size - pos < 12) throw InputError(source, "PNG truncated");
@@ -117,9 +117,7 @@ void check_png_stream(const std::uint8_t* d, std::size_t size, const PngLimits& 
                                        " bytes its header implies (decompression bomb?)");
         stream_end = rc == Z_STREAM_END;
         if (rc == Z_BUF_ERROR && z.avail_out != 0) break;  // needs the next chunk
-        if (limits.time_budget_ms > 0 &&
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() >
-                limits.time_budget_ms)
+        if (limits.time_budget_ms > 0 && thread_cpu_ms() - start_cpu_ms > limits.time_budget_ms)
           throw InputError(source, "PNG image data took longer than the decode budget");
       }
       if (stream_end && z.avail_in > 0) throw InputError(source, "PNG has data after the end of its image stream");
