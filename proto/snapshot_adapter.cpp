@@ -131,6 +131,12 @@ struct Encoder {
     out->set_descriptors(std::move(desc));
     out->mutable_depth()->Add(d.depth.begin(), d.depth.end());
     out->mutable_u_right()->Add(d.u_right.begin(), d.u_right.end());
+    auto* und = out->mutable_undistorted();
+    und->Reserve(int(2 * n));
+    for (const Eigen::Vector2d& u : d.features.undistorted) {
+      und->Add(u.x());
+      und->Add(u.y());
+    }
     std::string colors(n * 3, '\0');
     for (std::size_t i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) colors[3 * i + c] = char(d.colors[i][c]);
@@ -221,7 +227,8 @@ struct Decoder {
     if (n > 100000) fail(what + ": keypoint count out of range");
     if (std::size_t(p.keypoints_size()) != 5 * n || p.octaves().size() != n ||
         p.descriptors().size() != n * kDescriptorBytes || std::size_t(p.depth_size()) != n ||
-        std::size_t(p.u_right_size()) != n || p.colors().size() != 3 * n || p.bounds_size() != 4)
+        std::size_t(p.u_right_size()) != n || p.colors().size() != 3 * n || p.bounds_size() != 4 ||
+        (p.undistorted_size() != 0 && std::size_t(p.undistorted_size()) != 2 * n))
       fail(what + ": per-keypoint arrays do not match the keypoint count");
     if (p.camera() >= cameras.size()) fail(what + ": unknown camera");
     if (p.pyramid() >= pyramids.size()) fail(what + ": unknown pyramid");
@@ -242,10 +249,16 @@ struct Decoder {
       const int octave = std::uint8_t(p.octaves()[i]);
       if (octave >= d->pyramid->num_levels) fail(what + ": keypoint level out of range");
       d->features.keypoints[i] = cv::KeyPoint(f[0], f[1], f[2], f[3], f[4], octave);
-      // As OrbExtractor::extract computes them.
       d->features.undistorted[i] = Eigen::Vector2d(f[0], f[1]);
     }
-    if (d->camera.has_distortion()) d->camera.undistort_pixels(d->features.undistorted);
+    if (p.undistorted_size() != 0) {
+      for (std::size_t i = 0; i < n; ++i) {
+        d->features.undistorted[i] = Eigen::Vector2d(p.undistorted(int(2 * i)), p.undistorted(int(2 * i + 1)));
+        if (!d->features.undistorted[i].allFinite()) fail(what + ": undistorted keypoint is not finite");
+      }
+    } else if (d->camera.has_distortion()) {
+      d->camera.undistort_pixels(d->features.undistorted);  // as OrbExtractor::extract computes them
+    }
     if (n) std::memcpy(d->features.descriptors.data(), p.descriptors().data(), n * kDescriptorBytes);
     d->depth.assign(p.depth().begin(), p.depth().end());
     d->u_right.assign(p.u_right().begin(), p.u_right().end());
