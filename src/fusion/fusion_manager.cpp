@@ -87,6 +87,9 @@ void FusionManager::forget(const std::vector<const Map*>& maps) {
   for (const Map* m : maps) group_.erase(m);
   for (auto it = consistency_.begin(); it != consistency_.end();)
     it = listed(it->first.first) || listed(it->first.second) ? consistency_.erase(it) : std::next(it);
+  for (auto it = last_link_.begin(); it != last_link_.end();)
+    it = listed(it->first.first) || listed(it->first.second) ? last_link_.erase(it) : std::next(it);
+  for (const Map* m : maps) keyframes_seen_.erase(m);
   seams_.erase(std::remove_if(seams_.begin(), seams_.end(),
                               [&](const StoredSeam& s) {
                                 const auto a = s.kept_map.lock(), b = s.moved_map.lock();
@@ -149,32 +152,40 @@ void FusionManager::process(const Pending& p) {
     bow = p.kf->data->bow;
     min_score = min_covisible_score(*p.kf);
   }
-  std::vector<Registered> others;
-  int my_group = -1;
+  std::vector<Registered> others, same_group;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
-    my_group = group_.at(&map);
+    ++keyframes_seen_[&map];
+    const int my_group = group_.at(&map);
     for (const auto& r : registry_) {
       auto m = r.map.lock();
-      if (m && group_.at(m.get()) != my_group) others.push_back(r);
+      if (!m || m.get() == &map) continue;
+      (group_.at(m.get()) != my_group ? others : same_group).push_back(r);
     }
   }
+  if (try_fuse(p, others, bow, min_score)) return;
+  if (config_.reencounter.enabled) try_reencounter(p, same_group, bow, min_score);
+}
+
+std::vector<KeyFrameId> FusionManager::consistent_candidates(const Pending& p, Map& other, const BowVector& bow,
+                                                             double min_score) {
+  std::vector<ConsistencyChecker::Group> groups;
+  {
+    std::shared_lock<std::shared_mutex> lock(other.mutex);
+    groups = query_candidate_groups(other, bow, min_score, [](KeyFrameId) { return false; });
+  }
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  auto key = std::make_pair(static_cast<const Map*>(p.map.get()), static_cast<const Map*>(&other));
+  auto it = consistency_.find(key);
+  if (it == consistency_.end()) it = consistency_.emplace(key, ConsistencyChecker(config_.consistency)).first;
+  return it->second.update(groups);
+}
+
+bool FusionManager::try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score) {
   for (const auto& other_reg : others) {
     auto other = other_reg.map.lock();
     if (!other) continue;
-    std::vector<ConsistencyChecker::Group> groups;
-    {
-      std::shared_lock<std::shared_mutex> lock(other->mutex);
-      groups = query_candidate_groups(*other, bow, min_score, [](KeyFrameId) { return false; });
-    }
-    std::vector<KeyFrameId> consistent;
-    {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      auto key = std::make_pair(&map, static_cast<const Map*>(other.get()));
-      auto it = consistency_.find(key);
-      if (it == consistency_.end()) it = consistency_.emplace(key, ConsistencyChecker(config_.consistency)).first;
-      consistent = it->second.update(groups);
-    }
+    const std::vector<KeyFrameId> consistent = consistent_candidates(p, *other, bow, min_score);
     if (consistent.empty()) continue;
     const auto hit = std::chrono::steady_clock::now();
     for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
@@ -196,9 +207,97 @@ void FusionManager::process(const Pending& p) {
         T_wq_wc = p.kf->T_world_cam() * v.S_query_candidate.to_se3() * cand->T_cam_world;
       }
       fuse(p, other, other_reg.client, cand, T_wq_wc, v, hit);
+      return true;
+    }
+  }
+  return false;
+}
+
+void FusionManager::try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow,
+                                    double min_score) {
+  for (const auto& other_reg : same_group) {
+    auto other = other_reg.map.lock();
+    if (!other) continue;
+    {
+      // Not again right after the last link of this pair: those places are tied already.
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      auto it = last_link_.find({p.map.get(), other.get()});
+      if (it != last_link_.end() && keyframes_seen_[p.map.get()] - it->second < config_.reencounter.min_keyframe_gap) continue;
+    }
+    const std::vector<KeyFrameId> consistent = consistent_candidates(p, *other, bow, min_score);
+    if (consistent.empty()) continue;
+    const auto hit = std::chrono::steady_clock::now();
+    for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
+      OverlapVerifyResult v;
+      KeyFramePtr cand;
+      {
+        auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), other.get()});
+        cand = other->keyframe(consistent[i]);
+        if (!cand || cand->bad || p.kf->bad) continue;
+        v = verify_overlap(*p.kf, *cand, cand->best_covisibles(10), config_.verify);
+      }
+      if (!v.accepted) continue;
+      reencounter(p, other, other_reg.client, cand, v, hit);
       return;
     }
   }
+}
+
+void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client,
+                                const KeyFramePtr& candidate, const OverlapVerifyResult& v,
+                                std::chrono::steady_clock::time_point hit) {
+  std::vector<MapPointPtr> anchors;  // the query map's points linked by earlier seams
+  int group = -1;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    group = group_.at(p.map.get());
+    if (group_.at(other.get()) != group) return;
+    for (const auto& s : seams_) {
+      const auto kept = s.kept_map.lock(), moved = s.moved_map.lock();
+      for (const auto& l : s.seam.points) {
+        if (kept.get() == p.map.get()) anchors.push_back(l.kept);
+        if (moved.get() == p.map.get()) anchors.push_back(l.moved);
+      }
+    }
+  }
+  stop_group_ba();  // its result would be discarded by the correction anyway
+  ReencounterCorrection c;
+  Seam seam;
+  {
+    auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({p.map.get(), other.get()});
+    if (p.kf->bad || candidate->bad) return;
+    const SE3 T_kf_world_measured = v.S_query_candidate.to_se3() * candidate->T_cam_world;
+    c = correct_reencounter(*p.map, *p.kf, T_kf_world_measured, anchors, config_.reencounter);
+    seam = connect_seam(*other, *candidate, *p.map, *p.kf, config_.seam);
+  }
+  FusionEvent e;
+  e.kind = "reencounter";
+  e.client_a = p.client;
+  e.client_b = other_client;
+  e.group = group;
+  e.inliers = v.final_inliers;
+  e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
+  e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  e.query_timestamp = p.kf->timestamp();
+  e.candidate_timestamp = candidate->timestamp();
+  e.T_query_candidate = v.S_query_candidate.to_se3();
+  e.seam_points = int(seam.points.size());
+  e.seam_edges = int(seam.edges.size());
+  e.keyframes_moved = c.rigid;
+  e.keyframes_kept = c.anchors;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    events_.push_back(e);
+    seams_.push_back({other, p.map, std::move(seam)});
+    last_link_[{p.map.get(), other.get()}] = keyframes_seen_[p.map.get()];
+    consistency_.erase({p.map.get(), other.get()});
+  }
+  logger("fusion")->info("client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
+                         "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, {:.1f} ms",
+                         p.client, other_client, group, v.final_inliers, 100 * c.T_correction.translation().norm(),
+                         Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors,
+                         c.pose_graph_ms, e.seam_points, e.duration_ms);
+  start_group_ba(group);
 }
 
 void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client,
@@ -263,6 +362,8 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
       if (g == gq || g == gc) g = kept;
     events_.push_back(e);
     seams_.push_back({kept_map, moved_map, std::move(seam)});
+    last_link_[{kept_map.get(), moved_map.get()}] = keyframes_seen_[kept_map.get()];
+    last_link_[{moved_map.get(), kept_map.get()}] = keyframes_seen_[moved_map.get()];
   }
   logger("fusion")->info("fused client {} with client {} into group {} ({} keyframes moved onto {}): {} inliers, {} "
                          "projection matches, window fit {} inliers over {} keyframes, {} seam points, {} cross-map "

@@ -5,7 +5,10 @@
 // SE3/Sim3, projection check) and, when they do, moves every map of the smaller group into the
 // other group's frame, links the points the two maps share around the match (seam), and runs a
 // global BA over every map of the new group in the background, linked points estimated as one.
-// Tracking goes on: frame poses are kept relative to reference keyframes.
+// Maps of one group keep being matched against each other: a verified place pair between them is
+// a re-encounter (fusion/reencounter.h): the query map's drift is corrected, the seam there
+// linked, and the group BA runs again. Tracking goes on: frame poses are kept relative to
+// reference keyframes.
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -19,6 +22,7 @@
 #include "bow/vocabulary.h"
 #include "fusion/fusion_event.h"
 #include "fusion/overlap_verifier.h"
+#include "fusion/reencounter.h"
 #include "fusion/seam.h"
 #include "loop/consistency.h"
 #include "map/map.h"
@@ -38,6 +42,7 @@ struct FusionConfig {
   SeamConfig seam;
   bool group_ba = true;              // global BA over a fused group after each fusion
   int group_ba_iterations = 10;
+  ReencounterConfig reencounter;     // place pairs between maps already in one group
 };
 
 // Moves a whole map by T_new_old (keyframe poses and points); requires no lock held by the caller.
@@ -84,6 +89,13 @@ class FusionManager {
   void process(const Pending& p);
   void fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const KeyFramePtr& candidate,
             const SE3& T_wq_wc, const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
+  void reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const KeyFramePtr& candidate,
+                   const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
+  // Fusion, then re-encounters, with the maps of the other groups / of the query's own group.
+  bool try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score);
+  void try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow, double min_score);
+  // Consistent candidates of `other` for the query keyframe (pair-wise consistency state).
+  std::vector<KeyFrameId> consistent_candidates(const Pending& p, Map& other, const BowVector& bow, double min_score);
   void start_group_ba(int group);
   bool run_group_ba_of(int group);
   void stop_group_ba();
@@ -111,6 +123,9 @@ class FusionManager {
   std::map<std::pair<const Map*, const Map*>, ConsistencyChecker> consistency_;
   std::vector<FusionEvent> events_;
   std::vector<StoredSeam> seams_;
+  std::map<const Map*, int> keyframes_seen_;  // keyframes processed per map (fusion thread)
+  // keyframes_seen_ of the query map when the pair (query, other) last fused or re-encountered
+  std::map<std::pair<const Map*, const Map*>, int> last_link_;
   GroupBaStats group_ba_stats_;
   std::thread thread_;
   std::thread group_ba_thread_;  // owned by the fusion thread (started, aborted, joined there)

@@ -10,7 +10,7 @@
 #include "core/stopwatch.h"
 #include "core/thread_priority.h"
 #include "fusion/place_candidates.h"
-#include "loopclosing/essential_graph.h"
+#include "globalba/essential_graph.h"
 #include "match/projection_search.h"
 
 namespace cslam {

@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "common/fake_frame_data.h"
-#include "loopclosing/essential_graph.h"
+#include "globalba/essential_graph.h"
 
 using namespace cslam;
 

@@ -37,8 +37,8 @@ SE3 parse_transform(const std::string& text, const std::string& source) {
 Event parse_event(const nlohmann::json& j, const std::string& kind, int client, const std::string& source) {
   Event e;
   e.kind = kind;
-  e.client_query = kind == "fusion" ? j.at("client_a").get<int>() : client;
-  e.client_candidate = kind == "fusion" ? j.at("client_b").get<int>() : client;
+  e.client_query = kind != "loop" ? j.at("client_a").get<int>() : client;
+  e.client_candidate = kind != "loop" ? j.at("client_b").get<int>() : client;
   e.query_time = j.at("query_timestamp").get<double>();
   e.candidate_time = j.at("candidate_timestamp").get<double>();
   e.T_query_candidate = parse_transform(j.at("T_query_candidate").get<std::string>(), source);
@@ -62,7 +62,7 @@ std::vector<Event> read_events(const std::string& path, int single_client) {
     for (const auto& c : j.value("clients", nlohmann::json::array()))
       for (const auto& e : c.value("loop_events", nlohmann::json::array()))
         out.push_back(parse_event(e, "loop", c.at("id").get<int>(), path));
-    for (const auto& e : j.value("fusion_events", nlohmann::json::array())) out.push_back(parse_event(e, "fusion", 0, path));
+    for (const auto& e : j.value("fusion_events", nlohmann::json::array())) out.push_back(parse_event(e, e.value("kind", "fusion"), 0, path));
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path, std::string("unexpected event layout: ") + e.what());
   }
@@ -145,11 +145,11 @@ int cmd_events(int argc, char** argv) {
     if (estimated.ok)
       std::printf(" (estimated: median 0.5 s relative rotation error %.2f deg, %.2f deg at 0)", estimated.median_rotation_deg,
                   estimated.median_rotation_deg_at_zero);
-    std::printf("\n%-7s %7s %17s %17s %8s %9s %9s %s\n", "kind", "clients", "query_t", "candidate_t", "inliers", "rot_deg",
+    std::printf("\n%-11s %7s %17s %17s %8s %9s %9s %s\n", "kind", "clients", "query_t", "candidate_t", "inliers", "rot_deg",
                 "trans_m", "ok");
     for (const auto& je : out["events"]) {
       const bool v = je["has_ground_truth"].get<bool>();
-      std::printf("%-7s %3d->%-3d %17.3f %17.3f %8d %9s %9s %s\n", je["kind"].get<std::string>().c_str(),
+      std::printf("%-11s %3d->%-3d %17.3f %17.3f %8d %9s %9s %s\n", je["kind"].get<std::string>().c_str(),
                   je["client_query"].get<int>(), je["client_candidate"].get<int>(), je["query_timestamp"].get<double>(),
                   je["candidate_timestamp"].get<double>(), je["inliers"].get<int>(),
                   v ? std::to_string(je["rotation_error_deg"].get<double>()).substr(0, 6).c_str() : "n/a",

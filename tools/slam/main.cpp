@@ -61,6 +61,7 @@ int run(int argc, char** argv) {
       .flag("no-triangulation", "local mapping creates no points from keyframe pairs (ablation)")
       .flag("no-fusion", "disable map fusion (ablation): across clients, and of one client's maps after a long tracking loss")
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
+      .flag("no-reencounter", "multi-client mode: maps of one fused group are not matched against each other again (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
       .flag("depth-time", "read keypoint depth where the predicted motion carried it over the depth image's time offset")

@@ -90,6 +90,7 @@ int run_multi_client(const CliArgs& args) {
   config.slam.rgbd.depth_time_compensation = args.flag_set("depth-time");
   config.fusion.enabled = !args.flag_set("no-fusion");
   config.fusion.group_ba = !args.flag_set("no-group-ba");
+  config.fusion.reencounter.enabled = !args.flag_set("no-reencounter");
   CollaborativeSystem system(config);
   for (const auto& j : jobs) system.add_client(j.info);
 

@@ -1,4 +1,4 @@
-#include "loopclosing/essential_graph.h"
+#include "globalba/essential_graph.h"
 
 namespace cslam {
 

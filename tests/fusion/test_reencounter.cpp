@@ -1,0 +1,111 @@
+// Re-encounters inside a fused group (fusion/reencounter.h): the correction of a query map that
+// drifted from the group since the maps last met.
+#include <algorithm>
+#include <map>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "common/map_checks.h"
+#include "fusion/fusion_manager.h"
+#include "fusion/reencounter.h"
+#include "two_maps_fixture.h"
+
+using namespace cslam;
+
+namespace {
+
+// Keyframes of a map in creation order [lock held].
+std::vector<KeyFramePtr> in_order(const Map& map) {
+  std::vector<KeyFramePtr> out;
+  for (const auto& kf : map.keyframes())
+    if (!kf->bad) out.push_back(kf);
+  std::sort(out.begin(), out.end(), [](const KeyFramePtr& a, const KeyFramePtr& b) { return a->id.seq < b->id.seq; });
+  return out;
+}
+
+double mean_translation_gap(const std::vector<KeyFramePtr>& kfs, const std::map<const KeyFrame*, SE3>& reference) {
+  double sum = 0;
+  for (const auto& kf : kfs) sum += (kf->T_world_cam().translation() - reference.at(kf.get()).inverse().translation()).norm();
+  return sum / double(kfs.size());
+}
+
+// One robot of the small synthetic scene over 240 frames, mapped offline (~40 keyframes).
+test::ClientMap build_long_map(const test::TempDir& dir) {
+  const auto r = test::run_program("cslam-synth", "--preset test-small --frames 240 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  if (r.status != 0) throw std::runtime_error("cslam-synth failed: " + r.output);
+  auto voc = std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path()));
+  return test::build_client_map(dir / "scene/robot_1", 1, voc);
+}
+
+}  // namespace
+
+// A map, aligned with map a by ground truth, then drifts: its keyframes after the first few move
+// by an error that grows with their order (to 1.5 deg / 6 cm at the last one), their points with
+// them. The last keyframe re-encounters the group, measured at its pose before the drift. The
+// correction puts that keyframe and its neighbourhood there, leaves the anchored keyframes (the
+// observers of points linked by the earlier seam: here the first ones) where they were, and the
+// essential graph takes the rest most of the way back.
+TEST(Reencounter, DriftSinceTheLastSeamIsCorrectedBetweenTheAnchorsAndTheQuery) {
+  test::TempDir dir("cslam_reencounter");
+  const test::ClientMap b = build_long_map(dir);
+  std::unique_lock<std::shared_mutex> lock(b.map->mutex);
+  const std::vector<KeyFramePtr> kfs = in_order(*b.map);
+  ASSERT_GE(kfs.size(), 20u);
+  std::map<const KeyFrame*, SE3> true_pose;  // before the drift
+  for (const auto& kf : kfs) true_pose[kf.get()] = kf->T_cam_world;
+  {
+    // Without drift the measured pose is the current one, and nothing moves.
+    const ReencounterCorrection none = correct_reencounter(*b.map, *kfs.back(), kfs.back()->T_cam_world, {}, {});
+    EXPECT_LT(none.T_correction.translation().norm(), 1e-12);
+    for (const auto& kf : kfs) {
+      EXPECT_LT((kf->T_cam_world.translation() - true_pose[kf.get()].translation()).norm(), 1e-9);
+      EXPECT_LT(kf->T_cam_world.rotation().angularDistance(true_pose[kf.get()].rotation()), 1e-9);
+    }
+  }
+
+  // The anchors: points of the first 4 keyframes. The drift starts after them.
+  std::vector<MapPointPtr> anchors;
+  for (std::size_t i = 0; i < 4; ++i)
+    for (const auto& mp : kfs[i]->map_points)
+      if (mp && !mp->bad) anchors.push_back(mp);
+  Eigen::Matrix<double, 6, 1> xi;
+  xi << 0.05, -0.03, 0.02, 0.2 * M_PI / 180, 1.4 * M_PI / 180, 0.4 * M_PI / 180;  // [rho, phi]
+  std::map<const MapPoint*, bool> moved;
+  std::set<const KeyFrame*> anchored;
+  for (const auto& mp : anchors)
+    for (const auto& [observer, idx] : mp->observations) anchored.insert(observer);
+  const std::size_t n = kfs.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (anchored.count(kfs[i].get())) continue;
+    const double a = double(i) / double(n - 1);
+    const SE3 T_err = SE3::exp_small(a * xi);  // applied on the world side
+    const SE3 T_old_world_cam = kfs[i]->T_world_cam();
+    kfs[i]->T_cam_world = (T_err * T_old_world_cam).inverse();
+    for (const auto& mp : kfs[i]->map_points)
+      if (mp && !mp->bad && mp->reference == kfs[i].get() && !moved[mp.get()]) {
+        mp->position = T_err * mp->position;
+        moved[mp.get()] = true;
+      }
+  }
+  const KeyFramePtr query = kfs.back();
+  std::vector<KeyFramePtr> drifting;
+  for (const auto& kf : kfs)
+    if (!anchored.count(kf.get())) drifting.push_back(kf);
+  const double drifted_gap = mean_translation_gap(drifting, true_pose);
+
+  std::map<const KeyFrame*, SE3> anchor_pose;
+  for (const KeyFrame* k : anchored) anchor_pose[k] = k->T_cam_world;
+  const ReencounterCorrection c = correct_reencounter(*b.map, *query, true_pose.at(query.get()), anchors, {});
+  const double corrected_gap = mean_translation_gap(drifting, true_pose);
+  std::printf("drift: mean keyframe gap %.4f m before the correction, %.4f m after (%d rigid, %d anchored, %d edges)\n",
+              drifted_gap, corrected_gap, c.rigid, c.anchors, c.graph_edges);
+  EXPECT_TRUE(c.pose_graph_converged);
+  EXPECT_EQ(std::size_t(c.anchors), anchored.size());
+  EXPECT_NEAR(c.T_correction.translation().norm(), xi.head<3>().norm(), 0.02);
+  // The query keyframe sits at the measured pose; anchored keyframes did not move.
+  EXPECT_LT((query->T_cam_world.translation() - true_pose.at(query.get()).translation()).norm(), 1e-9);
+  for (const auto& [k, T] : anchor_pose) EXPECT_LT((k->T_cam_world.translation() - T.translation()).norm(), 1e-9);
+  EXPECT_LT(corrected_gap, 0.3 * drifted_gap);
+  test::expect_consistent(*b.map);
+}
