@@ -78,14 +78,17 @@ run_case() {
   fused=$(python3 - "$dir" "$k" "${ids[@]}" <<'EOF'
 import json, sys
 d, n, ids = sys.argv[1], int(sys.argv[2]), [int(x) for x in sys.argv[3:]]
-events = json.load(open("%s/out%d/stats.json" % (d, n)))["fusion_events"]
 out = []
 for k in range(1, n):
+    # Session k+1's own server run (event lists are not kept in snapshots).
+    events = json.load(open("%s/out%d/stats.json" % (d, k + 1)))["fusion_events"]
     # The session's first frame: the first pose its own server run wrote.
     with open("%s/out%d/client_%d.txt" % (d, k + 1, ids[k])) as f:
         first = next(float(l.split()[0]) for l in f if l.strip() and not l.startswith("#"))
-    ev = [e for e in events if ids[k] in (e["client_a"], e["client_b"])]
-    out.append("session %d %s" % (k + 1, ("%.2f s" % (ev[0]["query_timestamp"] - first)) if ev else "never"))
+    ev = [e for e in events if e["kind"] == "fusion" and ids[k] in (e["client_a"], e["client_b"])]
+    if ev:
+        t = ev[0]["query_timestamp"] if ev[0]["client_a"] == ids[k] else ev[0]["candidate_timestamp"]
+    out.append("session %d %s" % (k + 1, ("%.2f s" % (t - first)) if ev else "never"))
 print(", ".join(out))
 EOF
 )
@@ -93,7 +96,9 @@ EOF
   if [ "$case" = synth2 ]; then
     gtopt=(--client-gt); for i in "${!ids[@]}"; do gtopt+=("${ids[$i]}" "${sets[$i]}/groundtruth.txt"); done
   fi
-  "$BIN/cslam-eval" events "$last/stats.json" "${gtopt[@]}" | grep -E "^(fusion|reencounter)" | sed "s/^/     /" || true
+  for s in $(seq 2 "$k"); do  # each later session's fusion and re-encounters against ground truth
+    "$BIN/cslam-eval" events "$dir/out$s/stats.json" "${gtopt[@]}" | grep -E "^(fusion|reencounter)" | sed "s/^/     s$s /" || true
+  done
   echo "   combined ATE $combined m | each alone ${alone[*]} m | fused after: $fused"
 }
 

@@ -263,6 +263,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
   stop_group_ba();  // its result would be discarded by the correction anyway
   ReencounterCorrection c;
   Seam seam;
+  Stopwatch locked;  // both maps held exclusively: the query robot's tracking waits this long at most
   {
     auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({p.map.get(), other.get()});
     if (p.kf->bad || candidate->bad) return;
@@ -270,6 +271,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     c = correct_reencounter(*p.map, *p.kf, T_kf_world_measured, anchors, config_.reencounter);
     seam = connect_seam(*other, *candidate, *p.map, *p.kf, config_.seam);
   }
+  const double locked_ms = locked.ms();
   FusionEvent e;
   e.kind = "reencounter";
   e.client_a = p.client;
@@ -293,10 +295,11 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     consistency_.erase({p.map.get(), other.get()});
   }
   logger("fusion")->info("client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
-                         "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, {:.1f} ms",
+                         "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
+                         "locked {:.1f} ms, {:.1f} ms from detection",
                          p.client, other_client, group, v.final_inliers, 100 * c.T_correction.translation().norm(),
                          Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors,
-                         c.pose_graph_ms, e.seam_points, e.duration_ms);
+                         c.pose_graph_ms, e.seam_points, locked_ms, e.duration_ms);
   start_group_ba(group);
 }
 

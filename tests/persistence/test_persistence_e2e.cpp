@@ -230,12 +230,17 @@ TEST(MultiSession, Fr1DeskSecondSessionIsFusedIntoTheLoadedMap) {
               t1.size(), t2.size(), ate_session1);
   RecordProperty("ate_m", std::to_string(ate));
   RecordProperty("ate_session1_m", std::to_string(ate_session1));
-  // The target. The servers run --deterministic, so this is the one possible outcome
-  // (0.0233 m on the 2-core development VM, 0.0249 m before the keyframe interval; each session
-  // alone 0.015 m). With threaded servers the same test
-  // measured 0.0212-0.0279 m over 3 runs of the earlier revision.
-  EXPECT_LE(ate, 0.025);
-  EXPECT_LE(ate_session1, 0.025);
+  // Session 2 met session 1's map again after the fusion (re-encounters): that is what keeps it
+  // from drifting away from the loaded map.
+  int reencounters = 0;
+  for (const auto& e : stats["fusion_events"]) reencounters += e["kind"] == "reencounter";
+  EXPECT_GE(reencounters, 1) << stats["fusion_events"].dump();
+  // The target: as accurate as three robots mapping the sequence at once (0.0147 m). The servers
+  // run --deterministic, so this is the one possible outcome: 0.0116 m on the 2-core development
+  // VM (0.0185 m before re-encounters and before snapshots kept rolling-shutter keypoints; each
+  // session alone 0.011 m). Threaded servers: scripts/bench-sessions.sh, docs/persistence.md.
+  EXPECT_LE(ate, 0.0147);
+  EXPECT_LE(ate_session1, 0.015);
 }
 
 TEST_F(Persistence, TwoDaysSecondRobotStartsAwayAndMeetsTheLoadedMapLater) {
@@ -257,9 +262,11 @@ TEST_F(Persistence, TwoDaysSecondRobotStartsAwayAndMeetsTheLoadedMapLater) {
   EXPECT_GT(fused_at, 0.3) << "robot 1 was expected to meet day 1's map only later";
   const double ate = joint_ate(scene_, out);
   std::printf("two days: combined ATE %.4f m\n", ate);
-  // Live two-robot runs of this scene measured 0.041-0.046 m (the kill test's reference run);
-  // two days must be as good, with margin for a loaded machine.
-  EXPECT_LE(ate, 0.06);
+  // The servers run --deterministic: one outcome, 0.0372 m on the 2-core development VM. Both
+  // robots mapping at once measure 0.0340-0.0347 m; each robot alone 0.024-0.027 m (its own drift
+  // along an arc without loops bounds what any alignment of the two can reach). The bound leaves
+  // 13 % above the measured outcome (it was 0.06; docs/persistence.md, multi-session accuracy).
+  EXPECT_LE(ate, 0.042);
 }
 
 TEST_F(Persistence, SameIdWithNewSessionStartsAMapThatFusionJoinsToTheLoadedOne) {
