@@ -89,7 +89,10 @@ void FusionManager::forget(const std::vector<const Map*>& maps) {
     it = listed(it->first.first) || listed(it->first.second) ? consistency_.erase(it) : std::next(it);
   for (auto it = last_link_.begin(); it != last_link_.end();)
     it = listed(it->first.first) || listed(it->first.second) ? last_link_.erase(it) : std::next(it);
-  for (const Map* m : maps) keyframes_seen_.erase(m);
+  for (const Map* m : maps) {
+    keyframes_seen_.erase(m);
+    loops_seen_.erase(m);
+  }
   seams_.erase(std::remove_if(seams_.begin(), seams_.end(),
                               [&](const StoredSeam& s) {
                                 const auto a = s.kept_map.lock(), b = s.moved_map.lock();
@@ -144,6 +147,7 @@ void FusionManager::process(const Pending& p) {
   const Map& map = *p.map;
   BowVector bow;
   double min_score = 1.0;
+  std::uint64_t loops = 0;
   {
     std::shared_lock<std::shared_mutex> lock(p.map->mutex);
     if (p.kf->bad) return;
@@ -151,20 +155,29 @@ void FusionManager::process(const Pending& p) {
     if (covisibles.empty()) return;
     bow = p.kf->data->bow;
     min_score = min_covisible_score(*p.kf);
+    loops = p.map->loops_closed();
   }
   std::vector<Registered> others, same_group;
+  int my_group = -1;
+  bool readjust = false;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++keyframes_seen_[&map];
-    const int my_group = group_.at(&map);
+    my_group = group_.at(&map);
     for (const auto& r : registry_) {
       auto m = r.map.lock();
       if (!m || m.get() == &map) continue;
       (group_.at(m.get()) != my_group ? others : same_group).push_back(r);
     }
+    // A loop closure moved this map alone, or the group's last BA was discarded because a map
+    // moved while it ran: the group's links are to be balanced again.
+    std::uint64_t& seen = loops_seen_[&map];
+    readjust = !same_group.empty() && (loops != seen || group_ba_pending_.count(my_group) > 0);
+    seen = loops;
   }
   if (try_fuse(p, others, bow, min_score)) return;
-  if (config_.reencounter.enabled) try_reencounter(p, same_group, bow, min_score);
+  if (config_.reencounter.enabled && try_reencounter(p, same_group, bow, min_score)) return;
+  if (readjust) start_group_ba(my_group);
 }
 
 std::vector<KeyFrameId> FusionManager::consistent_candidates(const Pending& p, Map& other, const BowVector& bow,
@@ -213,7 +226,7 @@ bool FusionManager::try_fuse(const Pending& p, const std::vector<Registered>& ot
   return false;
 }
 
-void FusionManager::try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow,
+bool FusionManager::try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow,
                                     double min_score) {
   for (const auto& other_reg : same_group) {
     auto other = other_reg.map.lock();
@@ -238,9 +251,10 @@ void FusionManager::try_reencounter(const Pending& p, const std::vector<Register
       }
       if (!v.accepted) continue;
       reencounter(p, other, other_reg.client, cand, v, hit);
-      return;
+      return true;
     }
   }
+  return false;
 }
 
 void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client,
@@ -434,6 +448,8 @@ bool FusionManager::run_group_ba_of(int group) {
     applied = gba.apply(r);
   }
   std::lock_guard<std::mutex> lock(state_mutex_);
+  if (applied) group_ba_pending_.erase(group);
+  else if (!r.aborted) group_ba_pending_.insert(group);  // a map moved meanwhile: again at the next keyframe
   if (applied) {
     ++group_ba_stats_.completed;
     group_ba_stats_.ms.push_back(sw.ms());

@@ -16,6 +16,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -92,8 +93,9 @@ class FusionManager {
   void reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const KeyFramePtr& candidate,
                    const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
   // Fusion, then re-encounters, with the maps of the other groups / of the query's own group.
+  // Each true if it linked the query's map (and started the group BA).
   bool try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score);
-  void try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow, double min_score);
+  bool try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow, double min_score);
   // Consistent candidates of `other` for the query keyframe (pair-wise consistency state).
   std::vector<KeyFrameId> consistent_candidates(const Pending& p, Map& other, const BowVector& bow, double min_score);
   void start_group_ba(int group);
@@ -124,6 +126,8 @@ class FusionManager {
   std::vector<FusionEvent> events_;
   std::vector<StoredSeam> seams_;
   std::map<const Map*, int> keyframes_seen_;  // keyframes processed per map (fusion thread)
+  std::map<const Map*, std::uint64_t> loops_seen_;  // Map::loops_closed() when last processed
+  std::set<int> group_ba_pending_;  // groups whose last group BA was discarded (a map moved meanwhile)
   // keyframes_seen_ of the query map when the pair (query, other) last fused or re-encountered
   std::map<std::pair<const Map*, const Map*>, int> last_link_;
   GroupBaStats group_ba_stats_;

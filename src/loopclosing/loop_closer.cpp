@@ -212,6 +212,7 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
       for (const auto& mp : map_->map_points()) map_->update_map_point(mp.get());
     }
     map_->note_big_change();
+    map_->note_loop_closed();
     last_loop_seq_ = kf->id.seq;
     had_loop_ = true;
   }

@@ -109,6 +109,9 @@ class Map {
   // Monotone counter of structural changes (loop corrections, fusions) for consumers to notice.
   std::uint64_t big_change_index() const { return big_changes_; }
   void note_big_change() { ++big_changes_; }
+  // Loop closures corrected in this map (its own loop closer): a fused group re-adjusts after one.
+  std::uint64_t loops_closed() const { return loops_closed_; }
+  void note_loop_closed() { ++loops_closed_; }
 
  private:
   friend class MapWriteLock;
@@ -121,6 +124,7 @@ class Map {
   std::unordered_map<MapPointId, MapPointPtr> map_points_;
   KeyFramePtr origin_;
   std::uint64_t big_changes_ = 0;
+  std::uint64_t loops_closed_ = 0;
   mutable std::atomic<int> writers_waiting_{0};
   mutable std::mutex writers_mutex_;  // only to wait for writers_waiting_ == 0
   mutable std::condition_variable writers_cv_;

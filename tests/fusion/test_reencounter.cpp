@@ -109,3 +109,34 @@ TEST(Reencounter, DriftSinceTheLastSeamIsCorrectedBetweenTheAnchorsAndTheQuery) 
   EXPECT_LT(corrected_gap, 0.3 * drifted_gap);
   test::expect_consistent(*b.map);
 }
+
+// A loop closure moves one map of a fused group alone; the group's links are balanced again by a
+// group BA at that map's next keyframe (and only then).
+TEST(Reencounter, LoopClosureInAFusedMapRebalancesTheGroup) {
+  test::TempDir dir("cslam_reencounter_loop");
+  test::TwoMaps m = test::build_two_maps(dir);
+  FusionConfig cfg;
+  cfg.threaded = false;              // the group BA runs inside notify()
+  cfg.reencounter.enabled = false;   // only the loop closure may start it
+  FusionManager fusion(cfg, std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
+  fusion.restore_group(1, m.a.map, 7);
+  fusion.restore_group(2, m.b.map, 7);
+  KeyFramePtr kf;
+  {
+    std::shared_lock<std::shared_mutex> lock(m.a.map->mutex);
+    for (const auto& k : in_order(*m.a.map))
+      if (!k->covisibles().empty()) kf = k;
+  }
+  ASSERT_TRUE(kf);
+  fusion.notify(1, m.a.map, kf);
+  EXPECT_EQ(fusion.group_ba_stats().started, 0) << "no loop closed: nothing to balance";
+  {
+    std::unique_lock<std::shared_mutex> lock(m.a.map->mutex);
+    m.a.map->note_loop_closed();
+  }
+  fusion.notify(1, m.a.map, kf);
+  EXPECT_EQ(fusion.group_ba_stats().completed, 1);
+  fusion.notify(1, m.a.map, kf);
+  EXPECT_EQ(fusion.group_ba_stats().started, 1) << "the same loop is balanced once";
+  fusion.finish();
+}
