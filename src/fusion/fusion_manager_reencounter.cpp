@@ -1,0 +1,104 @@
+// FusionManager's re-encounters (declared in fusion/fusion_manager.h): place pairs between maps
+// that are already in one group, and their correction (fusion/reencounter.h).
+#include <cmath>
+#include <shared_mutex>
+
+#include "core/log.h"
+#include "core/stopwatch.h"
+#include "fusion/fusion_manager.h"
+#include "map/map_locks.h"
+
+namespace cslam {
+
+bool FusionManager::try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow,
+                                    double min_score) {
+  for (const auto& other_reg : same_group) {
+    auto other = other_reg.map.lock();
+    if (!other) continue;
+    {
+      // Not again right after the last link of this pair: those places are tied already.
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      auto it = last_link_.find({p.map.get(), other.get()});
+      if (it != last_link_.end() && keyframes_seen_[p.map.get()] - it->second < config_.reencounter.min_keyframe_gap) continue;
+    }
+    const std::vector<KeyFrameId> consistent = consistent_candidates(p, *other, bow, min_score);
+    if (consistent.empty()) continue;
+    const auto hit = std::chrono::steady_clock::now();
+    for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
+      OverlapVerifyResult v;
+      KeyFramePtr cand;
+      {
+        auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), other.get()});
+        cand = other->keyframe(consistent[i]);
+        if (!cand || cand->bad || p.kf->bad) continue;
+        v = verify_overlap(*p.kf, *cand, cand->best_covisibles(10), config_.verify);
+      }
+      if (!v.accepted) continue;
+      reencounter(p, other, other_reg.client, cand, v, hit);
+      return true;
+    }
+  }
+  return false;
+}
+
+void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client,
+                                const KeyFramePtr& candidate, const OverlapVerifyResult& v,
+                                std::chrono::steady_clock::time_point hit) {
+  std::vector<MapPointPtr> anchors;  // the query map's points linked by earlier seams
+  int group = -1;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    group = group_.at(p.map.get());
+    if (group_.at(other.get()) != group) return;
+    for (const auto& s : seams_) {
+      const auto kept = s.kept_map.lock(), moved = s.moved_map.lock();
+      for (const auto& l : s.seam.points) {
+        if (kept.get() == p.map.get()) anchors.push_back(l.kept);
+        if (moved.get() == p.map.get()) anchors.push_back(l.moved);
+      }
+    }
+  }
+  stop_group_ba();  // its result would be discarded by the correction anyway
+  ReencounterCorrection c;
+  Seam seam;
+  Stopwatch locked;  // both maps held exclusively: the query robot's tracking waits this long at most
+  {
+    auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({p.map.get(), other.get()});
+    if (p.kf->bad || candidate->bad) return;
+    const SE3 T_kf_world_measured = v.S_query_candidate.to_se3() * candidate->T_cam_world;
+    c = correct_reencounter(*p.map, *p.kf, T_kf_world_measured, anchors, config_.reencounter);
+    seam = connect_seam(*other, *candidate, *p.map, *p.kf, config_.seam);
+  }
+  const double locked_ms = locked.ms();
+  FusionEvent e;
+  e.kind = "reencounter";
+  e.client_a = p.client;
+  e.client_b = other_client;
+  e.group = group;
+  e.inliers = v.final_inliers;
+  e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
+  e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  e.query_timestamp = p.kf->timestamp();
+  e.candidate_timestamp = candidate->timestamp();
+  e.T_query_candidate = v.S_query_candidate.to_se3();
+  e.seam_points = int(seam.points.size());
+  e.seam_edges = int(seam.edges.size());
+  e.keyframes_moved = c.rigid;
+  e.keyframes_kept = c.anchors;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    events_.push_back(e);
+    seams_.push_back({other, p.map, std::move(seam)});
+    last_link_[{p.map.get(), other.get()}] = keyframes_seen_[p.map.get()];
+    consistency_.erase({p.map.get(), other.get()});
+  }
+  logger("fusion")->info("client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
+                         "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
+                         "locked {:.1f} ms, {:.1f} ms from detection",
+                         p.client, other_client, group, v.final_inliers, 100 * c.T_correction.translation().norm(),
+                         Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors,
+                         c.pose_graph_ms, e.seam_points, locked_ms, e.duration_ms);
+  start_group_ba(group);
+}
+
+}  // namespace cslam
