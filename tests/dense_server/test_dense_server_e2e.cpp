@@ -215,9 +215,28 @@ TEST_F(DenseServer, KilledServerReturnsTheDenseMapOfEveryKeyframeItsSnapshotHold
     test::ChildProcess c1(client_args(*endpoint, 1, scene_ + "/robot_1"), run + "/client1.log");
     ASSERT_EQ(c1.wait(300), 0) << "see " << run << "/client1.log";
   }
-  // Snapshots every second: let one be written after the last keyframe, then kill the server
-  // while its dense map is still live.
-  std::this_thread::sleep_for(std::chrono::seconds(3));
+  // Kill the server at a snapshot that holds every keyframe it stored: wait until the dense map
+  // has stored and integrated every keyframe (its thread runs below SLAM's priority and lags
+  // behind on a loaded machine; a fixed wait of 3 s failed under two busy loops: 20 of 21 stored),
+  // then write a snapshot now, while the dense map is still live.
+  {
+    const auto port1 = test::wait_for_file_line(run + "/http_port", 30);
+    ASSERT_TRUE(port1) << "see " << run << "/server1.log";
+    httplib::Client http1("127.0.0.1", std::stoi(*port1));
+    auto all_stored = [&] {
+      const nlohmann::json st1 = wait_dense_idle(http1, 120), status1 = get_json(http1, "/api/status");
+      if (!st1.is_object() || !status1.is_object()) return false;
+      int held = 0;
+      for (const auto& c : status1["clients"]) held += c["keyframes"].get<int>();
+      return st1["store"]["keyframes"].get<int>() == held && st1["keyframes_integrated"].get<int>() == held;
+    };
+    bool stored = false;
+    for (int i = 0; i < 600 && !(stored = all_stored()); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    ASSERT_TRUE(stored) << "the dense map did not store every keyframe; see " << run << "/server1.log";
+    http1.set_read_timeout(60, 0);
+    const auto written = http1.Post("/api/map/snapshot", "", "application/json");
+    ASSERT_TRUE(written && written->status == 200) << (written ? written->body : "no answer");
+  }
   server.reset();  // SIGKILL
   std::filesystem::remove(run + "/endpoint");
   std::filesystem::remove(run + "/http_port");
