@@ -194,34 +194,38 @@ std::vector<KeyFrameId> FusionManager::consistent_candidates(const Pending& p, M
   return it->second.update(groups);
 }
 
+std::optional<FusionManager::Verified> FusionManager::verified_candidate(const Pending& p, Map& other, ClientId other_client,
+                                                                        const BowVector& bow, double min_score) {
+  const std::vector<KeyFrameId> consistent = consistent_candidates(p, other, bow, min_score);
+  if (consistent.empty()) return std::nullopt;
+  Verified out;
+  out.hit = std::chrono::steady_clock::now();
+  for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
+    auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), &other});
+    out.candidate = other.keyframe(consistent[i]);
+    if (!out.candidate || out.candidate->bad || p.kf->bad) continue;
+    out.v = verify_overlap(*p.kf, *out.candidate, out.candidate->best_covisibles(10), config_.verify);
+    if (!out.v.accepted) {
+      logger("fusion")->debug("client {} kf {} vs client {} kf {}: rejected ({}; bow {} ransac {} refined {} proj {})",
+                              p.client, p.kf->id.seq, other_client, out.candidate->id.seq, out.v.reason,
+                              out.v.bow_matches, out.v.ransac_inliers, out.v.refined_inliers, out.v.projection_matches);
+      continue;
+    }
+    // T_wq_wc = T_wq_camq * S_camq_camc * T_camc_wc
+    out.T_wq_wc = p.kf->T_world_cam() * out.v.S_query_candidate.to_se3() * out.candidate->T_cam_world;
+    return out;
+  }
+  return std::nullopt;
+}
+
 bool FusionManager::try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score) {
   for (const auto& other_reg : others) {
     auto other = other_reg.map.lock();
     if (!other) continue;
-    const std::vector<KeyFrameId> consistent = consistent_candidates(p, *other, bow, min_score);
-    if (consistent.empty()) continue;
-    const auto hit = std::chrono::steady_clock::now();
-    for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
-      OverlapVerifyResult v;
-      SE3 T_wq_wc;
-      KeyFramePtr cand;
-      {
-        auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), other.get()});
-        cand = other->keyframe(consistent[i]);
-        if (!cand || cand->bad || p.kf->bad) continue;
-        v = verify_overlap(*p.kf, *cand, cand->best_covisibles(10), config_.verify);
-        if (!v.accepted) {
-          logger("fusion")->debug("client {} kf {} vs client {} kf {}: rejected ({}; bow {} ransac {} refined {} proj {})",
-                                  p.client, p.kf->id.seq, other_reg.client, cand->id.seq, v.reason, v.bow_matches,
-                                  v.ransac_inliers, v.refined_inliers, v.projection_matches);
-          continue;
-        }
-        // T_wq_wc = T_wq_camq * S_camq_camc * T_camc_wc
-        T_wq_wc = p.kf->T_world_cam() * v.S_query_candidate.to_se3() * cand->T_cam_world;
-      }
-      fuse(p, other, other_reg.client, cand, T_wq_wc, v, hit);
-      return true;
-    }
+    const auto found = verified_candidate(p, *other, other_reg.client, bow, min_score);
+    if (!found) continue;
+    fuse(p, other, other_reg.client, found->candidate, found->T_wq_wc, found->v, found->hit);
+    return true;
   }
   return false;
 }

@@ -16,6 +16,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <thread>
 #include <vector>
@@ -96,6 +97,17 @@ class FusionManager {
   // Each true if it linked the query's map (and started the group BA).
   bool try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score);
   bool try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow, double min_score);
+  // The first of `other`'s consistent candidates (at most config_.max_candidates tried) that
+  // verify_overlap accepts against the query keyframe, with T_wq_wc = the query map's world from
+  // the candidate map's. Both maps are held shared only while one candidate is verified.
+  struct Verified {
+    KeyFramePtr candidate;
+    OverlapVerifyResult v;
+    SE3 T_wq_wc;
+    std::chrono::steady_clock::time_point hit;  // when the consistent candidates were found
+  };
+  std::optional<Verified> verified_candidate(const Pending& p, Map& other, ClientId other_client, const BowVector& bow,
+                                             double min_score);
   // Consistent candidates of `other` for the query keyframe (pair-wise consistency state).
   std::vector<KeyFrameId> consistent_candidates(const Pending& p, Map& other, const BowVector& bow, double min_score);
   void start_group_ba(int group);

@@ -21,22 +21,10 @@ bool FusionManager::try_reencounter(const Pending& p, const std::vector<Register
       auto it = last_link_.find({p.map.get(), other.get()});
       if (it != last_link_.end() && keyframes_seen_[p.map.get()] - it->second < config_.reencounter.min_keyframe_gap) continue;
     }
-    const std::vector<KeyFrameId> consistent = consistent_candidates(p, *other, bow, min_score);
-    if (consistent.empty()) continue;
-    const auto hit = std::chrono::steady_clock::now();
-    for (size_t i = 0; i < consistent.size() && i < config_.max_candidates; ++i) {
-      OverlapVerifyResult v;
-      KeyFramePtr cand;
-      {
-        auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), other.get()});
-        cand = other->keyframe(consistent[i]);
-        if (!cand || cand->bad || p.kf->bad) continue;
-        v = verify_overlap(*p.kf, *cand, cand->best_covisibles(10), config_.verify);
-      }
-      if (!v.accepted) continue;
-      reencounter(p, other, other_reg.client, cand, v, hit);
-      return true;
-    }
+    const auto found = verified_candidate(p, *other, other_reg.client, bow, min_score);
+    if (!found) continue;
+    reencounter(p, other, other_reg.client, found->candidate, found->v, found->hit);
+    return true;
   }
   return false;
 }
