@@ -8,12 +8,20 @@ const hex = (c) => '#' + c.toString(16).padStart(6, '0');
 const esc = (s) => String(s).replace(/[&<>"']/g, (ch) => `&#${ch.charCodeAt(0)};`);
 const kb = (b) => (b >= 1e6 ? `${(b / 1e6).toFixed(1)} MB` : `${(b / 1e3).toFixed(1)} KB`);
 
+// The client's link (status `link`, null when the server has no network layer): MB/s over the
+// last 2 s and the compression ratio so far, with the share of light frames of a lean stream.
+function linkCells(link) {
+  if (!link) return '<td class="rate">–</td><td class="ratio">–</td>';
+  const rate = link.bytes_per_s === null ? '–' : (link.bytes_per_s / 1e6).toFixed(2);
+  return `<td class="rate">${rate}</td><td class="ratio" title="${link.frames_light} light frame(s)">${link.compression_ratio.toFixed(1)}×</td>`;
+}
+
 export function renderStatus(s) {
   $('server').textContent = `${s.server} ${s.version} · up ${s.uptime_s.toFixed(0)} s · ${s.clients.length} client(s) · ${s.fusion_events} event(s)`;
   $('clients').tBodies[0].innerHTML = s.clients.map((c) => `
     <tr data-client="${c.id}"><td><span class="swatch" style="background:${hex(colour(c.id))}"></span>${c.id}</td>
     <td>${esc(c.name)}</td><td class="connection">${esc(c.connection)}</td><td class="${esc(c.tracking)}">${esc(c.tracking)}</td>
-    <td>${c.frames_received}</td><td>${c.frames_processed}</td><td>${c.frames_dropped}</td><td>${c.fps.toFixed(1)}</td>
+    <td>${c.frames_received}</td><td>${c.frames_processed}</td><td>${c.frames_dropped}</td><td>${c.fps.toFixed(1)}</td>${linkCells(c.link)}
     <td>${c.keyframes}</td><td>${c.map_points}</td><td>${c.group}</td></tr>`).join('');
 }
 

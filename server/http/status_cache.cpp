@@ -31,6 +31,11 @@ std::string label(const std::string& v) {
   return out;
 }
 
+std::uint64_t counter(const NetClientStatus& net, const char* key) {
+  const auto it = net.counters.find(key);
+  return it == net.counters.end() ? 0 : it->second;
+}
+
 }  // namespace
 
 nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps, const std::string& connection) {
@@ -48,12 +53,24 @@ nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps
           {"queue_depth", c.queue_depth},
           {"fps", fps},
           {"input_fps", input_fps},
-          {"bandwidth_mbps", nullptr},  // byte counts live in the receiver thread (not published yet)
+          {"link", nullptr},  // set from the receiver's counters when the server has a network layer
           {"keyframes", c.keyframes},
           {"map_points", c.map_points},
           {"maps", c.maps},
           {"group", c.group},
           {"last_timestamp", c.last_timestamp}};
+}
+
+nlohmann::json link_json(const NetClientStatus& net, const std::deque<RateSample>& samples) {
+  const std::uint64_t bytes = counter(net, "bytes_received"), raw = counter(net, "raw_bytes");
+  nlohmann::json j = {{"bytes_per_s", nullptr},
+                      {"bytes_received", bytes},
+                      {"raw_bytes", raw},
+                      {"compression_ratio", bytes > 0 ? double(raw) / double(bytes) : 0.0},
+                      {"frames_light", counter(net, "frames_light")}};
+  if (samples.size() >= 2 && samples.back().t > samples.front().t && samples.back().bytes >= samples.front().bytes)
+    j["bytes_per_s"] = double(samples.back().bytes - samples.front().bytes) / (samples.back().t - samples.front().t);
+  return j;
 }
 
 nlohmann::json event_json(const FusionEvent& e) {
@@ -327,7 +344,12 @@ void StatusCache::refresh() {
   nlohmann::json clients = nlohmann::json::array();
   for (const ClientSnapshot& c : snap.clients) {
     auto& samples = samples_[c.id];
-    samples.push_back({now, c.frames_submitted, c.frames_processed});
+    const NetClientStatus* link = nullptr;
+    if (net) {
+      const auto it = net->clients.find(c.id);
+      if (it != net->clients.end()) link = &it->second;
+    }
+    samples.push_back({now, c.frames_submitted, c.frames_processed, link ? counter(*link, "bytes_received") : 0});
     while (samples.size() > 2 && now - samples.front().t > 2.0) samples.pop_front();
     double fps = 0, input_fps = 0;
     if (samples.size() >= 2 && samples.back().t > samples.front().t) {
@@ -350,6 +372,7 @@ void StatusCache::refresh() {
     }
     fps_of[c.id] = fps;
     nlohmann::json j = client_json(c, fps, input_fps, connection);
+    if (link) j["link"] = link_json(*link, samples);
     j["pose"] = pose_json(c.T_world_cam, c.last_timestamp);  // the viewer places each robot's camera with it
     clients.push_back(j);
     next->clients[c.id] = std::move(j);

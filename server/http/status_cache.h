@@ -56,7 +56,13 @@ struct CachedState {
 struct RateSample {
   double t = 0;
   std::uint64_t submitted = 0, processed = 0;
+  std::uint64_t bytes = 0;  // bytes received from the client (network counters; 0 without them)
 };
+// A client's link as the receiver counts it: {bytes_per_s over the rate window, bytes_received,
+// raw_bytes (what the frames would take uncompressed: 3 B colour + 2 B depth per pixel),
+// compression_ratio = raw_bytes / bytes_received, frames_light}. bytes_per_s is null until two
+// samples span some time.
+nlohmann::json link_json(const NetClientStatus& net, const std::deque<RateSample>& samples);
 nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps, const std::string& connection);
 nlohmann::json event_json(const FusionEvent& e);
 std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, double>& fps, std::size_t fusion_count);

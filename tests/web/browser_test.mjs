@@ -59,6 +59,12 @@ try {
   const names = await page.$$eval('#clients tbody tr', (rows) => rows.map((r) => `${r.cells[1].textContent}:${r.cells[2].textContent}:${r.cells[3].textContent}`));
   console.log('clients:', names.join(' '));
   if (!names.some((n) => n.startsWith('robot1:')) || !names.some((n) => n.startsWith('robot2:'))) fail(`clients ${names}`);
+  // Each robot's link: bytes per second while it streams, and a compression ratio above 1.
+  await page.waitForFunction(() => [...document.querySelectorAll('#clients tbody tr')].every((r) =>
+    Number(r.querySelector('.rate').textContent) > 0 && parseFloat(r.querySelector('.ratio').textContent) > 1), null, { timeout: 30000 })
+    .catch(() => fail('no MB/s and compression ratio in the client table'));
+  console.log('links:', (await page.$$eval('#clients tbody tr', (rows) => rows.map((r) =>
+    `${r.cells[1].textContent} ${r.querySelector('.rate').textContent} MB/s ${r.querySelector('.ratio').textContent}`))).join(', '));
 
   // Pixels of the 3D canvas (or of a rectangle of it) that differ from the background.
   const coloured = (rect) => page.evaluate((r) => {

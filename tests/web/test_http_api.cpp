@@ -89,7 +89,7 @@ TEST_F(HttpApiTest, StatusJsonSchema) {
     EXPECT_TRUE(a.at(key).is_number_integer()) << key;
   for (const char* key : {"fps", "input_fps"}) EXPECT_TRUE(a.at(key).is_number()) << key;
   for (const char* key : {"name", "connection", "tracking"}) EXPECT_TRUE(a.at(key).is_string()) << key;
-  EXPECT_TRUE(a.contains("bandwidth_mbps"));
+  EXPECT_TRUE(a.at("link").is_null());  // no network layer in this server
   EXPECT_EQ(a["id"], 1);
   EXPECT_EQ(a["name"], "alpha");
   EXPECT_EQ(a["frames_received"], 3);
@@ -227,6 +227,49 @@ TEST_F(HttpApiTest, StatusExtraAddsToStatusAndMetrics) {
   ASSERT_TRUE(m);
   EXPECT_NE(m->body.find("cslam_dense_volumes 2\n"), std::string::npos);
   EXPECT_NE(m->body.find("cslam_status_extra_errors_total 0"), std::string::npos);
+}
+
+TEST(StatusLinkTest, RateOverTheWindowAndRatioOfTheCounters) {
+  NetClientStatus net;
+  net.counters = {{"bytes_received", 4000}, {"raw_bytes", 20000}, {"frames_light", 7}};
+  std::deque<RateSample> samples{{10.0, 0, 0, 1000}};
+  json j = link_json(net, samples);
+  EXPECT_TRUE(j.at("bytes_per_s").is_null());  // one sample: no rate yet
+  EXPECT_DOUBLE_EQ(j.at("compression_ratio").get<double>(), 5.0);
+  EXPECT_EQ(j.at("frames_light"), 7);
+  EXPECT_EQ(j.at("bytes_received"), 4000);
+  EXPECT_EQ(j.at("raw_bytes"), 20000);
+  samples.push_back({12.0, 0, 0, 4000});
+  j = link_json(net, samples);
+  EXPECT_DOUBLE_EQ(j.at("bytes_per_s").get<double>(), 1500.0);
+  samples.push_back({13.0, 0, 0, 10});  // a counter that went back (a new session): no rate, not a negative one
+  j = link_json(net, samples);
+  EXPECT_TRUE(j.at("bytes_per_s").is_null());
+  net.counters.clear();  // nothing received yet
+  j = link_json(net, {});
+  EXPECT_DOUBLE_EQ(j.at("compression_ratio").get<double>(), 0.0);
+  EXPECT_TRUE(j.at("bytes_per_s").is_null());
+}
+
+TEST_F(HttpApiTest, StatusCarriesEachClientsLinkFromTheReceiverCounters) {
+  NetStatusBoard board;
+  auto net = std::make_shared<NetStatus>();
+  net->clients[1].id = 1;
+  net->clients[1].connection = "active";
+  net->clients[1].counters = {{"bytes_received", 1000}, {"raw_bytes", 9000}, {"frames_light", 2}};
+  board.publish(net);
+  HttpConfig c;
+  c.port = 0;
+  c.web_root = std::string(CSLAM_SOURCE_DIR) + "/web";
+  HttpServer server(system_, c);
+  server.set_network_status(&board);
+  ASSERT_TRUE(server.start());
+  const json j = json::parse(client(server).Get("/api/status")->body);
+  const json& alpha = j.at("clients").at(0);
+  ASSERT_TRUE(alpha.at("link").is_object()) << alpha.dump();
+  EXPECT_DOUBLE_EQ(alpha["link"].at("compression_ratio").get<double>(), 9.0);
+  EXPECT_EQ(alpha["link"].at("frames_light"), 2);
+  EXPECT_TRUE(j.at("clients").at(1).at("link").is_null());  // beta has no session in the receiver's counters
 }
 
 TEST_F(HttpApiTest, ThrowingStatusExtraIsCountedAndStatusStillServed) {
