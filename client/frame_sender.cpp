@@ -13,14 +13,16 @@ std::chrono::milliseconds to_ms(double seconds) { return std::chrono::millisecon
 
 }  // namespace
 
-FrameSender::FrameSender(SenderConfig config) : config_(std::move(config)), context_(1) {
+FrameSender::FrameSender(SenderConfig config)
+    : config_(std::move(config)), context_(1), rate_(config_.adapt, std::max(config_.depth_every, 1)) {
   config_.codecs.validate();
   config_.info.camera.validate();
   if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");
   if (config_.light_depth_subsample < 0 || config_.light_depth_subsample == 1 ||
       config_.light_depth_subsample > kMaxDepthSubsample)
     throw ConfigError("SenderConfig::light_depth_subsample must be 0 (no depth) or 2.." + std::to_string(kMaxDepthSubsample));
-  if (config_.depth_every > 1) {
+  stats_.depth_every = config_.depth_every;
+  if (config_.colour_stream_on()) {
     config_.colour_stream.validate();
     colour_encoder_ = std::make_unique<video::H264Encoder>(config_.info.camera.width, config_.info.camera.height,
                                                            config_.colour_stream);
@@ -84,7 +86,7 @@ wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) const {
 }
 
 wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
-  const bool with_depth = !colour_encoder_ || depth_wanted_ || ++frames_since_depth_ >= config_.depth_every;
+  const bool with_depth = !colour_encoder_ || depth_wanted_ || ++frames_since_depth_ >= rate_.depth_every();
   if (with_depth) {
     frames_since_depth_ = 0;
     depth_wanted_ = false;
@@ -200,7 +202,7 @@ void FrameSender::offer_frame(const RgbdFrame& frame, Clock::time_point captured
   ++stats_.frames_offered;
   while (handle_reply(std::chrono::milliseconds(0))) {
   }
-  if (has_waiting_frame()) ++stats_.frames_dropped_live;
+  if (has_waiting_frame()) dropped_live();
   waiting_.reset();
   RgbdFrame kept = frame;  // the caller may reuse its buffers before the frame leaves
   kept.bgr = frame.bgr.clone();
@@ -216,12 +218,27 @@ void FrameSender::offer_encoded(wire::RgbdFrame frame, Clock::time_point capture
   ++stats_.frames_offered;
   while (handle_reply(std::chrono::milliseconds(0))) {
   }
-  if (has_waiting_frame()) ++stats_.frames_dropped_live;  // a newer frame makes the waiting one stale
+  if (has_waiting_frame()) dropped_live();  // a newer frame makes the waiting one stale
   waiting_raw_.reset();
   frame.set_live(true);
   waiting_ = std::move(frame);
   waiting_captured_ = captured;
   send_waiting_if_credit();
+}
+
+void FrameSender::dropped_live() {
+  ++stats_.frames_dropped_live;
+  rate_.on_live_drop(Clock::now());
+  note_rate();
+}
+
+void FrameSender::note_rate() {
+  if (rate_.depth_every() != stats_.depth_every)
+    log()->debug("client {}: link {} (base latency {:.0f} ms): depth every {} frames", config_.info.id,
+                 rate_.depth_every() > stats_.depth_every ? "queues" : "calm", rate_.base_ms(), rate_.depth_every());
+  stats_.depth_every = rate_.depth_every();
+  stats_.rate_steps_down = rate_.steps_down();
+  stats_.rate_steps_up = rate_.steps_up();
 }
 
 void FrameSender::send_waiting_if_credit() {
@@ -265,6 +282,11 @@ void FrameSender::send_heartbeat_if_due() {
 }
 
 void FrameSender::wait_for_credit() {
+  // Replies that already arrived first, credit or not: their poses (and latency, and a lean
+  // stream's depth requests) are then as fresh as the robot can have them, not read only once
+  // the window is used up.
+  while (handle_reply(std::chrono::milliseconds(0))) {
+  }
   while (credits_ == 0) {
     if (Clock::now() - last_reply_ > to_ms(config_.reply_timeout_s)) {
       reconnect();
@@ -287,6 +309,8 @@ void FrameSender::on_ack(const wire::Ack& ack) {
   if (auto it = captured_at_.find(ack.seq()); it != captured_at_.end()) {
     f.latency_ms = std::chrono::duration<double, std::milli>(now - it->second).count();
     captured_at_.erase(captured_at_.begin(), std::next(it));  // older seqs cannot be acked any more
+    rate_.on_ack(f.latency_ms, now);
+    note_rate();
   }
   // A request about a frame sent before the last full frame is already met by it (the acks of
   // the frames in flight may all ask).

@@ -26,6 +26,7 @@
 #include <zmq.hpp>
 
 #include "codec/image_codec.h"
+#include "client/rate_control.h"
 #include "codec/video_codec.h"
 #include "proto/adapter.h"
 #include "proto/pose_feedback.h"
@@ -63,6 +64,11 @@ struct SenderConfig {
     o.crf = 26;
     return o;
   }();
+  // Adaptive rate (client/rate_control.h): depth_every becomes the finest step of a ladder the
+  // sender moves along as the acks' latency says the link queues or is calm.
+  RateControlConfig adapt;
+  // Whether frames may be light (a colour stream exists): a lean stream or an adaptive one.
+  bool colour_stream_on() const { return depth_every > 1 || adapt.enabled; }
 };
 
 struct SenderStats {
@@ -78,6 +84,9 @@ struct SenderStats {
   // depth, and stream gaps the server reported (each answered with a key packet).
   std::uint64_t frames_light = 0, colour_key_packets = 0, depth_requests = 0, stream_gaps = 0;
   std::uint64_t bytes_light = 0;  // wire bytes of the light frames
+  // Adaptive rate: steps down (full frames less often) and back up; the current depth_every.
+  std::uint64_t rate_steps_down = 0, rate_steps_up = 0;
+  int depth_every = 1;
 };
 
 // The server refused us or stopped answering.
@@ -154,6 +163,8 @@ class FrameSender {
   void send_body(const std::string& body);
   std::size_t send_now(wire::RgbdFrame& frame, Clock::time_point captured);
   void on_ack(const wire::Ack& ack);
+  void dropped_live();  // counts the waiting frame a newer one replaced; tells the rate controller
+  void note_rate();     // the rate controller's state into stats_
 
   static constexpr std::size_t kMaxQueuedPoses = 100000;
 
@@ -172,6 +183,7 @@ class FrameSender {
   // never leaves would break the stream).
   std::optional<RgbdFrame> waiting_raw_;
   std::unique_ptr<video::H264Encoder> colour_encoder_;
+  RateController rate_;
   int frames_since_depth_ = 0;
   bool depth_wanted_ = true;   // the first frame carries depth
   bool key_wanted_ = true;     // the first colour packet, and the first after a gap or reconnect, is a key

@@ -42,6 +42,7 @@ int run(int argc, char** argv) {
       .option("depth-every", "lean stream: depth (with --rgb-codec colour) on every K-th frame and when the server asks; the light frames between send colour as an H.264 stream and depth subsampled (--light-depth); 1: every frame full", "1")
       .option("light-depth", "lean stream: light frames carry depth at every S-th pixel of every S-th row (lossless); 0: no depth", "4")
       .option("colour-crf", "lean stream: H.264 constant rate factor of the colour stream (lower: better, larger)", std::to_string(cslam::client::SenderConfig().colour_stream.crf))
+      .flag("adapt", "adapt the stream to the link: when acks come back later than the link's base latency (a queue builds) or a live frame is dropped, send full frames less often (lean stream, depth every --depth-every .. 30 frames); back up when the link is calm")
       .flag("new-session", "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload", "load and encode every frame before sending (measures the network path only; a lean stream preloads decoded frames and encodes each as it leaves)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")
@@ -75,6 +76,7 @@ int run(int argc, char** argv) {
   config.depth_every = cli.get_int("depth-every");
   config.colour_stream.crf = cli.get_int("colour-crf");
   config.light_depth_subsample = cli.get_int("light-depth");
+  config.adapt.enabled = cli.flag_set("adapt");
   config.reply_timeout_s = cli.get_double("reply-timeout");
   {
     const double mb = cli.get_double("resend-buffer");
@@ -97,10 +99,10 @@ int run(int argc, char** argv) {
   std::vector<cslam::RgbdFrame> preloaded_raw;  // a lean stream encodes each frame when it leaves
   if (cli.flag_set("preload")) {
     for (const auto& pair : pairs) {
-      if (config.depth_every > 1) preloaded_raw.push_back(cslam::load_dataset_frame(pair, config.info.id));
+      if (config.colour_stream_on()) preloaded_raw.push_back(cslam::load_dataset_frame(pair, config.info.id));
       else preloaded.push_back(sender.encode(cslam::load_dataset_frame(pair, config.info.id)));
     }
-    log->info("client {}: preloaded {} {} frames", id, pairs.size(), config.depth_every > 1 ? "decoded" : "encoded");
+    log->info("client {}: preloaded {} {} frames", id, pairs.size(), config.colour_stream_on() ? "decoded" : "encoded");
   }
   sender.connect();
   log->info("client {}: sending frames {}..{} ({} frames) of {} at {}, codecs {}/{}", id, first, last, pairs.size(),
@@ -125,7 +127,7 @@ int run(int argc, char** argv) {
       // The camera's clock: frame i is captured at its dataset time after the first frame's.
       const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                    std::chrono::duration<double>(pairs[i].rgb_time - pairs[0].rgb_time));
-      if (config.depth_every > 1) {  // the lean stream encodes a frame when it leaves
+      if (config.colour_stream_on()) {  // the lean stream encodes a frame when it leaves
         const cslam::RgbdFrame frame =
             preloaded_raw.empty() ? cslam::load_dataset_frame(pairs[i], config.info.id) : preloaded_raw[i];
         sender.service_until(due);
@@ -147,12 +149,15 @@ int run(int argc, char** argv) {
     }
     const auto& s = sender.stats();
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    char extra[160];
+    char extra[256];
     int used = std::snprintf(extra, sizeof extra, "%.2f MB/s, %.1f KB/frame", double(s.bytes_sent) / std::max(elapsed, 1e-9) / 1e6,
                              double(s.bytes_sent) / double(s.frames_sent) / 1e3);
-    if (config.depth_every > 1 && used > 0)
-      std::snprintf(extra + used, sizeof extra - std::size_t(used), ", %llu light, %llu depth requests",
-                    (unsigned long long)s.frames_light, (unsigned long long)s.depth_requests);
+    if (config.colour_stream_on() && used > 0)
+      used += std::snprintf(extra + used, sizeof extra - std::size_t(used), ", %llu light, %llu depth requests",
+                            (unsigned long long)s.frames_light, (unsigned long long)s.depth_requests);
+    if (config.adapt.enabled && used > 0 && std::size_t(used) < sizeof extra)
+      std::snprintf(extra + used, sizeof extra - std::size_t(used), ", depth every %d (%llu down, %llu up)", s.depth_every,
+                    (unsigned long long)s.rate_steps_down, (unsigned long long)s.rate_steps_up);
     progress.update(s.frames_sent, extra);
   }
   progress.finish();
@@ -169,7 +174,7 @@ int run(int argc, char** argv) {
   log->info("client {}: pose feedback {}, {} dropped without credit, latency p50 {:.1f} ms p99 {:.1f} ms", id,
             summary["states"].dump(), s.frames_dropped_live, summary["latency_ms"]["p50"].get<double>(),
             summary["latency_ms"]["p99"].get<double>());
-  if (config.depth_every > 1)
+  if (config.colour_stream_on())
     log->info("client {}: lean stream: {} of {} frames light ({:.1f} KB each), {} full ({:.1f} KB each), {} depth "
               "requests, {} key packets, {} stream gaps",
               id, s.frames_light, s.frames_sent,
@@ -179,6 +184,9 @@ int run(int argc, char** argv) {
                   ? double(s.bytes_sent - s.bytes_light) / double(s.frames_sent - s.frames_light) / 1e3
                   : 0.0,
               s.depth_requests, s.colour_key_packets, s.stream_gaps);
+  if (config.adapt.enabled)
+    log->info("client {}: adaptive rate: {} steps down, {} up, depth every {} at the end", id, s.rate_steps_down,
+              s.rate_steps_up, s.depth_every);
   if (!cli.get("poses-out").empty()) pose_log.write(cli.get("poses-out"));
   if (!cli.get("summary-out").empty()) std::ofstream(cli.get("summary-out")) << summary.dump(2) << "\n";
   // Session-level errors the sender recovered from (e.g. a frame that reached a restarted server

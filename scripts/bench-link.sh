@@ -4,10 +4,11 @@
 # namespace whose loopback (MTU 1500) is shaped by a token-bucket filter (tc tbf), and runs the
 # server and the robots inside it. Each run streams once with the default pair (every frame
 # JPEG q75 + lossless depth) and once with the lean stream (cslam-client --depth-every K),
-# alternated. Reports per robot: frames processed (of those captured), pose latency p50/p99
+# alternated, and once with the default pair under adaptive rate (cslam-client --adapt: the
+# robots step to a lean stream while their acks say the link queues). Reports per robot: frames processed (of those captured), pose latency p50/p99
 # (capture to ack, client side), MB/s sent and ATE; medians and min-max over the runs.
 # Needs root (ip netns, tc). Usage:
-#   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5]
+#   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT="${1:-bench_out/link}"
@@ -16,6 +17,7 @@ N="${3:-4}"
 RATE="${4:-40mbit}"
 FRAMES="${5:-600}"
 K="${6:-5}"
+MODES="${7:-default lean adapt}"
 BIN="$PWD/build/bin"
 [ "$(id -u)" = 0 ] || { echo "bench-link.sh needs root (it creates a network namespace and shapes its loopback)" >&2; exit 2; }
 mkdir -p "$OUT"
@@ -48,6 +50,7 @@ run_case() {
   local start_at; start_at=$(python3 -c "import time; print(time.time() + 8 + 5 * $N)")
   local extra=()
   [ "$mode" = lean ] && extra=(--depth-every "$K")
+  [ "$mode" = adapt ] && extra=(--adapt)
   local pids=() k
   for k in $(seq 1 "$N"); do
     inns "$BIN/cslam-client" --server "$endpoint" --id "$k" --dataset "$SCENE/robot_$k" --live --preload --start-at "$start_at" \
@@ -65,20 +68,20 @@ run_case() {
 }
 
 for r in $(seq 1 "$RUNS"); do
-  for mode in default lean; do
+  for mode in $MODES; do
     echo "-- run $r $mode (load $(loadavg))"
     run_case "$OUT/${mode}_r$r" "$mode"
   done
 done
 
-python3 - "$OUT" "$RUNS" "$N" <<'EOF'
+python3 - "$OUT" "$RUNS" "$N" "$MODES" <<'EOF'
 import json, os, statistics, sys
-out, runs, n = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+out, runs, n, modes = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
 def med(v, f="{:.3g}"):
     return (f.format(statistics.median(v)) + " (" + f.format(min(v)) + "-" + f.format(max(v)) + ")") if v else "n/a"
 print("\n| stream | worst robot processed % | pose latency p99 ms (worst robot) | MB/s per robot (mean) | ATE m (worst robot) |")
 print("|---|---|---|---|---|")
-for mode in ("default", "lean"):
+for mode in modes:
     proc, p99, mbs, ate = [], [], [], []
     for r in range(1, runs + 1):
         d = f"{out}/{mode}_r{r}"

@@ -7,12 +7,14 @@
 #          --rate R  client send rate (frames/s or 'max', default max; 30 = real time)
 #          --depth-every K  lean stream: full frames every K-th frame and on request, light frames
 #                   (H.264 colour, 1/4 depth) between (default 1: every frame full, the default pair)
+#          --adapt  the robots adapt their stream to the link (cslam-client --adapt; use with --rate 30)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=build/bin
 OUT="${CSLAM_DEMO_OUT:-demo_out}"
 RATE=max
 DEPTH_EVERY=1
+ADAPT=()
 EXIT=0
 FUSED=""
 HTTP_PORT="${CSLAM_HTTP_PORT:-8080}"
@@ -21,7 +23,8 @@ while [ $# -gt 0 ]; do
     --exit) EXIT=1; shift ;;
     --rate) RATE="$2"; shift 2 ;;
     --depth-every) DEPTH_EVERY="$2"; shift 2 ;;
-    *) echo "run-demo.sh: unknown option $1 (use --exit, --rate R, --depth-every K)" >&2; exit 2 ;;
+    --adapt) ADAPT=(--adapt); shift ;;
+    *) echo "run-demo.sh: unknown option $1 (use --exit, --rate R, --depth-every K, --adapt)" >&2; exit 2 ;;
   esac
 done
 SCENE="$OUT/scene"
@@ -49,7 +52,7 @@ ENDPOINT=$(cat "$RUN/endpoint")
 CLIENTS=()
 for k in 1 2 3; do
   "$BIN/cslam-client" --server "$ENDPOINT" --id "$k" --name "robot$k" --dataset "$SCENE/robot_$k" --rate "$RATE" \
-    --depth-every "$DEPTH_EVERY" --summary-out "$RUN/client_${k}_summary.json" --progress-interval 5 > "$RUN/client_$k.log" 2>&1 &
+    --depth-every "$DEPTH_EVERY" "${ADAPT[@]}" --summary-out "$RUN/client_${k}_summary.json" --progress-interval 5 > "$RUN/client_$k.log" 2>&1 &
   CLIENTS+=($!)
 done
 for pid in "${CLIENTS[@]}"; do wait "$pid" || { echo "a client failed; see $RUN/client_*.log" >&2; exit 1; }; done
@@ -80,13 +83,13 @@ PY
 fi
 grep -E "fused client|final client" "$RUN/server.log" || true
 
-if [ "$DEPTH_EVERY" -gt 1 ]; then
+if [ "$DEPTH_EVERY" -gt 1 ] || [ ${#ADAPT[@]} -gt 0 ]; then
   echo "== bandwidth (lean stream: full frames every $DEPTH_EVERY and on request, light frames between; the default pair sends ~87 KB per frame here)"
 else
   echo "== bandwidth (every frame full: JPEG q75 + lossless depth)"
 fi
 for k in 1 2 3; do
-  python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); n=max(1,s["frames_sent"]); print("client %s: %.1f KB/frame, %.2f MB/s at 30 Hz, %d of %d frames light, %d depth requests" % (sys.argv[2], s["bytes_sent"]/n/1e3, s["bytes_sent"]/n*30/1e6, s["frames_light"], n, s["depth_requests"]))' "$RUN/client_${k}_summary.json" "$k" || true
+  python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); n=max(1,s["frames_sent"]); print("client %s: %.1f KB/frame, %.2f MB/s at 30 Hz, %d of %d frames light, %d depth requests%s" % (sys.argv[2], s["bytes_sent"]/n/1e3, s["bytes_sent"]/n*30/1e6, s["frames_light"], n, s["depth_requests"], ", adaptive rate: %d steps down, %d up, depth every %d at the end" % (s["rate_steps_down"], s["rate_steps_up"], s["depth_every_last"]) if s["rate_steps_down"] else ""))' "$RUN/client_${k}_summary.json" "$k" || true
 done
 
 echo "== accuracy (APE, metres, SE3 alignment)"

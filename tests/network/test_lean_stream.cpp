@@ -1,8 +1,13 @@
 // The lean stream over a real socket (counting-only workers): full frames every K-th frame,
 // light frames between (packets of one H.264 stream, subsampled depth); a packet the server never
 // decoded (refused before decoding) breaks the stream, the server says so (ERROR_STREAM_GAP)
-// and the robot's next packet is a key packet, after which every frame is taken again.
+// and the robot's next packet is a key packet, after which every frame is taken again. An
+// adaptive robot (SenderConfig::adapt) turns lean when the server falls behind and full again
+// when it keeps up.
+#include <atomic>
+#include <chrono>
 #include <mutex>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -66,6 +71,50 @@ TEST(LeanStream, LightFramesBetweenFullFramesAreAllTaken) {
   EXPECT_EQ(srv.stats().clients().at(4).frames_light, 15u);
   std::lock_guard<std::mutex> lock(mutex);
   EXPECT_EQ(done.size(), 20u);
+}
+
+TEST(LeanStream, AnAdaptiveRobotGoesLeanWhileTheServerQueuesAndBackWhenCalm) {
+  SystemConfig sc;
+  sc.run_slam = false;
+  std::atomic<bool> slow{false};
+  // A server that falls behind: each frame costs 120 ms while `slow`, so the robot's frames queue.
+  sc.on_frame_done = [&](const FrameDone&) {
+    if (slow) std::this_thread::sleep_for(std::chrono::milliseconds(120));
+  };
+  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  client::SenderConfig cc = lean_config(srv.endpoint(), 5, 1);  // configured: every frame full
+  cc.adapt.enabled = true;
+  cc.adapt.calm_s = 0.5;
+  cc.adapt.max_depth_every = 5;  // ladder 1, 2, 3, 5
+  client::FrameSender sender(cc);
+  sender.connect();
+  const auto period = std::chrono::milliseconds(33);
+  auto next = std::chrono::steady_clock::now();
+  int i = 0;
+  auto send_paced = [&] {
+    next += period;
+    std::this_thread::sleep_until(next);
+    sender.send_frame(moving_frame(i++, small_camera()));
+  };
+  for (int k = 0; k < 15; ++k) send_paced();
+  slow = true;
+  for (int k = 0; k < 200 && sender.stats().rate_steps_down == 0; ++k) send_paced();
+  ASSERT_GE(sender.stats().rate_steps_down, 1u) << "the queue never made the robot step down";
+  const std::uint64_t light_before = sender.stats().frames_light;
+  for (int k = 0; k < 10; ++k) send_paced();  // stepped down: light frames between full ones
+  EXPECT_GT(sender.stats().frames_light, light_before);
+  slow = false;
+  next = std::chrono::steady_clock::now();
+  for (int k = 0; k < 900 && sender.stats().depth_every > 1; ++k) send_paced();
+  EXPECT_EQ(sender.stats().depth_every, 1) << "the robot did not step back up once the server kept up";
+  EXPECT_GE(sender.stats().rate_steps_up, 1u);
+  ASSERT_TRUE(sender.goodbye());
+  const auto& s = sender.stats();
+  EXPECT_EQ(s.frames_refused, 0u);
+  EXPECT_EQ(s.stream_gaps, 0u);
+  EXPECT_EQ(s.acks, std::uint64_t(i));
+  srv.stop();
+  EXPECT_EQ(srv.stats().clients().at(5).frames_light, s.frames_light);
 }
 
 TEST(LeanStream, APacketRefusedBeforeDecodingIsHealedByTheNextKeyPacket) {
