@@ -7,15 +7,18 @@ server side: the same frames accepted and processed, the same number of frame by
 are compared by ATE against the ground truth, with a tolerance for the SLAM worker's threads.
 """
 import dataclasses
+import json
 import os
 import subprocess
+import time
 import unittest
+import urllib.request
 
 import numpy as np
 import zmq
 
 import harness
-from cslam_client import camera, dataset, errors
+from cslam_client import camera, codecs, dataset, errors, video
 from cslam_client.sender import CurveKeys, FrameSender
 from cslam_client.wire import pb
 
@@ -169,6 +172,105 @@ class PythonClientSession(unittest.TestCase):
         sender.close()
 
 
+class PythonClientLeanStream(unittest.TestCase):
+    """depth_every > 1 against a real cslam-server: light frames decoded and counted by the server
+    (/api/status), a reconnect and a lost packet healed by key packets (as test_lean_stream.cpp)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = harness.scratch("pylean")
+        cls.scene = harness.synth_scene(os.path.join(cls.dir, "scene"), frames=20)
+        cls.robot = os.path.join(cls.scene, "robot_1")
+        cls.cam = camera.load(os.path.join(cls.robot, "camera.yaml"))
+        pairs = dataset.open_tum(cls.robot)
+        cls.frames = [(*dataset.load_pair(p), p.rgb_time, p.depth_time - p.rgb_time) for p in pairs]
+        cls.ok = True
+
+    @classmethod
+    def tearDownClass(cls):
+        harness.cleanup(cls.dir, cls.ok)
+
+    def setUp(self):
+        run = os.path.join(self.dir, self.id().split(".")[-1])
+        self.port_file = os.path.join(run, "http_port")
+        # --no-slam: tracking never asks for depth (want_depth), so the schedule is exactly depth_every's.
+        self.server = harness.Server(run, extra=["--no-slam", "--http", "0", "--http-port-file", self.port_file])
+
+    def tearDown(self):
+        self.server.stop()
+        result = self._outcome.result
+        if result.failures or result.errors:
+            type(self).ok = False
+
+    def network_client(self, client_id):
+        """This client's receiver counters from /api/status ({} until the server lists it)."""
+        with open(self.port_file) as f:
+            port = int(f.read().strip())
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/status", timeout=10) as r:
+            status = json.load(r)
+        return next((c for c in status.get("network", {}).get("clients", []) if c["id"] == client_id), {})
+
+    def wait_for_counter(self, client_id, key, value, timeout=60):
+        """The status is a cached snapshot, refreshed in the background: wait for it to show `value`."""
+        deadline = time.monotonic() + timeout
+        while True:
+            got = self.network_client(client_id).get(key)
+            if got == value or time.monotonic() > deadline:
+                return got
+            time.sleep(0.1)
+
+    def drain(self, sender):
+        while sender.in_flight > 0:
+            sender.poll(0.5)
+
+    def test_light_frames_between_full_frames_are_taken(self):
+        sender = FrameSender(self.server.endpoint, 1, self.cam, depth_every=4)
+        sender.connect()
+        for i, frame in enumerate(self.frames):
+            if i == 10:
+                sender.reconnect()  # a restarted server would lack the stream: the next packet is a key
+                self.assertTrue(sender.welcome.resumed)
+            sender.send(*frame)
+        self.drain(sender)
+        s = sender.stats
+        # Full frames 1, 5, 9, 13, 17 (the count goes on across the reconnect); light frames
+        # 2-4, 6-8, 10-12, 14-16, 18-20; key packets: frame 2 and frame 11, the first after the reconnect.
+        self.assertEqual((s.frames_sent, s.frames_light, s.colour_key_packets), (20, 15, 2))
+        self.assertEqual((s.depth_requests, s.stream_gaps, s.frames_refused), (0, 0, 0))
+        # The hello may be asked again while the server still holds the old connection.
+        self.assertEqual(set(s.errors) - {"ERROR_SESSION_BUSY"}, set(), s.errors)
+        self.assertLess(s.bytes_light / 15, (s.bytes_sent - s.bytes_light) / 5)  # a light frame is smaller
+        self.assertEqual(self.wait_for_counter(1, "frames_light", 15), 15)
+        self.assertEqual(self.network_client(1)["frames_accepted"], 20)
+        self.assertTrue(sender.goodbye())
+        self.assertEqual(self.server.wait(), 0, f"see {self.server.log_path}")
+        stats = harness.client_stats(self.server.network_stats(), 1)
+        self.assertEqual((stats["frames_accepted"], stats["dropped_total"]), (20, 0))
+
+    def test_a_lost_packet_is_healed_by_the_next_key_packet(self):
+        sender = FrameSender(self.server.endpoint, 1, self.cam, depth_every=100)  # full depth only first
+        sender.connect()
+        for frame in self.frames[:6]:
+            sender.send(*frame)
+        # A colour packet that never reaches the server (as one lost on the way): the next one
+        # lacks its reference, the server answers ERROR_STREAM_GAP.
+        sender.lean.encoder.encode(self.frames[6][0])
+        for frame in self.frames[6:]:
+            sender.send(*frame)
+        self.assertTrue(sender.goodbye())  # every frame answered: acked or refused
+        s = sender.stats
+        self.assertGreaterEqual(s.stream_gaps, 1)
+        self.assertEqual(s.errors, {"ERROR_STREAM_GAP": s.stream_gaps})
+        self.assertEqual(s.colour_key_packets, 2)  # the first packet, and one after the gap
+        # Up to `window` frames are in flight when the gap is reported: each is refused, then the
+        # key packet restarts the stream and every frame after it is taken.
+        self.assertEqual(s.frames_refused, s.stream_gaps)
+        self.assertEqual(s.acks, len(self.frames) - s.frames_refused)
+        self.assertLessEqual(s.stream_gaps, sender.window)
+        self.assertEqual(self.server.wait(), 0, f"see {self.server.log_path}")
+        stats = harness.client_stats(self.server.network_stats(), 1)
+        self.assertEqual(stats["dropped"], {"stream_gap": s.stream_gaps})
+
 
 class FakeServer:
     """A ROUTER socket that speaks the server's side by hand, for exact control of credits."""
@@ -240,6 +342,97 @@ class PythonClientProtocol(unittest.TestCase):
         self.assertEqual(sender.take_acks(), [])
         sender.close()
         server.close()
+
+    def test_lean_stream_follows_depth_requests_and_stream_gaps(self):
+        """Full frames every depth_every-th frame and after an ack asks for depth; a reported gap
+        makes the next colour packet a key packet; light frames carry the colour stream's packets
+        (the bytes of an H264Encoder fed the same images) and subsampled depth."""
+        cam = camera.Camera(width=64, height=48, name="small")
+        server = FakeServer()
+        sender = FrameSender(server.endpoint, 7, cam, depth_every=5, reply_timeout=10)
+        sender._open_socket()
+        sender._send_message(pb.ClientMessage(hello=pb.Hello(client_id=7)))
+        self.assertIsNotNone(server.recv_kind("hello"))
+        server.reply(welcome=pb.Welcome(client_id=7, credits=20, window=20))
+        while not sender._welcomed:
+            sender.poll(0.1)
+        rng = np.random.default_rng(1)
+        texture = rng.integers(0, 256, (48, 64 + 20, 3), dtype=np.uint8)
+        images = [np.ascontiguousarray(texture[:, i:i + 64]) for i in range(9)]
+        depth = (np.arange(48 * 64).reshape(48, 64) % 5000 + 500).astype(np.uint16)
+
+        def send(i):
+            sender.send(images[i], depth, 1.0 + i / 30, 0.01)
+            return server.recv_kind("frame").frame
+
+        def reply_and_wait(counter, **body):
+            before = getattr(sender.stats, counter)
+            server.reply(**body)
+            while getattr(sender.stats, counter) == before:
+                sender.poll(0.1)
+
+        got = [send(i) for i in range(3)]                  # seq 1 full, 2 light (key), 3 light
+        reply_and_wait("acks", ack=pb.Ack(client_id=7, seq=2, credits=1, want_depth=True))
+        got.append(send(3))                                # seq 4: full, asked for
+        reply_and_wait("acks", ack=pb.Ack(client_id=7, seq=3, credits=1, want_depth=True))  # met by seq 4
+        got.append(send(4))                                # seq 5 light
+        reply_and_wait("stream_gaps", error=pb.Error(client_id=7, seq=5, code=pb.ERROR_STREAM_GAP, credits=1))
+        got += [send(i) for i in range(5, 9)]              # seq 6 light (key), 7, 8 light, 9 full
+        h264 = pb.Encoding.Value(codecs.RGB_H264)
+        kinds = ["full" if f.rgb.encoding != h264 else "key" if video.is_key_packet(f.rgb.data) else "light"
+                 for f in got]
+        self.assertEqual(kinds, ["full", "key", "light", "full", "light", "key", "light", "light", "full"])
+        s = sender.stats
+        self.assertEqual((s.frames_light, s.colour_key_packets, s.depth_requests, s.stream_gaps), (6, 2, 1, 1))
+        stream = video.H264Encoder(64, 48, video.H264Options(crf=26))  # the sender's default colour stream
+        coarse = codecs.encode_depth(video.subsample_depth(depth, 4), codecs.Codecs())[1]
+        for i, f in enumerate(got):
+            with self.subTest(seq=f.seq):
+                if kinds[i] == "full":
+                    self.assertEqual((f.depth.width, f.depth.height, f.depth_subsample), (64, 48, 0))
+                    continue
+                self.assertEqual(f.rgb.data, stream.encode(images[i], force_key=kinds[i] == "key"))
+                self.assertEqual((f.depth.width, f.depth.height, f.depth_subsample), (16, 12, 4))
+                self.assertEqual(f.depth.data, coarse)
+                self.assertAlmostEqual(f.depth_time_offset, 0.01)
+        sender.close()
+        server.close()
+
+    def test_live_lean_stream_encodes_a_light_frame_only_when_it_leaves(self):
+        server = FakeServer()
+        sender = FrameSender(server.endpoint, 7, self.cam, live=True, depth_every=3, reply_timeout=10)
+        sender._open_socket()
+        sender._send_message(pb.ClientMessage(hello=pb.Hello(client_id=7)))
+        self.assertIsNotNone(server.recv_kind("hello"))
+        server.reply(welcome=pb.Welcome(client_id=7, credits=1, window=1))
+        while not sender._welcomed:
+            sender.poll(0.1)
+        for k in range(4):  # one credit: the first frame goes, the newest of the rest waits
+            sender.send(self.bgr + k, self.depth, 100.0 + k)
+        self.assertEqual((sender.stats.frames_sent, sender.stats.dropped_no_credit), (1, 2))
+        first = server.recv_kind("frame").frame
+        self.assertEqual((first.rgb.encoding, first.depth.width), (pb.RGB_JPEG, 32))  # full: the first frame
+        self.assertEqual(sender.lean.encoder.next_index, 0)  # the dropped frames never entered the stream
+        server.reply(ack=pb.Ack(client_id=7, seq=1, credits=1))
+        while sender.stats.frames_sent < 2:
+            sender.poll(0.1)
+        light = server.recv_kind("frame").frame
+        self.assertEqual((light.seq, light.timestamp, light.live), (2, 103.0, True))
+        self.assertEqual(video.parse_header(light.rgb.data).index, 0)
+        self.assertTrue(video.is_key_packet(light.rgb.data))
+        self.assertEqual(sender.stats.frames_light, 1)
+        sender.close()
+        server.close()
+
+    def test_lean_stream_options_are_checked(self):
+        for kwargs, message in (({"depth_every": 0}, "depth_every 0"),
+                                ({"depth_every": 2, "light_depth_subsample": 1}, "light_depth_subsample 1"),
+                                ({"depth_every": 2, "colour_stream": video.H264Options(crf=60)}, "crf 60")):
+            with self.subTest(**{k: str(v) for k, v in kwargs.items()}):
+                with self.assertRaisesRegex(ValueError, message):
+                    FrameSender("tcp://127.0.0.1:1", 1, self.cam, **kwargs)
+        with self.assertRaisesRegex(ValueError, "31x24: sides must be even"):
+            FrameSender("tcp://127.0.0.1:1", 1, camera.Camera(width=31, height=24, name="odd"), depth_every=2)
 
     def test_curve_keys_encrypt_and_authenticate(self):
         server_public, server_secret = zmq.curve_keypair()

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import zstandard
 
-from cslam_client import camera, codecs
+from cslam_client import camera, codecs, video
 
 TOOL = os.environ.get("CSLAM_CODEC_TOOL", "")
 
@@ -36,6 +36,34 @@ def depth_cases():
     }
     cases["one_pixel"][h // 2, w // 3] = 1234
     return cases
+
+
+def moving_frames(w, h, n):
+    """n BGR frames of a camera panning over a smooth random texture, with a square crossing it."""
+    rng = np.random.default_rng(11)
+    texture = cv2.GaussianBlur(rng.integers(0, 256, (h + n, w + 2 * n, 3), dtype=np.uint8), (0, 0), 1.5)
+    frames = []
+    for i in range(n):
+        f = texture[i:i + h, 2 * i:2 * i + w].copy()
+        x = (5 * i) % max(1, w - 12)
+        f[h // 3:h // 3 + 12, x:x + 12] = (40, 200, 250)
+        frames.append(f)
+    return frames
+
+
+def split_packets(data):
+    """Packets written back to back (each header gives its bitstream length)."""
+    packets = []
+    while data:
+        size = video.HEADER_BYTES + video.parse_header(data).length
+        packets.append(data[:size])
+        data = data[size:]
+    return packets
+
+
+def psnr(a, b):
+    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
+    return 99.0 if mse == 0 else 10 * np.log10(255.0 ** 2 / mse)
 
 
 class CodecsMatchCpp(unittest.TestCase):
@@ -99,6 +127,97 @@ class CodecsMatchCpp(unittest.TestCase):
                 self.assertEqual(ours, self.read("rgb.cpp"))
 
 
+class LeanStreamCodecsMatchCpp(unittest.TestCase):
+    """video.py against video_codec.cpp and depth_subsample.cpp."""
+    setUp = CodecsMatchCpp.setUp
+    tearDown = CodecsMatchCpp.tearDown
+    tool = CodecsMatchCpp.tool
+    read = CodecsMatchCpp.read
+
+    def write_frames(self, frames):
+        path = os.path.join(self.dir, "frames.raw")
+        with open(path, "wb") as f:
+            f.write(b"".join(np.ascontiguousarray(fr).tobytes() for fr in frames))
+        return path
+
+    def cpp_packets(self, frames, options, forced):
+        h, w = frames[0].shape[:2]
+        out = os.path.join(self.dir, "cpp.h264")
+        self.tool("encode-h264", w, h, options.crf, options.preset, options.tune, options.key_interval,
+                  options.frame_rate, ",".join(map(str, sorted(forced))) or "-", self.write_frames(frames), out)
+        return split_packets(self.read("cpp.h264"))
+
+    def cpp_decode(self, packets, w, h):
+        path = os.path.join(self.dir, "py.h264")
+        with open(path, "wb") as f:
+            f.write(b"".join(packets))
+        out = os.path.join(self.dir, "decoded.raw")
+        self.tool("decode-h264", w, h, path, out)
+        return list(np.frombuffer(self.read("decoded.raw"), np.uint8).reshape(-1, h, w, 3))
+
+    def test_h264_packets_are_the_cpp_bytes(self):
+        cases = {
+            "defaults": (160, 120, video.H264Options(), {9, 23}),
+            # Odd settings: another size (not a multiple of 16), CRF, preset, tune, frame rate, and
+            # a key interval short enough for automatic IDR frames between the forced ones.
+            "odd": (98, 62, video.H264Options(crf=30, preset="ultrafast", tune="zerolatency", key_interval=10,
+                                              frame_rate=15), {4, 5, 17}),
+        }
+        for name, (w, h, options, forced) in cases.items():
+            with self.subTest(case=name):
+                frames = moving_frames(w, h, 36)
+                encoder = video.H264Encoder(w, h, options)
+                ours = [encoder.encode(f, force_key=i in forced) for i, f in enumerate(frames)]
+                theirs = self.cpp_packets(frames, options, forced)
+                self.assertEqual(len(theirs), len(frames))
+                for i, (a, b) in enumerate(zip(ours, theirs)):
+                    if a != b:
+                        at = next((k for k, (x, y) in enumerate(zip(a, b)) if x != y), min(len(a), len(b)))
+                        self.fail(f"packet {i} differs from the C++ encoder's: {len(a)} vs {len(b)} bytes, "
+                                  f"first difference at byte {at} (header {a[:16].hex()} vs {b[:16].hex()})")
+                headers = [video.parse_header(p) for p in ours]
+                self.assertEqual([hd.index for hd in headers], list(range(len(frames))))
+                keys = {hd.index for hd in headers if hd.key}
+                self.assertTrue({0} | forced <= keys, f"key packets {sorted(keys)}")
+                self.assertEqual(keys, {i for i, p in enumerate(ours) if video.is_key_packet(p)})
+                gaps = np.diff(sorted(keys))
+                self.assertLessEqual(max(gaps), options.key_interval)
+                self.assertEqual(encoder.next_index, len(frames))
+
+    def test_cpp_decoder_decodes_python_packets(self):
+        w, h = 160, 120
+        frames = moving_frames(w, h, 30)
+        first = video.H264Encoder(w, h)
+        packets = [first.encode(f) for f in frames[:15]]
+        # A restarted encoder (a robot program restarted) begins again at index 0 with a key packet.
+        second = video.H264Encoder(w, h)
+        packets += [second.encode(f) for f in frames[15:]]
+        self.assertTrue(video.is_key_packet(packets[15]))
+        self.assertEqual(video.parse_header(packets[15]).index, 0)
+        decoded = self.cpp_decode(packets, w, h)
+        self.assertEqual(len(decoded), len(frames))
+        for i, (src, out) in enumerate(zip(frames, decoded)):
+            self.assertGreater(psnr(src, out), 30.0, f"frame {i}")
+
+    def test_depth_subsample_is_the_cpp_one(self):
+        rng = np.random.default_rng(5)
+        for h, w in ((120, 160), (37, 53), (5, 17), (1, 1)):
+            depth = rng.integers(0, 65536, (h, w)).astype(np.uint16)
+            png = os.path.join(self.dir, "depth.png")
+            self.assertTrue(cv2.imwrite(png, depth))
+            for s in (1, 2, 3, 4, 7, 16):
+                with self.subTest(size=f"{w}x{h}", subsample=s):
+                    ours = video.subsample_depth(depth, s)
+                    out = os.path.join(self.dir, "coarse.png")
+                    self.tool("subsample-depth", s, png, out)
+                    theirs = cv2.imread(out, cv2.IMREAD_ANYDEPTH)
+                    self.assertEqual(theirs.dtype, np.uint16)
+                    np.testing.assert_array_equal(ours, theirs)
+                    self.assertEqual(video.subsampled_depth_size(w, h, s), (ours.shape[1], ours.shape[0]))
+                    self.assertEqual(codecs.encode_depth(ours, codecs.Codecs())[1],
+                                     codecs.encode_depth(np.ascontiguousarray(theirs), codecs.Codecs())[1])
+
+
 class CodecOptions(unittest.TestCase):
     def test_rejects_bad_options_and_images(self):
         with self.assertRaises(ValueError):
@@ -109,6 +228,41 @@ class CodecOptions(unittest.TestCase):
             codecs.encode_depth(np.zeros((4, 4), np.float32), codecs.Codecs())
         with self.assertRaises(TypeError):
             codecs.encode_rgb(np.zeros((4, 4), np.uint8), codecs.Codecs())
+
+    def test_h264_encoder_rejects_bad_sizes_images_and_options(self):
+        with self.assertRaisesRegex(ValueError, "161x120: sides must be even"):
+            video.H264Encoder(161, 120)
+        with self.assertRaisesRegex(ValueError, "sides must be even"):
+            video.H264Encoder(0, 120)
+        encoder = video.H264Encoder(64, 48)
+        with self.assertRaisesRegex(TypeError, "HxWx3 uint8 BGR image, got float32"):
+            encoder.encode(np.zeros((48, 64, 3), np.float32))
+        with self.assertRaisesRegex(TypeError, r"shape \(48, 64\)"):
+            encoder.encode(np.zeros((48, 64), np.uint8))
+        with self.assertRaisesRegex(TypeError, "got list"):
+            encoder.encode([[0, 0, 0]])
+        with self.assertRaisesRegex(ValueError, "image is 62x48, the stream is 64x48"):
+            encoder.encode(np.zeros((48, 62, 3), np.uint8))
+        self.assertEqual(encoder.next_index, 0)  # nothing refused was counted
+        self.assertTrue(video.is_key_packet(encoder.encode(np.zeros((48, 64, 3), np.uint8))))
+        bad = {"crf": 52, "preset": "turbo", "tune": "psnr", "key_interval": 0, "frame_rate": 1001}
+        messages = {"crf": "crf 52", "preset": "preset 'turbo'", "tune": "must include zerolatency",
+                    "key_interval": "key interval 0", "frame_rate": "frame rate 1001"}
+        for field, value in bad.items():
+            with self.subTest(option=field):
+                with self.assertRaisesRegex(ValueError, messages[field]):
+                    video.H264Encoder(64, 48, video.H264Options(**{field: value}))
+        with self.assertRaisesRegex(ValueError, "unknown h264 tune 'fast'"):
+            video.H264Options(tune="zerolatency,fast").validate()
+
+    def test_depth_subsample_rejects_bad_input(self):
+        for s in (0, 17):
+            with self.assertRaisesRegex(ValueError, f"depth subsample {s} is not 1..16"):
+                video.subsample_depth(np.zeros((4, 4), np.uint16), s)
+        with self.assertRaisesRegex(TypeError, "HxW uint16"):
+            video.subsample_depth(np.zeros((4, 4), np.float32), 2)
+        with self.assertRaisesRegex(TypeError, "HxW uint16"):
+            video.subsample_depth(np.zeros((4, 4, 1), np.uint16), 2)
 
 
 class CameraFromName(unittest.TestCase):

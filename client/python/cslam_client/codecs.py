@@ -11,6 +11,9 @@ little-endian, 16-bit PNG, and zstd-delta, the default: the layout of
 
 zstd comes from python3-zstandard, which links Debian's libzstd: the compressed bytes equal the
 C++ encoder's at the same level. RVL is not offered here (a per-nibble loop is slow in Python).
+
+A lean stream's light frames (video.py) send colour as RGB_H264 packets and depth subsampled
+(RgbdFrame.depth_subsample) with the depth codec above.
 """
 from dataclasses import dataclass
 
@@ -18,6 +21,9 @@ import numpy as np
 
 RGB_CODECS = ("raw", "jpeg", "png")
 DEPTH_CODECS = ("raw", "png", "zstd")
+# Wire encoding of a light frame's colour: a packet of the robot's H.264 stream (video.py). Never
+# a full frame's: a full frame's colour must decode on its own.
+RGB_H264 = "RGB_H264"
 
 
 @dataclass

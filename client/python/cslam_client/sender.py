@@ -21,6 +21,13 @@ carries the frame's tracking ``state``, ``T_world_cam`` (only when tracked: neve
 ``group``, ``map_epoch`` and the send-to-ack ``latency_s``; every set field is in ``fields``.
 Live frames are marked ``live`` so the server may skip a stale one.
 ``curve=CurveKeys(...)`` turns on ZeroMQ CURVE encryption and authentication.
+
+Lean stream (``depth_every=N``, as cslam-client --depth-every N): every N-th frame is full
+(colour with ``codecs``, full depth), and so is the next one after an ack asks for depth; the
+frames between are light: colour as packets of one H.264 stream (video.py, the C++ encoder's
+bytes), depth every ``light_depth_subsample``-th pixel of every such row. A light frame is encoded
+only when it leaves (in live mode too). ERROR_STREAM_GAP and a reconnect make the next colour
+packet a key packet.
 """
 import collections
 import logging
@@ -30,8 +37,8 @@ from typing import Callable, Dict, Optional
 
 import zmq
 
-from . import errors
-from .codecs import Codecs, encode_depth, encode_rgb
+from . import errors, video
+from .codecs import RGB_H264, Codecs, encode_depth, encode_rgb
 from .wire import pb
 
 # A depth image further than this from its colour image (s) is not one frame's pair (as the server).
@@ -146,13 +153,21 @@ class SenderStats:
     frames_resent: int = 0       # sent again after a resumed session said the server lacked them
     frames_lost: int = 0         # the server lacked them and they were no longer kept (or live)
     errors: Dict[str, int] = field(default_factory=dict)  # server error code name -> count
+    # Lean stream: light frames sent (and their wire bytes), key packets of the colour stream,
+    # acks asking for full depth, and stream gaps the server reported (each healed by a key packet).
+    frames_light: int = 0
+    bytes_light: int = 0
+    colour_key_packets: int = 0
+    depth_requests: int = 0
+    stream_gaps: int = 0
 
 
 class FrameSender:
     def __init__(self, server, client_id, camera, name="", codecs=None, reply_timeout=10.0, heartbeat_interval=1.0,
                  max_reconnects=3, live=False, strict=False, curve: Optional[CurveKeys] = None,
                  on_ack: Optional[Callable[[AckInfo], None]] = None, context=None, protocol_version=None,
-                 resend_buffer_bytes=128 << 20):
+                 resend_buffer_bytes=128 << 20, depth_every=1, light_depth_subsample=4,
+                 colour_stream: Optional[video.H264Options] = None):
         if not 0 <= int(client_id) <= 65535:
             raise ValueError("client id must be in 0..65535")
         self.server = server
@@ -162,6 +177,14 @@ class FrameSender:
         self.codecs = codecs or Codecs()
         self.codecs.validate()
         camera.validate()
+        if not isinstance(depth_every, int) or depth_every < 1:
+            raise ValueError(f"depth_every {depth_every} must be >= 1 (1: every frame full)")
+        # Lean stream: light frames between full ones. The C++ default colour stream is coarser
+        # than H264Options' (light frames are only tracked): CRF 26.
+        self.lean = None
+        if depth_every > 1:
+            self.lean = video.LeanStream(camera.width, camera.height, depth_every, light_depth_subsample,
+                                         colour_stream or video.H264Options(crf=26))
         self.reply_timeout = float(reply_timeout)
         self.heartbeat_interval = float(heartbeat_interval)
         self.max_reconnects = int(max_reconnects)
@@ -190,7 +213,7 @@ class FrameSender:
         self._context = context or zmq.Context.instance()
         self._socket = None
         self._welcomed = False
-        self._pending = None          # live mode: the newest frame waiting for a credit
+        self._pending = None          # live mode: makes the newest frame, waiting for a credit
         self._hello_busy = False      # the server asked to repeat the hello a little later
         self._rejected = []           # strict mode: frame errors to raise at the next call
         now = time.monotonic()
@@ -227,6 +250,8 @@ class FrameSender:
         """Hello -> welcome. Raises ConnectionFailed on timeout, a ServerError on refusal."""
         self._open_socket()
         self._welcomed = False
+        if self.lean:
+            self.lean.on_connect()
         hello = pb.ClientMessage()
         hello.hello.version = self.protocol_version
         hello.hello.client_id = self.client_id
@@ -261,14 +286,10 @@ class FrameSender:
     # -- frames ----------------------------------------------------------------------------
     def encode(self, bgr, depth, timestamp, depth_time_offset=0.0):
         """An encoded cslam.wire.RgbdFrame (id and seq are stamped when it is sent). `timestamp` is
-        the colour image's capture time; `depth_time_offset` the depth image's, relative to it (s)."""
+        the colour image's capture time; `depth_time_offset` the depth image's, relative to it (s).
+        Always a full frame (with depth), also in a lean stream."""
+        self._check_images(bgr, depth, depth_time_offset)
         h, w = depth.shape[:2]
-        if bgr.shape[:2] != (h, w) or (w, h) != (self.camera.width, self.camera.height):
-            raise ValueError(f"images are {bgr.shape[1]}x{bgr.shape[0]} / {w}x{h}, "
-                             f"camera is {self.camera.width}x{self.camera.height}")
-        if not abs(depth_time_offset) <= MAX_DEPTH_TIME_OFFSET:
-            raise ValueError(f"depth image {depth_time_offset} s from the colour image "
-                             f"(at most {MAX_DEPTH_TIME_OFFSET} s)")
         frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
         enc, data = encode_rgb(bgr, self.codecs)
         frame.rgb.width, frame.rgb.height, frame.rgb.encoding, frame.rgb.data = w, h, pb.Encoding.Value(enc), data
@@ -276,11 +297,56 @@ class FrameSender:
         frame.depth.width, frame.depth.height, frame.depth.encoding, frame.depth.data = w, h, pb.Encoding.Value(enc), data
         return frame
 
+    def _check_images(self, bgr, depth, depth_time_offset):
+        h, w = depth.shape[:2]
+        if bgr.shape[:2] != (h, w) or (w, h) != (self.camera.width, self.camera.height):
+            raise ValueError(f"images are {bgr.shape[1]}x{bgr.shape[0]} / {w}x{h}, "
+                             f"camera is {self.camera.width}x{self.camera.height}")
+        if not abs(depth_time_offset) <= MAX_DEPTH_TIME_OFFSET:
+            raise ValueError(f"depth image {depth_time_offset} s from the colour image "
+                             f"(at most {MAX_DEPTH_TIME_OFFSET} s)")
+
+    def encode_next(self, bgr, depth, timestamp, depth_time_offset=0.0):
+        """The next frame of the stream: encode()'s full frame or, in a lean stream, a light one.
+        Only for a frame sent right away (stamped with the next seq): its colour packet is part of
+        the stream."""
+        seq = self.last_seq + 1
+        if self.lean is None or self.lean.next_is_full():
+            frame = self.encode(bgr, depth, timestamp, depth_time_offset)
+            if self.lean:
+                self.lean.full_sent(seq)
+            return frame
+        self._check_images(bgr, depth, depth_time_offset)
+        packet, key, coarse = self.lean.encode_light(bgr, depth, seq)
+        h, w = bgr.shape[:2]
+        frame = pb.RgbdFrame(timestamp=float(timestamp))
+        r = frame.rgb
+        r.width, r.height, r.encoding, r.data = w, h, pb.Encoding.Value(RGB_H264), packet
+        if coarse is not None:
+            enc, data = encode_depth(coarse, self.codecs)
+            d = frame.depth
+            d.width, d.height, d.encoding, d.data = coarse.shape[1], coarse.shape[0], pb.Encoding.Value(enc), data
+            frame.depth_subsample = self.lean.light_depth_subsample
+            frame.depth_time_offset = float(depth_time_offset)
+        self.stats.frames_light += 1
+        self.stats.colour_key_packets += int(key)
+        return frame
+
     def send(self, bgr, depth, timestamp, depth_time_offset=0.0):
-        """Encodes and sends one frame; returns the message size (0 when live mode kept it pending)."""
-        return self.send_encoded(self.encode(bgr, depth, timestamp, depth_time_offset))
+        """Encodes and sends one frame; returns the message size (0 when live mode kept it pending).
+        A lean stream encodes the frame only when it can leave."""
+        if self.lean is None:
+            return self.send_encoded(self.encode(bgr, depth, timestamp, depth_time_offset))
+        self._check_images(bgr, depth, depth_time_offset)
+        if self.live:  # kept until a credit comes: the caller may reuse its buffers meanwhile
+            bgr, depth = bgr.copy(), depth.copy()
+        return self._submit(lambda: self.encode_next(bgr, depth, timestamp, depth_time_offset))
 
     def send_encoded(self, frame):
+        return self._submit(lambda: frame)
+
+    def _submit(self, make_frame):
+        """Sends make_frame() when a credit is free (lossless: waits; live: keeps only the newest)."""
         if self._socket is None:
             raise RuntimeError("FrameSender: send before connect()")
         self._raise_rejected()
@@ -289,7 +355,7 @@ class FrameSender:
             if self.credits == 0:
                 if self._pending is not None:
                     self.stats.dropped_no_credit += 1
-                self._pending = frame
+                self._pending = make_frame
                 return 0
             self._pending = None
         else:
@@ -299,7 +365,7 @@ class FrameSender:
                 self._wait_for_credit()
                 if not self._resend:
                     break
-        return self._send_frame(frame)
+        return self._send_frame(make_frame())
 
     def poll(self, timeout=0.0):
         """Handles replies for up to `timeout` s (heartbeats if due); live mode: sends the pending
@@ -310,8 +376,8 @@ class FrameSender:
             self._heartbeat_if_due()
             got |= self._handle_reply(max(0.0, deadline - time.monotonic()))
             if self._pending is not None and self.credits > 0:
-                frame, self._pending = self._pending, None
-                self._send_frame(frame)
+                make_frame, self._pending = self._pending, None
+                self._send_frame(make_frame())
             if time.monotonic() >= deadline:
                 break
         if time.monotonic() - self._last_reply > self.reply_timeout and (self.in_flight or self._pending):
@@ -347,6 +413,8 @@ class FrameSender:
         self.in_flight += 1
         self.stats.frames_sent += 1
         self.stats.bytes_sent += len(body)
+        if frame.rgb.encoding == pb.Encoding.Value(RGB_H264):
+            self.stats.bytes_light += len(body)
         return len(body)
 
     def _plan_resend(self, server_last_seq):
@@ -461,6 +529,9 @@ class FrameSender:
                 self.in_flight -= 1
             self.stats.acks += 1
             info = _ack_info(a, self._last_reply, self._sent_at.pop(a.seq, None))
+            # The acks of the frames in flight may all ask; a full frame sent since meets them.
+            if self.lean and info.fields.get("want_depth") and self.lean.on_want_depth(a.seq):
+                self.stats.depth_requests += 1
             self.last_ack = info
             self._acks.append(info)
             if self.on_ack:
@@ -479,6 +550,10 @@ class FrameSender:
                 if self.in_flight > 0:
                     self.in_flight -= 1
             log.warning("client %d: server error %s for seq %d: %s", self.client_id, err.code_name, e.seq, e.message)
+            if err.code_name == "ERROR_STREAM_GAP":  # the server's colour stream lost its reference
+                self.stats.stream_gaps += 1
+                if self.lean:
+                    self.lean.on_stream_gap(e.seq)
             fatal = (errors.ProtocolVersionError, errors.HelloRejected, errors.ServerShuttingDown, errors.TooManyClients)
             if isinstance(err, fatal) or (isinstance(err, errors.NotAuthorized) and e.seq == 0):
                 raise err  # the session cannot go on (as client/frame_sender.cpp)
