@@ -213,7 +213,7 @@ class FrameSender:
         self._context = context or zmq.Context.instance()
         self._socket = None
         self._welcomed = False
-        self._pending = None          # live mode: makes the newest frame, waiting for a credit
+        self._pending = None          # live mode: builds the newest frame once a credit comes (encoded then)
         self._hello_busy = False      # the server asked to repeat the hello a little later
         self._rejected = []           # strict mode: frame errors to raise at the next call
         now = time.monotonic()
