@@ -232,6 +232,9 @@ int run(int argc, char** argv) {
     cslam::http::add_dense_status(d, status, metrics);
   });
   http.start();
+  // A snapshot holds only keyframes whose images the store has (unless the dense worker is more
+  // than 5 s behind: then the restarted server counts the missing ones).
+  if (dense) state.set_before_export([d = dense.get()] { d->wait_stored(5.0); });
   state.start();
   install_signal_handlers(&stop);
   if (cli.has("endpoint-file")) {

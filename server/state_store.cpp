@@ -77,6 +77,7 @@ void StateStore::run() {
 bool StateStore::write() {
   if (config_.dir.empty()) return false;
   std::lock_guard<std::mutex> writer(write_mutex_);
+  if (before_export_) before_export_();
   Stopwatch sw;
   try {
     const SystemState state = system_.export_state();

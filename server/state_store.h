@@ -6,6 +6,7 @@
 // failed write (full disk) is logged and counted; the previous snapshot stays, SLAM goes on.
 #include <chrono>
 #include <condition_variable>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -57,6 +58,9 @@ class StateStore : public http::MapStore {
   void stop();   // idempotent; joins
   // Writes a snapshot on the calling thread; false (logged, counted) on failure.
   bool write();
+  // Runs before every snapshot's export, on the writing thread (the dense map's wait_stored).
+  // Set before start().
+  void set_before_export(std::function<void()> hook) { before_export_ = std::move(hook); }
 
   // http::MapStore
   std::optional<std::string> snapshot_file() const override;
@@ -71,6 +75,7 @@ class StateStore : public http::MapStore {
   const StateStoreConfig config_;
   CollaborativeSystem& system_;
   std::mutex write_mutex_;  // one writer at a time
+  std::function<void()> before_export_;
   mutable std::mutex mutex_;
   std::condition_variable cv_, done_cv_;
   bool stop_ = false;

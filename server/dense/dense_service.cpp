@@ -51,7 +51,8 @@ void DenseService::start() {
   std::set<KeyFrameId> held;
   for (const KeyframePose& p : system_.keyframe_poses()) held.insert(p.id);
   std::size_t restored = 0, dropped = 0;
-  for (const KeyFrameId id : store_.ids()) {
+  const std::vector<KeyFrameId> stored = store_.ids();
+  for (const KeyFrameId id : stored) {
     if (!held.count(id)) {
       store_.erase(id);
       ++dropped;
@@ -68,18 +69,27 @@ void DenseService::start() {
   if (restored + dropped > 0)
     log()->info("keyframe store {}: {} keyframes to integrate again, {} not in the snapshot dropped", store_.path(),
                 restored, dropped);
+  // Keyframes of the snapshot whose images never reached the store (the server stopped between
+  // the two, or ran without a dense map): the dense map lacks them; say so and count them.
+  const std::size_t lost = held.size() - restored;
+  if (lost > 0) {
+    log()->warn("keyframe store {}: {} keyframe(s) of the snapshot have no stored images; the dense map lacks them "
+                "(counted in missing_images)", store_.path(), lost);
+    std::lock_guard<std::mutex> lock(mutex_);
+    stats_.missing_images += lost;
+  }
   thread_ = std::thread([this] { run(); });
 }
 
 void DenseService::on_keyframe(const ClientInfo& client, const KeyFrameId& id, const RgbdFrame& frame,
                                const SE3& T_cam_depthcam) {
-  Job job;
-  job.T_cam_depthcam = T_cam_depthcam;
-  job.client = client;
-  job.record.id = id;
-  job.record.timestamp = frame.timestamp;
-  job.record.depth_time_offset = frame.depth_time_offset;
-  if (frame.encoded) job.record.images = *frame.encoded;
+  auto job = std::make_shared<Job>();
+  job->T_cam_depthcam = T_cam_depthcam;
+  job->client = client;
+  job->record.id = id;
+  job->record.timestamp = frame.timestamp;
+  job->record.depth_time_offset = frame.depth_time_offset;
+  if (frame.encoded) job->record.images = *frame.encoded;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++stats_.keyframes_received;
@@ -89,7 +99,7 @@ void DenseService::on_keyframe(const ClientInfo& client, const KeyFrameId& id, c
     }
     // Decoded images (shared, not copied) save a decode when the worker keeps up; behind a long
     // queue only the received bytes wait, and the images are decoded from the store later.
-    if (!frame.encoded || queue_.size() < config_.queue_decoded) job.images = DenseImages{frame.bgr, frame.depth};
+    if (!frame.encoded || queue_.size() < config_.queue_decoded) job->images = DenseImages{frame.bgr, frame.depth};
     queue_.push_back(std::move(job));
   }
   wake_.notify_one();
@@ -106,6 +116,57 @@ void DenseService::finish() {
   if (thread_.joinable()) thread_.join();
 }
 
+bool DenseService::put_job(Job& job) {
+  int unclaimed = kUnclaimed;
+  if (!job.store_state.compare_exchange_strong(unclaimed, kStoring)) return false;
+  {
+    const ClientId c = job.client.id;
+    std::lock_guard<std::mutex> lock(camera_mutex_);
+    const auto known = store_cameras_.find(c);
+    if (known == store_cameras_.end() || !RayTable(known->second).matches(job.client.camera)) {
+      store_.put_camera(c, job.client.camera);
+      store_cameras_[c] = job.client.camera;
+    }
+  }
+  if (job.record.images.rgb.empty() && job.images) {  // frames that did not come over the network: lossless copy
+    CodecOptions lossless;
+    lossless.rgb = RgbCodec::kPng;
+    const Bytes rgb = encode_rgb(job.images->bgr, lossless), depth = encode_depth(job.images->depth, lossless);
+    job.record.images = {RgbCodec::kPng, std::string(rgb.begin(), rgb.end()), lossless.depth,
+                         std::string(depth.begin(), depth.end())};
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++stats_.encoded_here;
+  }
+  const PutStatus status = store_.put(job.record);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (status == PutStatus::kStored || status == PutStatus::kAlreadyStored) ++stats_.stored;
+    else if (status == PutStatus::kFull) ++stats_.store_refused_full;
+    else ++stats_.store_errors;
+    job.store_state = kStored;
+  }
+  stored_cv_.notify_all();
+  return true;
+}
+
+bool DenseService::wait_stored(double timeout_s) {
+  std::vector<std::shared_ptr<Job>> queued;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    queued.assign(queue_.begin(), queue_.end());
+  }
+  // Store what the worker has not reached on this thread (the worker runs at low priority and
+  // may lag by seconds on a busy machine); the worker then finds them stored and only integrates.
+  for (const auto& job : queued) put_job(*job);
+  // A job the worker was storing meanwhile: wait for that one.
+  std::unique_lock<std::mutex> lock(mutex_);
+  const bool done = stored_cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [&] {
+    return std::all_of(queued.begin(), queued.end(), [](const auto& j) { return j->store_state == kStored; });
+  });
+  if (!done) log()->warn("keyframe store: a keyframe being stored by the dense worker took over {} s", timeout_s);
+  return done;
+}
+
 void DenseService::run() {
   // Well below SLAM's compute threads (nice +5): on a saturated machine the robots' poses come
   // first and the dense map catches up (its queue and pending list are bounded and counted).
@@ -114,46 +175,41 @@ void DenseService::run() {
   for (;;) {
     wake_.wait_for(lock, std::chrono::duration<double>(config_.step_interval_s),
                    [&] { return stop_ || !queue_.empty(); });
-    std::deque<Job> jobs;
-    jobs.swap(queue_);
     const bool stopping = stop_;
+    // Store the queued keyframes one at a time, each left in the queue until it is stored, so
+    // that wait_stored sees every keyframe not stored yet.
+    std::vector<std::shared_ptr<Job>> jobs;
+    for (std::size_t n = queue_.size(); n > 0; --n) {
+      std::shared_ptr<Job> job = queue_.front();
+      lock.unlock();
+      if (!put_job(*job)) {  // wait_stored took it: wait until it is in the store
+        std::unique_lock<std::mutex> wait(mutex_);
+        stored_cv_.wait(wait, [&] { return job->store_state == kStored; });
+      }
+      lock.lock();
+      queue_.pop_front();
+      jobs.push_back(std::move(job));
+    }
     lock.unlock();
-    store_jobs(jobs);
+    integrate_jobs(jobs);
     step(stopping);
     lock.lock();
     if (stopping && queue_.empty()) break;
   }
 }
 
-void DenseService::store_jobs(std::deque<Job>& jobs) {
+void DenseService::integrate_jobs(std::vector<std::shared_ptr<Job>>& jobs) {
   const double now = uptime_s();
-  for (Job& job : jobs) {
-    const ClientId c = job.client.id;
+  for (const auto& job : jobs) {
+    const ClientId c = job->client.id;
     const auto known = cameras_.find(c);
-    if (known == cameras_.end() || !RayTable(known->second).matches(job.client.camera)) {
-      cameras_[c] = job.client.camera;
-      store_.put_camera(c, job.client.camera);
-      map_.set_camera(c, job.client.camera);
-    }
-    if (job.record.images.rgb.empty() && job.images) {  // frames that did not come over the network: lossless copy
-      CodecOptions lossless;
-      lossless.rgb = RgbCodec::kPng;
-      const Bytes rgb = encode_rgb(job.images->bgr, lossless), depth = encode_depth(job.images->depth, lossless);
-      job.record.images = {RgbCodec::kPng, std::string(rgb.begin(), rgb.end()), lossless.depth,
-                           std::string(depth.begin(), depth.end())};
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++stats_.encoded_here;
-    }
-    const PutStatus status = store_.put(job.record);
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (status == PutStatus::kStored || status == PutStatus::kAlreadyStored) ++stats_.stored;
-      else if (status == PutStatus::kFull) ++stats_.store_refused_full;
-      else ++stats_.store_errors;
+    if (known == cameras_.end() || !RayTable(known->second).matches(job->client.camera)) {
+      cameras_[c] = job->client.camera;
+      map_.set_camera(c, job->client.camera);
     }
     // Integrated from the decoded images at hand even when the store refused them (they are
     // then missing only for a later re-integration, counted there).
-    map_.add_keyframe(job.record.id, std::move(job.images), now, job.T_cam_depthcam);
+    map_.add_keyframe(job->record.id, std::move(job->images), now, job->T_cam_depthcam);
   }
 }
 

@@ -5,6 +5,7 @@
 // corrections and publishes an immutable view for HTTP. Bounded everywhere: the queue (keyframes
 // beyond it are counted and left to the store-less path: never silently), the store
 // (--dense-store-max-mb: new keyframes' images refused when full, counted), the work per step.
+#include <atomic>
 #include <condition_variable>
 #include <deque>
 #include <memory>
@@ -61,6 +62,11 @@ class DenseService {
   // Stops the worker after storing what is queued and integrating every pending keyframe with
   // the final poses. Idempotent.
   void finish();
+  // Waits (up to timeout_s) until every keyframe queued so far has been written to the keyframe
+  // store (or refused, counted). The map snapshot calls it first, so that a snapshot never holds a
+  // keyframe whose images the store has not got yet merely because this low-priority worker lags.
+  // False on timeout (logged).
+  bool wait_stored(double timeout_s);
 
   std::shared_ptr<const DenseMapView> view() const { return map_.view(); }
   // For other threads (a full-rate reconstruction job): a group's live keyframes at their current
@@ -78,14 +84,20 @@ class DenseService {
   double uptime_s() const;
 
  private:
+  static constexpr int kUnclaimed = 0, kStoring = 1, kStored = 2;
   struct Job {
     ClientInfo client;
     KeyframeRecord record;
     std::optional<DenseImages> images;
     SE3 T_cam_depthcam;  // motion between the colour and the depth image (not stored: identity after a restart)
+    // Who stores it: the worker, or wait_stored on the snapshot thread, whichever claims it first.
+    std::atomic<int> store_state{kUnclaimed};
   };
   void run();
-  void store_jobs(std::deque<Job>& jobs);
+  // Claims the job and writes its images (and its client's camera) to the store; false if
+  // another thread claimed it first. Either thread may call it.
+  bool put_job(Job& job);
+  void integrate_jobs(std::vector<std::shared_ptr<Job>>& jobs);  // the worker's
   void step(bool final);
   std::optional<DenseImages> load(KeyFrameId id);
   // A stored keyframe decoded with the given camera (nullopt: not stored or unreadable, logged).
@@ -97,12 +109,15 @@ class DenseService {
   KeyframeStore store_;
   LiveDenseMap map_;  // the worker's alone
   std::map<ClientId, PinholeCamera> cameras_;  // the worker's alone
+  std::mutex camera_mutex_;                     // store_cameras_
+  std::map<ClientId, PinholeCamera> store_cameras_;  // cameras written to the store by put_job
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::chrono::steady_clock::time_point last_log_ = start_;
 
   mutable std::mutex mutex_;  // queue_, stop_, stats_
   std::condition_variable wake_;
-  std::deque<Job> queue_;
+  std::condition_variable stored_cv_;  // the worker stored a batch (wait_stored)
+  std::deque<std::shared_ptr<Job>> queue_;  // each left here until stored (wait_stored sees it)
   bool stop_ = false, finished_ = false;
   DenseServiceStats stats_;
   std::thread thread_;
