@@ -162,6 +162,8 @@ std::string ServerStats::to_json(const SystemSnapshot& snapshot, double wall_s) 
     c["goodbyes"] = net.goodbyes;
     c["dropped"] = net.dropped;
     c["dropped_total"] = net.dropped_total();
+    c["frames_light"] = net.frames_light;
+    c["raw_bytes"] = net.raw_bytes;
     for (const ClientSnapshot& s : snapshot.clients)
       if (s.id == id) c["frames_processed"] = s.frames_processed;
     const Summary t = summarize(net.decode_dispatch_ms);

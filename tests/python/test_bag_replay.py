@@ -115,6 +115,20 @@ class BagReplay(unittest.TestCase):
                                                   "/cam/depth", "--depth-units", "5000", "--rate", "200"))
         self.check_same_as_folder(server)
 
+    def test_lean_stream_from_a_bag(self):
+        server = self.replay("lean", self.bag_tool(self.tum_bag, "--depth-every", "4"))
+        got = harness.client_stats(server.network_stats(), 1)
+        self.assertEqual(got["frames_accepted"], 60)
+        self.assertGreaterEqual(got["frames_light"], 30)  # 3 of 4 frames light, but for the server's depth requests
+        self.assertEqual(got["dropped_total"], 0)
+        ate = harness.ate_rmse(os.path.join(self.robot, "groundtruth.txt"), os.path.join(server.out, "client_1.txt"))
+        self.assertLess(ate, harness.ATE_MAX)
+
+    def test_bad_depth_every_is_refused(self):
+        r = subprocess.run([*self.bag_tool(self.tum_bag, "--depth-every", "0"), "--id", "1"], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("depth_every 0 must be >= 1", r.stderr)
+
     def test_missing_topic_lists_the_bag_topics(self):
         r = subprocess.run(self.bag_tool(self.u16_bag, "--id", "1"), capture_output=True, text=True)
         self.assertEqual(r.returncode, 2, r.stderr)
