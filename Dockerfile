@@ -55,7 +55,7 @@ RUN set -eu; mkdir -p /stage/opt/cslam/bin /stage/usr/local/bin; \
     done < /tmp/libs.txt; \
     mkdir -p /stage/opt/cslam/data/vocabulary /stage/opt/cslam/web/node_modules/three/build; \
     cp data/vocabulary/cslam_orb.voc data/vocabulary/README.md /stage/opt/cslam/data/vocabulary/; \
-    cp web/index.html web/viewer.js /stage/opt/cslam/web/; \
+    cp web/index.html web/*.js /stage/opt/cslam/web/; \
     cp web/node_modules/three/build/three.module.js /stage/opt/cslam/web/node_modules/three/build/; \
     cp web/node_modules/three/LICENSE web/node_modules/three/package.json /stage/opt/cslam/web/node_modules/three/; \
     echo "[image] $(ls /stage/opt/cslam/bin | wc -l) programs, $(find /stage/usr -name '*.so*' | wc -l) libraries"

@@ -235,6 +235,11 @@ in_net curl -sfk "$HTTP_URL/vendor/three.module.js" > "$DIR/three.module.js" || 
 THREE=$(grep -o "REVISION = '[0-9]*'" "$DIR/three.module.js" | head -1)
 [ -n "$THREE" ] || fail "/vendor/three.module.js is not three.js"
 say "viewer page and /vendor/three.module.js served ($(wc -c < "$DIR/three.module.js") bytes, $THREE)"
+# Every module of the viewer (web/*.js; the page loads app.js, which imports the others).
+for m in web/*.js; do
+  in_net curl -sfk -o /dev/null "$HTTP_URL/$(basename "$m")" || fail "the viewer module $(basename "$m") is not served by the image"
+done
+say "the viewer's $(ls web/*.js | wc -l) modules served"
 if [ "$MODE" = chroot ]; then
   # The image's HEALTHCHECK command, with the port of this run.
   img sh -c "printf 'header = \"Authorization: Bearer %s\"\\n' \"\$(cat /keys/http.token)\" |
