@@ -32,134 +32,20 @@ packet a key packet.
 import collections
 import logging
 import time
-from dataclasses import dataclass, field
-from typing import Callable, Dict, Optional
+from typing import Callable, Optional
 
 import zmq
 
 from . import errors, video
 from .codecs import RGB_H264, Codecs, encode_depth, encode_rgb
+from .feedback import AckInfo, SenderStats, ack_info
+from .keys import CurveKeys
 from .wire import pb
 
 # A depth image further than this from its colour image (s) is not one frame's pair (as the server).
 MAX_DEPTH_TIME_OFFSET = 0.1
 
 log = logging.getLogger("cslam_client")
-
-
-@dataclass
-class CurveKeys:
-    """ZeroMQ CURVE keys, Z85 text (40 characters), as cslam-keygen and zmq.curve_keypair() make."""
-    server_public: str
-    client_public: str
-    client_secret: str
-
-    @staticmethod
-    def load(server_key_file, client_secret_file):
-        """cslam-client's --server-key and --curve-secret files: the server's NAME.pub (or .key) and
-        this robot's NAME.key (``public-key = ...`` / ``secret-key = ...`` lines; a file holding
-        just the key works too). The robot's public key is derived if its file lacks it."""
-        server = read_key_file(server_key_file)
-        own = read_key_file(client_secret_file)
-        server_public = server.get("public-key") or server.get("key")
-        secret = own.get("secret-key") or own.get("key")
-        if not server_public:
-            raise ValueError(f"{server_key_file}: no public-key")
-        if not secret:
-            raise ValueError(f"{client_secret_file}: no secret-key (give this robot's .key file, not a .pub)")
-        public = own.get("public-key") if "secret-key" in own else None
-        return CurveKeys(server_public, public or zmq.curve_public(secret.encode()).decode(), secret)
-
-    def apply(self, socket):
-        socket.curve_serverkey = self.server_public.encode()
-        socket.curve_publickey = self.client_public.encode()
-        socket.curve_secretkey = self.client_secret.encode()
-
-
-def read_key_file(path):
-    """{'public-key': ..., 'secret-key': ..., 'client-ids': ...} from a cslam-keygen key file
-    (``key = value`` lines, '#' comment lines; Z85 may contain '=' and '#', so only the first '='
-    of a known key splits). A file holding one bare 40-character key gives {'key': KEY}."""
-    values = {}
-    with open(path) as f:
-        lines = [line.strip() for line in f]
-    for line in lines:
-        if not line or line.startswith("#"):
-            continue
-        name, sep, value = line.partition("=")
-        if sep and name.strip() in ("public-key", "secret-key", "client-ids"):
-            values[name.strip()] = value.strip().strip('"')
-        elif len(line) == 40 and not values:
-            values = {"key": line}
-        else:
-            raise ValueError(f"{path}: unexpected line '{line[:20]}...' (expected 'public-key = KEY' lines)")
-    for key in ("public-key", "secret-key", "key"):
-        if key in values and len(values[key]) != 40:
-            raise ValueError(f"{path}: {key} is not a 40-character Z85 key")
-    return values
-
-
-@dataclass
-class AckInfo:
-    seq: int
-    credits: int
-    received_at: float          # time.monotonic() when the ack arrived
-    fields: Dict[str, object]   # every field of the Ack message that is set
-    # Pose feedback (protocol version 2; None from a server without it):
-    state: Optional[str] = None           # "TRACK_OK", "TRACK_LOST", "TRACK_SKIPPED", ...
-    T_world_cam: Optional[tuple] = None   # (tx, ty, tz, qx, qy, qz, qw), camera-to-world, TRACK_OK only
-    group: Optional[int] = None           # fused group whose frame the pose is in
-    map_epoch: Optional[int] = None       # increases when a fusion/loop may have moved earlier poses
-    latency_s: Optional[float] = None     # this frame's send to its ack, seconds
-
-    def pose_matrix(self):
-        """T_world_cam as a 4x4 numpy array (None without a pose)."""
-        if self.T_world_cam is None:
-            return None
-        import numpy as np
-        tx, ty, tz, x, y, z, w = self.T_world_cam
-        T = np.eye(4)
-        T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-        T[:3, 3] = [tx, ty, tz]
-        return T
-
-
-def _ack_info(a, received_at, sent_at):
-    info = AckInfo(a.seq, a.credits, received_at, {f.name: v for f, v in a.ListFields()})
-    names = a.DESCRIPTOR.fields_by_name
-    if "state" in names:  # the schema has pose feedback
-        info.state = pb.TrackState.Name(a.state) if a.state in pb.TrackState.values() else str(a.state)
-        if info.state == "TRACK_OK" and a.HasField("T_world_cam"):
-            p = a.T_world_cam
-            info.T_world_cam = (p.tx, p.ty, p.tz, p.qx, p.qy, p.qz, p.qw)
-        info.group = a.group
-        info.map_epoch = a.map_epoch
-    if sent_at is not None:
-        info.latency_s = received_at - sent_at
-    return info
-
-
-@dataclass
-class SenderStats:
-    frames_sent: int = 0
-    bytes_sent: int = 0
-    acks: int = 0
-    heartbeats: int = 0
-    reconnects: int = 0
-    dropped_no_credit: int = 0   # live mode: frames replaced by a newer one before a credit came
-    frames_refused: int = 0      # errors about a sent frame (seq != 0): frames the server did not take
-    frames_resent: int = 0       # sent again after a resumed session said the server lacked them
-    frames_lost: int = 0         # the server lacked them and they were no longer kept (or live)
-    errors: Dict[str, int] = field(default_factory=dict)  # server error code name -> count
-    # Lean stream: light frames sent (and their wire bytes), key packets of the colour stream,
-    # acks asking for full depth, and stream gaps the server reported (each healed by a key packet).
-    frames_light: int = 0
-    bytes_light: int = 0
-    colour_key_packets: int = 0
-    depth_requests: int = 0
-    stream_gaps: int = 0
 
 
 class FrameSender:
@@ -528,7 +414,7 @@ class FrameSender:
             if self.in_flight > 0:
                 self.in_flight -= 1
             self.stats.acks += 1
-            info = _ack_info(a, self._last_reply, self._sent_at.pop(a.seq, None))
+            info = ack_info(a, self._last_reply, self._sent_at.pop(a.seq, None))
             # The acks of the frames in flight may all ask; a full frame sent since meets them.
             if self.lean and info.fields.get("want_depth") and self.lean.on_want_depth(a.seq):
                 self.stats.depth_requests += 1
