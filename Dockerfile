@@ -43,6 +43,9 @@ RUN set -eu; mkdir -p /stage/opt/cslam/bin /stage/usr/local/bin; \
     for p in $OPTIONAL_PROGRAMS; do if [ -f build/bin/$p ]; then install -s -m 0755 build/bin/$p /stage/opt/cslam/bin/$p; fi; done; \
     install -m 0755 /usr/bin/curl /stage/usr/local/bin/curl; \
     install -m 0755 /usr/bin/openssl /stage/usr/local/bin/openssl; \
+    mkdir -p /stage/etc/ssl /stage/usr/lib/ssl /stage/usr/share/doc/openssl; \
+    cp /etc/ssl/openssl.cnf /stage/etc/ssl/; ln -s /etc/ssl/openssl.cnf /stage/usr/lib/ssl/openssl.cnf; \
+    cp /usr/share/doc/openssl/copyright /stage/usr/share/doc/openssl/; \
     ldd /stage/opt/cslam/bin/* /stage/usr/local/bin/curl /stage/usr/local/bin/openssl | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u \
       > /tmp/libs.txt; \
     while read -r lib; do \
