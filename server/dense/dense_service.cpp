@@ -62,6 +62,8 @@ void DenseService::start() {
       if (const auto camera = store_.camera(id.client)) {
         cameras_[id.client] = *camera;
         map_.set_camera(id.client, *camera);
+        std::lock_guard<std::mutex> lock(camera_mutex_);
+        store_cameras_[id.client] = *camera;  // already in the store: put_job need not write it again
       }
     map_.add_keyframe(id, std::nullopt, -1e9);
     ++restored;

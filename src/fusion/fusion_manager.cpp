@@ -230,6 +230,25 @@ bool FusionManager::try_fuse(const Pending& p, const std::vector<Registered>& ot
   return false;
 }
 
+FusionEvent FusionManager::link_event(const char* kind, const Pending& p, ClientId other_client, int group,
+                                      const KeyFramePtr& candidate, const OverlapVerifyResult& v, const Seam& seam,
+                                      std::chrono::steady_clock::time_point hit) const {
+  FusionEvent e;
+  e.kind = kind;
+  e.client_a = p.client;
+  e.client_b = other_client;
+  e.group = group;
+  e.inliers = v.final_inliers;
+  e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
+  e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  e.query_timestamp = p.kf->timestamp();
+  e.candidate_timestamp = candidate->timestamp();
+  e.T_query_candidate = v.S_query_candidate.to_se3();
+  e.seam_points = int(seam.points.size());
+  e.seam_edges = int(seam.edges.size());
+  return e;
+}
+
 void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client,
                          const KeyFramePtr& candidate, const SE3& T_wq_wc, const OverlapVerifyResult& v,
                          std::chrono::steady_clock::time_point hit) {
@@ -272,18 +291,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     if (!kept_kf->bad && !moved_kf->bad) seam = connect_seam(*kept_map, *kept_kf, *moved_map, *moved_kf, config_.seam);
   }
   const int kept = move_candidate_side ? gq : gc;
-  FusionEvent e;
-  e.client_a = p.client;
-  e.client_b = other_client;
-  e.group = kept;
-  e.inliers = v.final_inliers;
-  e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
-  e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  e.query_timestamp = p.kf->timestamp();
-  e.candidate_timestamp = candidate->timestamp();
-  e.T_query_candidate = v.S_query_candidate.to_se3();
-  e.seam_points = int(seam.points.size());
-  e.seam_edges = int(seam.edges.size());
+  FusionEvent e = link_event("fusion", p, other_client, kept, candidate, v, seam, hit);
   e.keyframes_moved = int(move_candidate_side ? kf_c : kf_q);
   e.keyframes_kept = int(move_candidate_side ? kf_q : kf_c);
   {

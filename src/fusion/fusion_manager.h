@@ -93,6 +93,11 @@ class FusionManager {
             const SE3& T_wq_wc, const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
   void reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const KeyFramePtr& candidate,
                    const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
+  // The event of a link (fusion or re-encounter) between the query keyframe and `candidate`; the
+  // caller adds which keyframes moved and which stayed.
+  FusionEvent link_event(const char* kind, const Pending& p, ClientId other_client, int group,
+                         const KeyFramePtr& candidate, const OverlapVerifyResult& v, const Seam& seam,
+                         std::chrono::steady_clock::time_point hit) const;
   // Fusion, then re-encounters, with the maps of the other groups / of the query's own group.
   // Each true if it linked the query's map (and started the group BA).
   bool try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score);

@@ -58,19 +58,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     seam = connect_seam(*other, *candidate, *p.map, *p.kf, config_.seam);
   }
   const double locked_ms = locked.ms();
-  FusionEvent e;
-  e.kind = "reencounter";
-  e.client_a = p.client;
-  e.client_b = other_client;
-  e.group = group;
-  e.inliers = v.final_inliers;
-  e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
-  e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  e.query_timestamp = p.kf->timestamp();
-  e.candidate_timestamp = candidate->timestamp();
-  e.T_query_candidate = v.S_query_candidate.to_se3();
-  e.seam_points = int(seam.points.size());
-  e.seam_edges = int(seam.edges.size());
+  FusionEvent e = link_event("reencounter", p, other_client, group, candidate, v, seam, hit);
   e.keyframes_moved = c.rigid;
   e.keyframes_kept = c.anchors;
   {

@@ -28,7 +28,7 @@ TEST(DenseServiceStore, WaitStoredStoresWhatTheWorkerHasNotReached) {
   DenseService dense(config, system);  // not started: no worker takes the queue
   const ClientInfo client{3, "robot3", test::small_camera()};
   EXPECT_TRUE(dense.wait_stored(0.1));  // nothing queued
-  for (std::uint64_t seq = 1; seq <= 4; ++seq)
+  for (std::uint32_t seq = 1; seq <= 4; ++seq)
     dense.on_keyframe(client, KeyFrameId{3, seq}, grey_frame(client.camera, 1.0 + double(seq)), SE3());
   EXPECT_EQ(dense.stats().stored, 0u);
   EXPECT_TRUE(dense.wait_stored(5.0));
@@ -36,7 +36,7 @@ TEST(DenseServiceStore, WaitStoredStoresWhatTheWorkerHasNotReached) {
   EXPECT_EQ(st.stored, 4u);
   EXPECT_EQ(st.encoded_here, 4u);  // no received bytes: stored as a lossless copy
   EXPECT_EQ(st.queue, 4u);         // still queued for the worker to integrate
-  for (std::uint64_t seq = 1; seq <= 4; ++seq) {
+  for (std::uint32_t seq = 1; seq <= 4; ++seq) {
     const auto stored = dense.stored_keyframe(KeyFrameId{3, seq});
     ASSERT_TRUE(stored) << "keyframe " << seq;
     EXPECT_EQ(stored->images.depth.at<std::uint16_t>(5, 5), 5000);

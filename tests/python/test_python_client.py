@@ -95,12 +95,14 @@ class PythonClientEndToEnd(unittest.TestCase):
             raise
 
 
-class PythonClientSession(unittest.TestCase):
-    """Resume after a reconnect, and the server's errors as typed exceptions."""
+class SmallSceneCase(unittest.TestCase):
+    """A 20-frame synthetic robot in a scratch folder of its own (SCRATCH names it), kept when a
+    test failed."""
+    SCRATCH = ""
 
     @classmethod
     def setUpClass(cls):
-        cls.dir = harness.scratch("pysession")
+        cls.dir = harness.scratch(cls.SCRATCH)
         cls.scene = harness.synth_scene(os.path.join(cls.dir, "scene"), frames=20)
         cls.robot = os.path.join(cls.scene, "robot_1")
         cls.cam = camera.load(os.path.join(cls.robot, "camera.yaml"))
@@ -110,6 +112,11 @@ class PythonClientSession(unittest.TestCase):
     @classmethod
     def tearDownClass(cls):
         harness.cleanup(cls.dir, cls.ok)
+
+
+class PythonClientSession(SmallSceneCase):
+    """Resume after a reconnect, and the server's errors as typed exceptions."""
+    SCRATCH = "pysession"
 
     def setUp(self):
         self.server = harness.Server(os.path.join(self.dir, self.id().split(".")[-1]), extra=["--no-slam"])
@@ -172,23 +179,15 @@ class PythonClientSession(unittest.TestCase):
         sender.close()
 
 
-class PythonClientLeanStream(unittest.TestCase):
+class PythonClientLeanStream(SmallSceneCase):
     """depth_every > 1 against a real cslam-server: light frames decoded and counted by the server
     (/api/status), a reconnect and a lost packet healed by key packets (as test_lean_stream.cpp)."""
+    SCRATCH = "pylean"
 
     @classmethod
     def setUpClass(cls):
-        cls.dir = harness.scratch("pylean")
-        cls.scene = harness.synth_scene(os.path.join(cls.dir, "scene"), frames=20)
-        cls.robot = os.path.join(cls.scene, "robot_1")
-        cls.cam = camera.load(os.path.join(cls.robot, "camera.yaml"))
-        pairs = dataset.open_tum(cls.robot)
-        cls.frames = [(*dataset.load_pair(p), p.rgb_time, p.depth_time - p.rgb_time) for p in pairs]
-        cls.ok = True
-
-    @classmethod
-    def tearDownClass(cls):
-        harness.cleanup(cls.dir, cls.ok)
+        super().setUpClass()
+        cls.frames = [(*dataset.load_pair(p), p.rgb_time, p.depth_time - p.rgb_time) for p in cls.pairs]
 
     def setUp(self):
         run = os.path.join(self.dir, self.id().split(".")[-1])
