@@ -9,6 +9,8 @@
 # Usage: scripts/bench-capacity.sh [RUNS=3] [OUT=bench_out/capacity] [NS="1 2 3 4 6 8"] [FRAMES=600]
 # Environment: CSLAM_CAPACITY_SOLO=0 skips the solo runs of robots 2..N (robot 1's N=1 run is then
 # every robot's reference; stated in the summary). CSLAM_SERVER_ARGS: more cslam-server options
+# (one variant). CSLAM_CAPACITY_VARIANTS="ARGS_A|ARGS_B|...": server variants alternated run by run
+# (run r: every N with A, then with B, ...), one table each, e.g. "--flow under-load|--flow off";
 # (e.g. --no-dense, to measure the live dense map's cost back to back with and without it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,6 +22,7 @@ SOLO="${CSLAM_CAPACITY_SOLO:-1}"
 BIN=build/bin
 MAXN=$(echo $NS | tr ' ' '\n' | sort -n | tail -1)
 mkdir -p "$OUT"
+rm -f "$OUT/summary.md"
 ROBOTS=$(( MAXN > 8 ? MAXN : 8 ))  # one scene serves every N
 SCENE="$OUT/scene_${ROBOTS}x${FRAMES}"
 loadavg() { cut -d' ' -f1-3 /proc/loadavg; }
@@ -37,7 +40,7 @@ run_case() {
   local load_before; load_before=$(loadavg)
   /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
     "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
-    --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn ${CSLAM_SERVER_ARGS:-} > "$dir/server.log" 2>&1 &
+    --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $SERVER_ARGS > "$dir/server.log" 2>&1 &
   local server_pid=$!
   for _ in $(seq 1 600); do [ -s "$dir/endpoint" ] && break; sleep 0.1; done
   local endpoint; endpoint=$(head -1 "$dir/endpoint")
@@ -77,19 +80,32 @@ print(f"{best[0]} {best[1]}" if best else "0 nan")
 PY
 }
 
+IFS='|' read -ra VARIANTS <<< "${CSLAM_CAPACITY_VARIANTS:-${CSLAM_SERVER_ARGS:-}}"
+[ "${#VARIANTS[@]}" -gt 0 ] || VARIANTS=("")
+prefix() { [ "${#VARIANTS[@]}" -gt 1 ] && echo "v$1_" || true; }
 for r in $(seq 1 "$RUNS"); do
   for n in $NS; do
-    run_case "n${n}_r${r}" "$n"
-    printf "N=%d run %d done (load %s -> %s)\n" "$n" "$r" "$(cat "$OUT/n${n}_r${r}/load_before.txt")" "$(cat "$OUT/n${n}_r${r}/load_after.txt")"
+    for vi in "${!VARIANTS[@]}"; do
+      SERVER_ARGS="${VARIANTS[$vi]}"
+      name="$(prefix "$vi")n${n}_r${r}"
+      run_case "$name" "$n"
+      printf "N=%d run %d %s done (load %s -> %s)\n" "$n" "$r" "${SERVER_ARGS:+[$SERVER_ARGS]}" "$(cat "$OUT/$name/load_before.txt")" "$(cat "$OUT/$name/load_after.txt")"
+    done
   done
 done
+SERVER_ARGS="${VARIANTS[0]}"
 if [ "$SOLO" = 1 ]; then
   for k in $(seq 2 "$MAXN"); do run_case "solo${k}" 1 "$k"; echo "robot $k alone done"; done
 fi
 
-python3 - "$OUT" "$RUNS" "$NS" "$FRAMES" "$SOLO" <<'PY' | tee "$OUT/summary.md"
+for vi in "${!VARIANTS[@]}"; do
+[ "${#VARIANTS[@]}" -gt 1 ] && echo "
+### Server options: ${VARIANTS[$vi]:-(defaults)}
+" | tee -a "$OUT/summary.md"
+python3 - "$OUT" "$RUNS" "$NS" "$FRAMES" "$SOLO" "$(prefix "$vi")" <<'PY' | tee -a "$OUT/summary.md"
 import json, os, statistics, sys
 out, runs, ns, frames, solo = sys.argv[1], int(sys.argv[2]), [int(x) for x in sys.argv[3].split()], int(sys.argv[4]), sys.argv[5] == "1"
+prefix = sys.argv[6]
 
 def load(path, default=None):
     try: return json.load(open(path))
@@ -110,7 +126,7 @@ def case(dirname):
                 f = line.strip().split(",")
                 if f[2] != "skipped": lat.append(float(f[7]))
         except OSError: pass
-        robots[k] = {"processed": c["frames_processed"], "skipped": c.get("frames_skipped", 0),
+        robots[k] = {"processed": c["frames_processed"], "skipped": c.get("frames_skipped", 0), "flow": c.get("frames_flow", 0),
                      "dropped_client": cj.get("frames_dropped_client", 0), "fps": cj.get("processed_fps", 0.0),
                      "ate": ate, "latency": lat, "tracked": c.get("trajectory_poses", 0)}
     fused = open(d + "/fused_ate.txt").read().split() if os.path.exists(d + "/fused_ate.txt") else ["0", "nan"]
@@ -131,7 +147,7 @@ def med(v):
 def fmt(t, f="{:.1f}"):
     return f"{f.format(t[0])} ({f.format(t[1])}–{f.format(t[2])})"
 
-cases = {n: [case(f"n{n}_r{r}") for r in range(1, runs + 1)] for n in ns}
+cases = {n: [case(f"{prefix}n{n}_r{r}") for r in range(1, runs + 1)] for n in ns}
 ref = {}
 base = [c["robots"].get(1, {}).get("ate", float("nan")) for c in cases.get(1, [])]
 ref[1] = med(base)[0]
@@ -139,18 +155,19 @@ for k in range(2, max(ns) + 1):
     ref[k] = case(f"solo{k}")["robots"].get(k, {}).get("ate", float("nan")) if solo else ref[1]
 
 print(f"Live capacity, {frames} frames per robot at 30 Hz, {runs} run(s) per N; median (min–max over runs).\n")
-print("| N | processed % (worst robot) | processed fps per robot | skipped (server) per robot | dropped (client) per robot | ATE cm (worst robot / ref) | fused ATE cm | pose latency p50 ms | p99 ms | server CPU s | peak RSS MB | longest receive loop ms (thread CPU ms) | load (1 min) before | verdict |")
-print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+print("| N | processed % (worst robot) | processed fps per robot | flow frames % of processed | skipped (server) per robot | dropped (client) per robot | ATE cm (worst robot / ref) | fused ATE cm | pose latency p50 ms | p99 ms | server CPU s | peak RSS MB | longest receive loop ms (thread CPU ms) | load (1 min) before | verdict |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 capacity = 0
 for n in ns:
     rows = cases[n]
-    worst_pct, fps, skipped, dropped, ate_ratio, p50, p99, worst_ate = [], [], [], [], [], [], [], []
+    worst_pct, fps, flow, skipped, dropped, ate_ratio, p50, p99, worst_ate = [], [], [], [], [], [], [], [], []
     ok_all = True
     for c in rows:
         rb = c["robots"]
         if len(rb) < n: ok_all = False; continue
         worst_pct.append(min(100.0 * r["processed"] / frames for r in rb.values()))
         fps.append(statistics.mean(r["fps"] for r in rb.values()))
+        flow.append(100.0 * sum(r["flow"] for r in rb.values()) / max(1, sum(r["processed"] for r in rb.values())))
         skipped.append(statistics.mean(r["skipped"] for r in rb.values()))
         dropped.append(statistics.mean(r["dropped_client"] for r in rb.values()))
         ratios = [r["ate"] / ref[k] if ref.get(k, 0) == ref.get(k, 0) and ref.get(k) else float("inf") for k, r in rb.items()]
@@ -160,7 +177,7 @@ for n in ns:
         p50.append(pct(lat, 0.5)); p99.append(pct(lat, 0.99))
     ok = ok_all and worst_pct and statistics.median(worst_pct) >= 90.0 and statistics.median(ate_ratio) <= 1.25
     fused = [100 * c["fused_ate"] for c in rows if c["fused_n"] >= 2]
-    print(f"| {n} | {fmt(med(worst_pct))} | {fmt(med(fps))} | {fmt(med(skipped), '{:.0f}')} | {fmt(med(dropped), '{:.0f}')} | "
+    print(f"| {n} | {fmt(med(worst_pct))} | {fmt(med(fps))} | {fmt(med(flow), '{:.0f}')} | {fmt(med(skipped), '{:.0f}')} | {fmt(med(dropped), '{:.0f}')} | "
           f"{fmt(med(worst_ate), '{:.2f}')} / x{med(ate_ratio)[0]:.2f} | {fmt(med(fused), '{:.2f}') if fused else '–'} | "
           f"{fmt(med(p50))} | {fmt(med(p99))} | {fmt(med([c['cpu_s'] for c in rows]))} | {fmt(med([c['rss_mb'] for c in rows]), '{:.0f}')} | "
           f"{fmt(med([c['loop_ms'] for c in rows]))} ({fmt(med([c['loop_cpu_ms'] for c in rows]))}) | "
@@ -174,3 +191,4 @@ print(f"\nCapacity: N = {capacity} robots live at 30 Hz (every robot >= 90 % of 
       f"{'its solo value' if solo else 'robot 1 alone'}; median over runs).")
 print("ATE reference (cm, each robot streaming alone): " + ", ".join(f"{k}: {100 * v:.2f}" for k, v in sorted(ref.items()) if k <= max(ns)))
 PY
+done

@@ -127,6 +127,7 @@ int run(int argc, char** argv) {
       .option("session-ttl", "seconds after which a disconnected or finished session is reclaimed (0: never)", "300")
       .option("decode-threads", "threads decoding frames for all clients", "2")
       .option("tracking-wait", "after a new keyframe, a client's tracking waits until local mapping has created and fused its points (new-points), fully processed it (keyframe: repeatable runs, more latency) or not at all (none)", "new-points")
+      .option("flow", "flow frames (optical-flow tracking between full frames, a fraction of their CPU): off, under-load (while a client's worker falls behind its live frames, instead of skipping more), always", "under-load")
       .option("state-dir", "folder of map snapshots: loaded at start, written periodically and at exit (empty: off)", "")
       .option("snapshot-interval", "seconds between background map snapshots (0: only on demand and at exit)", "10")
       .flag("state-reset", "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)")
@@ -197,6 +198,7 @@ int run(int argc, char** argv) {
   sc.client_queue_capacity = std::size_t(capacity);
   sc.run_slam = !cli.flag_set("no-slam");
   sc.slam.mapper.tracking_wait = cslam::parse_tracking_wait(cli.get("tracking-wait"));
+  sc.slam.tracker.flow.mode = cslam::parse_flow_mode(cli.get("flow"));
   if (cli.flag_set("deterministic")) {
     sc.slam.threaded = false;
     sc.fusion.threaded = false;

@@ -48,6 +48,7 @@ nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps
           {"frames_dropped", c.frames_rejected},
           {"frames_lost", c.frames_lost},
           {"frames_skipped", c.frames_skipped},
+          {"frames_flow", c.frames_flow},
           {"pose_latency_ms", {{"last", c.pose_latency_last_ms}, {"p50", c.pose_latency_p50_ms},
                                {"p99", c.pose_latency_p99_ms}, {"samples", c.pose_latency_samples}}},
           {"queue_depth", c.queue_depth},
@@ -102,6 +103,10 @@ std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, doubl
              [](const ClientSnapshot& c) { return c.frames_rejected; });
   per_client("cslam_frames_lost_total", "counter", "Frames processed while tracking was lost.",
              [](const ClientSnapshot& c) { return c.frames_lost; });
+  per_client("cslam_frames_skipped_total", "counter", "Live frames skipped because a newer one was queued.",
+             [](const ClientSnapshot& c) { return c.frames_skipped; });
+  per_client("cslam_frames_flow_total", "counter", "Frames tracked as flow frames (optical flow, no ORB extraction).",
+             [](const ClientSnapshot& c) { return c.frames_flow; });
   per_client("cslam_fps", "gauge", "Frames processed per second (last seconds).", [&fps](const ClientSnapshot& c) {
     const auto it = fps.find(c.id);
     return it == fps.end() ? 0.0 : it->second;

@@ -5,6 +5,8 @@
 #include <optional>
 #include <shared_mutex>
 
+#include <opencv2/imgproc.hpp>
+
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "globalba/global_ba.h"
@@ -34,6 +36,7 @@ ClientSlam::ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const
       listener_(std::move(listener)) {
   if (!vocabulary_ || vocabulary_->empty()) throw std::invalid_argument("ClientSlam needs a loaded vocabulary");
   info_.camera.validate();
+  config_.tracker.flow.validate();
   start_new_map();
 }
 
@@ -65,7 +68,7 @@ void ClientSlam::start_new_map() {
   if (maps_.size() > 1) logger("slam")->warn("client {}: tracking lost for long, started map {}", info_.id, maps_.size() - 1);
 }
 
-ProcessResult ClientSlam::process(const RgbdFrame& frame) {
+ProcessResult ClientSlam::process(const RgbdFrame& frame, bool behind) {
   ProcessResult r;
   const auto& cam = info_.camera;
   auto reject = [&](std::string why) {
@@ -99,14 +102,39 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   // A rolling-shutter camera's last row, half the readout after the middle one (none known: as is).
   const std::optional<SE3> T_lastrow_cam =
       cam.readout_time > 0 ? tracker_->predicted_motion(0.5 * cam.readout_time) : std::nullopt;
-  auto data = make_frame_data(ids_->next_frame(), frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_,
-                              pyramid_, vocabulary_,
-                              std::max(0, vocabulary_->depth() - config_.bow_direct_level), T_depthcam_cam, T_lastrow_cam,
-                              frame.keyframe_eligible());
-  r.extract_ms = sw.ms();
-  r.features = int(data->size());
-  sw.reset();
-  TrackResult t = tracker_->track(std::move(data));
+  const int bow_levels_up = std::max(0, vocabulary_->depth() - config_.bow_direct_level);
+  const FrameId id = ids_->next_frame();
+  // A flow frame if the mode allows one now (tracking/frame_flow.h); the full way if none holds.
+  std::optional<TrackResult> flowed;
+  const FlowMode mode = config_.tracker.flow.mode;
+  if (mode == FlowMode::kAlways || (mode == FlowMode::kUnderLoad && behind)) {
+    cv::Mat gray;
+    cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
+    FlowPyramid pyramid = build_flow_pyramid(gray, config_.tracker.flow);
+    const std::optional<FlowSeeds> seeds = flow_pyramid_.empty() ? std::nullopt : tracker_->flow_seeds(frame.timestamp);
+    if (seeds) {
+      const FlowFrame ff = make_flow_frame(id, frame.timestamp, frame.bgr, frame.depth, *tracker_->last_frame()->data, flow_pyramid_,
+                                           pyramid, *seeds, config_.tracker.flow, vocabulary_, bow_levels_up, T_depthcam_cam,
+                                           T_lastrow_cam, frame.keyframe_eligible());
+      r.features = int(ff.data->size());
+      flowed = tracker_->track_flow(ff);
+    }
+    flow_pyramid_ = std::move(pyramid);
+  } else {
+    flow_pyramid_ = {};  // the next frame's flow needs this frame's pyramid
+  }
+  TrackResult t;
+  if (flowed) {
+    t = *flowed;
+    r.extract_ms = sw.ms();  // flow and pose together
+  } else {
+    auto data = make_frame_data(id, frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_, pyramid_, vocabulary_,
+                                bow_levels_up, T_depthcam_cam, T_lastrow_cam, frame.keyframe_eligible());
+    r.extract_ms = sw.ms();
+    r.features = int(data->size());
+    sw.reset();
+    t = tracker_->track(std::move(data));
+  }
   if (!config_.threaded) {
     while (mapper_->step()) {
     }
@@ -115,6 +143,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   }
   r.track_ms = sw.ms();
   r.new_keyframe = t.new_keyframe;
+  r.flow = t.flow;
   r.wants_depth = t.wants_depth;
   r.keyframe = t.keyframe;
   if (T_depthcam_motion) r.T_cam_depthcam = T_depthcam_motion->inverse();
@@ -136,6 +165,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame) {
   std::lock_guard<std::mutex> lock(mutex_);
   last_seq_ = frame.seq;
   ++snapshot_.frames_processed;
+  if (t.flow) ++snapshot_.frames_flow;
   extract_ms_.push_back(r.extract_ms);
   track_ms_.push_back(r.track_ms);
   snapshot_.state = tracker_->state();

@@ -24,6 +24,7 @@ struct ProcessResult {
   FrameOutcome outcome = FrameOutcome::kRejected;
   std::string reject_reason;
   bool new_keyframe = false;
+  bool flow = false;  // tracked as a flow frame (tracking/frame_flow.h): no ORB extraction, no local-map search
   std::optional<KeyFrameId> keyframe;  // the keyframe this frame became (also a new map's first)
   // A light frame (no full depth) on which tracking needed full depth (a keyframe deferred, or no map yet): the
   // robot's next frame should carry depth.
@@ -39,6 +40,7 @@ struct ProcessResult {
 struct ClientSlamSnapshot {
   TrackState state = TrackState::kNotInitialized;
   std::uint64_t frames_processed = 0, frames_tracked = 0, frames_lost = 0, frames_rejected = 0;
+  std::uint64_t frames_flow = 0;  // of them tracked as flow frames
   int maps = 0, keyframes = 0, map_points = 0;
   SE3 T_world_cam;  // current pose in the current map's frame
   int current_map = 0;
@@ -70,7 +72,8 @@ class ClientSlam {
   ClientSlam& operator=(const ClientSlam&) = delete;
 
   // Never throws on bad data: returns kRejected with a reason (wrong size/type, time going back).
-  ProcessResult process(const RgbdFrame& frame);
+  // `behind`: the caller is falling behind live frames (FlowMode::kUnderLoad allows flow frames).
+  ProcessResult process(const RgbdFrame& frame, bool behind = false);
   ClientSlamSnapshot snapshot() const;
   // Every tracked frame (camera-to-world, current estimates) of the maps that share the frame
   // holding most tracked frames (see MapFrameOf; without it: the map with most frames).
@@ -128,6 +131,7 @@ class ClientSlam {
   std::unique_ptr<LocalMapper> mapper_;
   std::unique_ptr<LoopCloser> loop_closer_;
   std::unique_ptr<Tracker> tracker_;
+  FlowPyramid flow_pyramid_;  // the last frame's, while flow frames are allowed
   double last_timestamp_ = -1e300;
   double lost_since_ = -1;
 

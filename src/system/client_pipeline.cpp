@@ -66,9 +66,12 @@ void ClientPipeline::finish() {
 
 void ClientPipeline::run() {
   lower_current_thread_priority();
+  // Until then the worker counts as behind live frames (ClientSlam::process: flow frames allowed).
+  std::chrono::steady_clock::time_point behind_until{};
   while (auto frame = queue_.pop()) {
     // Live: only the newest queued frame is worth processing; older ones are skipped (acked). A
     // frame with full depth (a possible keyframe) gives way only to a newer such frame.
+    bool skipped_any = false;
     while (frame->live) {
       auto newer = !frame->keyframe_eligible()
                        ? queue_.try_pop()
@@ -82,12 +85,19 @@ void ClientPipeline::run() {
       }
       report(skipped, *frame);
       frame = std::move(newer);
+      skipped_any = true;
     }
-    report(process(*frame), *frame);
+    // A skipped frame or a frame still waiting: behind. It holds for a while (config), so that the
+    // cheaper frames that let the worker catch up do not switch themselves off at once.
+    const auto now = std::chrono::steady_clock::now();
+    if (frame->live && (skipped_any || queue_.size() > 0))
+      behind_until = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                               std::chrono::duration<double>(config_.behind_hold_s));
+    report(process(*frame, frame->live && now < behind_until), *frame);
   }
 }
 
-FrameDone ClientPipeline::process(const RgbdFrame& frame) {
+FrameDone ClientPipeline::process(const RgbdFrame& frame, bool behind) {
   FrameDone done;
   if (!slam_) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -100,7 +110,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame) {
     return done;
   }
   if (new_session_.exchange(false)) slam_->start_new_session();
-  const ProcessResult r = slam_->process(frame);
+  const ProcessResult r = slam_->process(frame, behind);
   done.wants_depth = r.wants_depth;
   if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame, r.T_cam_depthcam);
   if (r.outcome == FrameOutcome::kRejected)
@@ -181,6 +191,7 @@ ClientSnapshot ClientPipeline::snapshot() const {
     s.map_points = q.map_points;
     s.T_world_cam = q.T_world_cam;
     s.frames_lost = q.frames_lost;
+    s.frames_flow = q.frames_flow;
     s.maps = q.maps;
   }
   return s;

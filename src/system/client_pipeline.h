@@ -2,7 +2,9 @@
 // One client inside the collaborative system: a bounded frame queue and the worker thread that
 // drains it into the client's SLAM (or, with run_slam off, only counts frames). A live frame with
 // a newer frame of the same client queued behind it is skipped (counted, reported as skipped), so
-// a worker that falls behind catches up with the camera instead of processing stale frames.
+// a worker that falls behind catches up with the camera instead of processing stale frames; while
+// it is behind, its SLAM may track frames by optical flow (FlowMode::kUnderLoad), which costs a
+// fraction of a full frame, so that fewer frames are skipped.
 #include <atomic>
 #include <functional>
 #include <memory>
@@ -44,7 +46,7 @@ class ClientPipeline {
 
  private:
   void run();
-  FrameDone process(const RgbdFrame& frame);
+  FrameDone process(const RgbdFrame& frame, bool behind = false);
   void report(FrameDone done, const RgbdFrame& frame);
 
   static constexpr std::size_t kLatencyWindow = 512;  // frames kept for the latency percentiles

@@ -288,6 +288,7 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
     nlohmann::json cj = {{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
                          {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
                          {"frames_lost", c.frames_lost}, {"frames_skipped", c.frames_skipped},
+                         {"frames_flow", c.frames_flow},
                          {"pose_latency_ms", {{"p50", c.pose_latency_p50_ms}, {"p99", c.pose_latency_p99_ms},
                                               {"samples", c.pose_latency_samples}}},
                          {"trajectory_poses", trajs.at(c.id).size()},

@@ -25,6 +25,7 @@ struct ClientSnapshot {
   TrackingState tracking = TrackingState::kNotInitialized;
   std::uint64_t frames_submitted = 0, frames_processed = 0, frames_rejected = 0, frames_lost = 0;
   std::uint64_t frames_skipped = 0;  // live frames skipped because a newer one was queued
+  std::uint64_t frames_flow = 0;     // frames tracked as flow frames (tracking/frame_flow.h)
   // Receipt to pose (frame done) on the server over the client's last frames, milliseconds.
   double pose_latency_last_ms = 0, pose_latency_p50_ms = 0, pose_latency_p99_ms = 0;
   std::size_t pose_latency_samples = 0;

@@ -36,6 +36,9 @@ struct FrameDone {
 struct SystemConfig {
   // Frames queued per client before submit() blocks the producer.
   std::size_t client_queue_capacity = 8;
+  // A client's worker that skipped a live frame, or has one waiting, counts as behind for this long
+  // (ClientSlam::process `behind`: flow frames under FlowMode::kUnderLoad).
+  double behind_hold_s = 1.0;
   // Vocabulary file for BoW (empty: the project's default vocabulary).
   std::string vocabulary_path;
   // Map fusion across clients (rate, thresholds).

@@ -21,6 +21,7 @@ void Tracker::reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink) {
   sink_ = sink;
   state_ = TrackState::kNotInitialized;
   last_.reset();
+  last_full_.reset();
   has_velocity_ = false;
   reference_kf_.reset();
   last_keyframe_.reset();
@@ -50,6 +51,8 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       tracked_change_index_ = map_->big_change_index();
       if (state_ == TrackState::kOk) {
         update_last_frame();
+        if (last_full_ && last_full_->reference && !last_full_->reference->bad)
+          last_full_->T_cam_world = last_full_->T_cam_ref * last_full_->reference->T_cam_world;
         if (has_velocity_) ok = track_with_motion_model(frame);
         if (!ok) ok = track_reference_keyframe(frame);
       } else {
@@ -76,6 +79,12 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       }
       ++frames_since_keyframe_;
       ++frames_since_reloc_;
+      calibrate_flow();
+      flow_run_ = 0;
+      full_inliers_ = last_inliers_;
+      full_close_ = 0;
+      for (size_t i = 0; i < frame.map_points.size(); ++i)
+        if (frame.map_points[i] && frame.data->is_close(int(i))) ++full_close_;
       decide_keyframe(frame, result);
     } else {
       has_velocity_ = false;
@@ -98,6 +107,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
     result.T_cam_world = frame.T_cam_world;
   }
   if (ok) last_ = std::make_unique<Frame>(std::move(frame));
+  last_full_.reset();
   return result;
 }
 
@@ -217,10 +227,13 @@ bool Tracker::track_with_motion_model(Frame& frame) {
   const double factor = velocity_dt_ > 0 && dt > 0 ? std::clamp(dt / velocity_dt_, 0.25, 4.0) : 1.0;
   frame.T_cam_world = velocity_.scaled(factor) * last_->T_cam_world;
   frame.has_pose = true;
-  int n = search_by_projection(frame, *last_, config_.motion_radius, true);
+  // After flow frames, the matches are searched among the last full frame's (all its map points
+  // and visual-odometry points; a flow frame follows a thinned set of them).
+  const Frame& source = last_full_ ? *last_full_ : *last_;
+  int n = search_by_projection(frame, source, config_.motion_radius, true);
   if (n < config_.min_motion_matches) {
     std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
-    n = search_by_projection(frame, *last_, 2 * config_.motion_radius, true);
+    n = search_by_projection(frame, source, 2 * config_.motion_radius, true);
   }
   if (n < config_.min_motion_matches) return false;
   optimize_frame_pose(frame);

@@ -2,6 +2,7 @@
 // Per-client RGB-D tracking (ORB-SLAM2 class): map initialisation from the first frame with
 // enough depth, constant-velocity motion model, reference-keyframe tracking by BoW, local-map
 // tracking, pose-only optimisation, keyframe decision and relocalisation.
+#include <deque>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -10,6 +11,7 @@
 #include "map/frame.h"
 #include "map/map.h"
 #include "optimize/pose_optimizer.h"
+#include "tracking/frame_flow.h"
 
 namespace cslam {
 
@@ -44,6 +46,7 @@ struct TrackerConfig {
   int min_new_close_points = 100;      // new map points per keyframe: all close ones and at least this many
   int reloc_min_bow_matches = 15;
   int reloc_min_inliers = 50;
+  FlowConfig flow;  // frame-to-frame tracking by optical flow between full frames (frame_flow.h)
 };
 
 // What the tracker needs from local mapping.
@@ -61,6 +64,7 @@ struct TrackResult {
   bool new_keyframe = false;
   bool relocalized = false;
   bool initialized_map = false;
+  bool flow = false;  // tracked as a flow frame (Tracker::track_flow)
   // The frame had no depth image and tracking needs one: a keyframe is due (deferred to the next
   // frame with depth) or the map is not initialised yet. The server asks the robot for depth.
   bool wants_depth = false;
@@ -78,6 +82,14 @@ class Tracker {
 
   TrackResult track(std::shared_ptr<const FrameData> data);
   TrackState state() const { return state_; }
+  // Flow frames (frame_flow.h, tracker_flow.cpp). flow_seeds: the last frame's map-point keypoints
+  // and where the motion model puts them at `timestamp`, if this frame may be a flow frame
+  // (tracking healthy, no keyframe due or deferred, the run of flow frames short); nullopt: track
+  // it the full way. track_flow: tracks a flow frame (`matches`: each keypoint's index in the last
+  // frame); nullopt, with the tracker unchanged, if it is not good enough (then call track()).
+  std::optional<FlowSeeds> flow_seeds(double timestamp);
+  std::optional<TrackResult> track_flow(const FlowFrame& flow);
+  const Frame* last_frame() const { return last_.get(); }
   // The camera's motion over `seconds` at the current constant-velocity estimate, as the pose of
   // the camera at the start seen from the camera at the end (T_later_earlier for seconds > 0);
   // nullopt while tracking has no velocity (before the second tracked frame, after a loss).
@@ -103,6 +115,10 @@ class Tracker {
                         KeyFramePtr& reference);
   int optimize_frame_pose(Frame& frame) const;
   bool need_new_keyframe(const Frame& frame) const;
+  // A flow frame's counts do not rule out the keyframe rule firing (map lock held shared).
+  bool keyframe_may_be_due(const Frame& frame, int inliers);
+  // On a full frame after a flow estimate: records actual / estimated local-map inliers.
+  void calibrate_flow();
   // Makes the keyframe that the rule (or a deferral) asks for; a frame without full depth (FrameData::keyframe_depth) defers it.
   void decide_keyframe(Frame& frame, TrackResult& result);
   KeyFramePtr create_keyframe(Frame& frame);
@@ -113,6 +129,7 @@ class Tracker {
   KeyFrameSink* sink_;
   TrackState state_ = TrackState::kNotInitialized;
   std::unique_ptr<Frame> last_;
+  std::unique_ptr<Frame> last_full_;  // while flow frames follow it: the last full frame (track_with_motion_model)
   bool last_is_keyframe_ = false;
   // A keyframe was due on a frame without full depth: the next frame with it becomes one.
   bool keyframe_deferred_ = false;
@@ -125,6 +142,16 @@ class Tracker {
   int last_inliers_ = 0;
   std::uint64_t tracked_change_index_ = 0;  // map change index when the frame was tracked
   PointerSet local_points_seen_;             // update_local_map's scratch, reused frame to frame
+  PointerSet flow_in_frame_;                 // track_flow's scratch
+  int flow_run_ = 0;                         // flow frames since the last full frame
+  int full_inliers_ = 0;                     // local-map inliers of the last full frame
+  int full_close_ = 0;                       // ... and of them close points
+  double flow_estimate_ = -1;                // a flow frame's estimate of local-map inliers, until a full frame measures them
+  std::deque<double> flow_calibration_;      // recent actual / estimated local-map inliers (keyframe_may_be_due)
+  int flow_seeded_ = 0;                      // map points seeded into the flow (flow_seeds)
+  double flow_in_view_ = 0;                  // share of the last frame's map points predicted in view
+  double flow_survival_ = 1;                 // share of the last full frame's points the flow run still holds
+  std::uint64_t flow_change_index_ = 0;      // map change index when the flow seeds were taken
 };
 
 }  // namespace cslam

@@ -233,3 +233,40 @@ TEST_F(ClientSlamTest, LightFramesAreTrackedAndKeyframesWaitForFullDepth) {
   EXPECT_EQ(ate.timestamps.size(), std::size_t(n - 1));  // every frame but the first (no map yet)
   EXPECT_LT(ate.stats.rmse, 0.02);
 }
+
+TEST_F(ClientSlamTest, FlowFramesTrackBetweenFullFramesAsAccuratelyAsTheFullPath) {
+  // The same frames tracked three ways, stepped (deterministic): flow frames never (off), only
+  // when the caller is behind (under-load; here it never is), and whenever they hold (always).
+  auto run = [&](FlowMode mode, bool behind) {
+    SlamConfig cfg;
+    cfg.threaded = false;
+    cfg.tracker.flow.mode = mode;
+    ClientSlam slam(info_, cfg, *vocabulary_);
+    int flow = 0, keyframes = 0;
+    for (std::size_t i = 0; i < dataset_.pairs.size(); ++i) {
+      const ProcessResult r = slam.process(frame(int(i)), behind);
+      EXPECT_EQ(r.outcome, FrameOutcome::kTracked) << i;
+      if (r.flow) {
+        ++flow;
+        EXPECT_FALSE(r.new_keyframe) << i;  // keyframes come from full frames only
+      }
+      keyframes += r.new_keyframe ? 1 : 0;
+    }
+    EXPECT_EQ(slam.snapshot().frames_flow, std::uint64_t(flow));
+    const double ate = compute_ate(*dataset_.groundtruth, slam.trajectory(), Alignment::kSE3).stats.rmse;
+    return std::make_tuple(flow, keyframes, ate);
+  };
+  const auto [flow_off, kf_off, ate_off] = run(FlowMode::kOff, true);
+  const auto [flow_idle, kf_idle, ate_idle] = run(FlowMode::kUnderLoad, false);
+  const auto [flow_load, kf_load, ate_load] = run(FlowMode::kUnderLoad, true);
+  const auto [flow_on, kf_on, ate_on] = run(FlowMode::kAlways, false);
+  const int n = int(dataset_.pairs.size());
+  EXPECT_EQ(flow_off, 0);
+  EXPECT_EQ(flow_idle, 0);
+  EXPECT_EQ(ate_idle, ate_off);  // not behind: exactly the full path
+  EXPECT_GE(flow_on, n / 3) << "of " << n;  // measured: 36 of 60, 6 keyframes either way, ATE 0.0080 against 0.0076 m
+  EXPECT_EQ(flow_load, flow_on);
+  EXPECT_EQ(ate_load, ate_on);
+  EXPECT_GE(kf_on, kf_off / 2);
+  EXPECT_LT(ate_on, std::max(1.3 * ate_off, ate_off + 0.003)) << ate_off;
+}

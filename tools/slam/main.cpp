@@ -64,6 +64,7 @@ int run(int argc, char** argv) {
       .flag("no-reencounter", "multi-client mode: maps of one fused group are not matched against each other again (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
+      .option("flow", "flow frames (KLT tracking between full frames, no ORB extraction): off, under-load (a live server falling behind; offline: never), always", "under-load")
       .flag("depth-time", "read keypoint depth where the predicted motion carried it over the depth image's time offset")
       .option("tracking-wait", "threaded: after a new keyframe, tracking waits until local mapping has fully processed it (keyframe: the same output as --sync, run after run), created and fused its points (new-points: the server's choice, lower latency) or not at all (none)", "keyframe")
       .option("depth-every", "full depth with every K-th frame only, as a lean stream sends it (the light frames between: --light-depth); 1: every frame", "1")
@@ -99,6 +100,7 @@ int run(int argc, char** argv) {
   config.loop.enabled = !args.flag_set("no-loop");
   if (args.flag_set("no-final-ba")) config.final_global_ba_iterations = 0;
   config.rgbd.depth_time_compensation = args.flag_set("depth-time");
+  config.tracker.flow.mode = parse_flow_mode(args.get("flow"));
   config.mapper.local_ba = !args.flag_set("no-local-ba");
   config.mapper.tracking_wait = parse_tracking_wait(args.get("tracking-wait"));
   config.mapper.triangulation.enabled = !args.flag_set("no-triangulation");
@@ -153,7 +155,7 @@ int run(int argc, char** argv) {
     if (r.wants_depth && depth_requested_at < 0) depth_requested_at = n;
     inliers.push_back(r.inliers);
     features.push_back(r.features);
-    if (std::getenv("CSLAM_TRACE")) std::fprintf(stderr, "frame %d feats %d inliers %d kf %d\n", n, r.features, r.inliers, int(r.new_keyframe));
+    if (std::getenv("CSLAM_TRACE")) std::fprintf(stderr, "frame %d feats %d inliers %d kf %d flow %d t %.6f\n", n, r.features, r.inliers, int(r.new_keyframe), int(r.flow), frame.timestamp);
     ++n;
     if (r.outcome == FrameOutcome::kLost) ++lost;
     if (r.outcome == FrameOutcome::kRejected) {
@@ -200,6 +202,7 @@ int run(int argc, char** argv) {
       {"frames_lost", lost},
       {"frames_rejected", rejected},
       {"frames_light", light_frames},
+      {"frames_flow", snap.frames_flow},
       {"trajectory_poses", traj.size()},
       {"maps", snap.maps},
       {"map_fusions", fusion_events.size()},
@@ -228,9 +231,9 @@ int run(int argc, char** argv) {
                 l.T_correction.rotation_angle() * 180.0 / M_PI, l.correction_ms);
   if (args.has("stats")) std::ofstream(args.get("stats")) << stats.dump(2) << "\n";
   if (light_frames > 0) std::printf("light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d)\n", light_frames, n, depth_every, depth_delay, light_depth);
-  std::printf("frames %d tracked %llu lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
+  std::printf("frames %d tracked %llu (flow %llu) lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
               "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",
-              n, (unsigned long long)snap.frames_tracked, lost, rejected, snap.keyframes, snap.map_points, snap.maps, wall_s,
+              n, (unsigned long long)snap.frames_tracked, (unsigned long long)snap.frames_flow, lost, rejected, snap.keyframes, snap.map_points, snap.maps, wall_s,
               summarize(tracking_total).median, summarize(t.mapper.ba_ms).median, peak_rss_mb());
   return 0;
 }

@@ -88,6 +88,7 @@ int run_multi_client(const CliArgs& args) {
   config.slam.loop.enabled = !args.flag_set("no-loop");
   if (args.flag_set("no-final-ba")) config.slam.final_global_ba_iterations = 0;
   config.slam.rgbd.depth_time_compensation = args.flag_set("depth-time");
+  config.slam.tracker.flow.mode = parse_flow_mode(args.get("flow"));
   config.fusion.enabled = !args.flag_set("no-fusion");
   config.fusion.group_ba = !args.flag_set("no-group-ba");
   config.fusion.reencounter.enabled = !args.flag_set("no-reencounter");

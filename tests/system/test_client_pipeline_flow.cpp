@@ -1,0 +1,85 @@
+// A client's worker that falls behind its live frames (it skipped one) tracks the next frames as
+// flow frames (FlowMode::kUnderLoad) instead of skipping more; one that keeps up never does.
+#include <condition_variable>
+#include <future>
+#include <mutex>
+
+#include <gtest/gtest.h>
+
+#include "common/run_program.h"
+#include "eval/trajectory_eval.h"
+#include "geometry/camera_io.h"
+#include "io/tum_dataset.h"
+#include "system/collaborative_system.h"
+#include "system/dataset_frame.h"
+
+using namespace cslam;
+
+TEST(ClientPipelineFlow, AWorkerBehindItsLiveFramesTracksFlowFramesInsteadOfSkipping) {
+  test::TempDir dir("cslam_pipeline_flow");
+  const auto r = test::run_program("cslam-synth", "--preset test-small --frames 90 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const TumDataset ds = open_tum_dataset(dir / "scene/robot_1");
+  ASSERT_GE(ds.pairs.size(), 90u);
+
+  SystemConfig sc;
+  sc.slam.threaded = false;    // local mapping inline on the worker: the same map run after run
+  sc.fusion.threaded = false;
+  sc.behind_hold_s = 3600;     // once behind, for the rest of the test (not wall-clock dependent)
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::size_t reported = 0;
+  std::promise<void> gate, stalled;
+  std::shared_future<void> open = gate.get_future().share();
+  constexpr std::uint64_t kStallAt = 30;
+  sc.on_frame_done = [&](const FrameDone& d) {
+    if (d.seq == kStallAt) {
+      stalled.set_value();
+      open.wait();  // the worker holds here while frames queue up behind it
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    ++reported;
+    cv.notify_all();
+  };
+  auto wait_reported = [&](std::size_t n) {
+    std::unique_lock<std::mutex> lock(mutex);
+    return cv.wait_for(lock, std::chrono::seconds(120), [&] { return reported >= n; });
+  };
+  CollaborativeSystem system(sc);
+  ClientInfo info;
+  info.id = 1;
+  info.camera = load_camera_file(dir / "scene/robot_1/camera.yaml");
+  system.add_client(info);
+  auto live_frame = [&](std::size_t i) {
+    RgbdFrame f = load_dataset_frame(ds.pairs[i], info.id, i);
+    f.live = true;
+    return f;
+  };
+
+  // Keeping up: each frame waits for the previous one's result.
+  for (std::size_t i = 0; i < kStallAt; ++i) {
+    ASSERT_TRUE(system.submit(live_frame(i)));
+    ASSERT_TRUE(wait_reported(i + 1));
+  }
+  EXPECT_EQ(system.snapshot().clients.at(0).frames_flow, 0u) << "a worker that keeps up tracked a flow frame";
+
+  // Falling behind: the worker stalls on frame 30 while 31..33 arrive; 31 and 32 are skipped.
+  ASSERT_TRUE(system.submit(live_frame(kStallAt)));
+  stalled.get_future().wait();
+  for (std::size_t i = kStallAt + 1; i <= kStallAt + 3; ++i) ASSERT_TRUE(system.submit(live_frame(i)));
+  gate.set_value();
+  ASSERT_TRUE(wait_reported(kStallAt + 4));
+  for (std::size_t i = kStallAt + 4; i < ds.pairs.size(); ++i) {
+    ASSERT_TRUE(system.submit(live_frame(i)));
+    ASSERT_TRUE(wait_reported(i + 1));
+  }
+  system.finish();
+  const auto c = system.snapshot().clients.at(0);
+  EXPECT_EQ(c.frames_skipped, 2u);
+  EXPECT_EQ(c.frames_processed, ds.pairs.size() - 2);
+  const std::size_t after = ds.pairs.size() - (kStallAt + 4);
+  EXPECT_GE(c.frames_flow, after / 3) << "of " << after << " frames while behind";
+  const auto ate = compute_ate(*ds.groundtruth, system.trajectories().at(1), Alignment::kSE3);
+  EXPECT_EQ(ate.stats.n, int(ds.pairs.size() - 2));  // every processed frame has a pose
+  EXPECT_LT(ate.stats.rmse, 0.02);
+}
