@@ -92,6 +92,14 @@ for k in 1 2 3; do
   python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); n=max(1,s["frames_sent"]); print("client %s: %.1f KB/frame, %.2f MB/s at 30 Hz, %d of %d frames light, %d depth requests%s" % (sys.argv[2], s["bytes_sent"]/n/1e3, s["bytes_sent"]/n*30/1e6, s["frames_light"], n, s["depth_requests"], ", adaptive rate: %d steps down, %d up, depth every %d at the end" % (s["rate_steps_down"], s["rate_steps_up"], s["depth_every_last"]) if s["rate_steps_down"] else ""))' "$RUN/client_${k}_summary.json" "$k" || true
 done
 
+echo "== server load (a worker behind its live frames tracks flow frames instead of skipping more: cslam-server --flow)"
+python3 - "$RUN/stats.json" "$RUN/status.json" <<'PY' || true
+import json, os, sys
+path = next((p for p in sys.argv[1:] if os.path.exists(p)), None)
+for c in (json.load(open(path)).get("clients", []) if path else []):
+    print("client %s: %d frames processed, %d skipped, %d flow frames" % (c["id"], c["frames_processed"], c.get("frames_skipped", 0), c.get("frames_flow", 0)))
+PY
+
 echo "== accuracy (APE, metres, SE3 alignment)"
 for k in 1 2 3; do
   printf "client %d: " "$k"
