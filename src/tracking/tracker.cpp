@@ -221,11 +221,15 @@ std::optional<SE3> Tracker::predicted_motion(double seconds) const {
   return velocity_.scaled(seconds / velocity_dt_);
 }
 
-bool Tracker::track_with_motion_model(Frame& frame) {
+SE3 Tracker::motion_model_pose(double timestamp) const {
   // Constant velocity in time, not per frame: a dropped or skipped frame doubles the motion.
-  const double dt = frame.data->timestamp - last_->data->timestamp;
+  const double dt = timestamp - last_->data->timestamp;
   const double factor = velocity_dt_ > 0 && dt > 0 ? std::clamp(dt / velocity_dt_, 0.25, 4.0) : 1.0;
-  frame.T_cam_world = velocity_.scaled(factor) * last_->T_cam_world;
+  return velocity_.scaled(factor) * last_->T_cam_world;
+}
+
+bool Tracker::track_with_motion_model(Frame& frame) {
+  frame.T_cam_world = motion_model_pose(frame.data->timestamp);
   frame.has_pose = true;
   // After flow frames, the matches are searched among the last full frame's (all its map points
   // and visual-odometry points; a flow frame follows a thinned set of them).

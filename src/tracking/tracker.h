@@ -115,6 +115,8 @@ class Tracker {
   void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<const MapPointPtr*>& local_points,
                         KeyFramePtr& reference);
   int optimize_frame_pose(Frame& frame) const;
+  // The constant-velocity model's pose at `timestamp`, from the last frame's (needs last_).
+  SE3 motion_model_pose(double timestamp) const;
   bool need_new_keyframe(const Frame& frame) const;
   // A flow frame's counts do not rule out the keyframe rule firing (map lock held shared).
   bool keyframe_may_be_due(const Frame& frame, int inliers);

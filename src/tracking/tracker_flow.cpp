@@ -26,7 +26,7 @@ std::optional<FlowSeeds> Tracker::flow_seeds(double timestamp) {
   // As track() does: the last pose through its reference keyframe (local BA may have moved it), and
   // visual-odometry points for its close keypoints without a map point, which the flow carries too.
   update_last_frame();
-  seeds.T_cam_world = velocity_.scaled(std::clamp(dt / velocity_dt_, 0.25, 4.0)) * last_->T_cam_world;
+  seeds.T_cam_world = motion_model_pose(timestamp);
   const FrameData& f = *last_->data;
   // Map points first, then visual-odometry points, each thinned evenly to the seed budget.
   std::vector<int> in_view[2];
@@ -100,9 +100,7 @@ std::optional<TrackResult> Tracker::track_flow(const FlowFrame& flow) {
   const FlowConfig& fc = config_.flow;
   if (!last_ || int(flow.previous_index.size()) < fc.min_inliers) return std::nullopt;
   Frame frame(flow.data);
-  const double dt = frame.data->timestamp - last_->data->timestamp;
-  if (!(dt > 0) || !(velocity_dt_ > 0)) return std::nullopt;
-  frame.T_cam_world = velocity_.scaled(std::clamp(dt / velocity_dt_, 0.25, 4.0)) * last_->T_cam_world;
+  frame.T_cam_world = motion_model_pose(frame.data->timestamp);  // as flow_seeds predicted it
   frame.has_pose = true;
   int inliers = 0;
   {
