@@ -68,7 +68,7 @@ void ClientSlam::start_new_map() {
   if (maps_.size() > 1) logger("slam")->warn("client {}: tracking lost for long, started map {}", info_.id, maps_.size() - 1);
 }
 
-ProcessResult ClientSlam::process(const RgbdFrame& frame, bool behind) {
+ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   ProcessResult r;
   const auto& cam = info_.camera;
   auto reject = [&](std::string why) {
@@ -106,15 +106,16 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, bool behind) {
   const FrameId id = ids_->next_frame();
   // A flow frame if the mode allows one now (tracking/frame_flow.h); the full way if none holds.
   std::optional<TrackResult> flowed;
-  const FlowMode mode = config_.tracker.flow.mode;
-  if (mode == FlowMode::kAlways || (mode == FlowMode::kUnderLoad && behind)) {
+  const FlowConfig& fc = config_.tracker.flow;
+  if (fc.mode == FlowMode::kAlways || (fc.mode == FlowMode::kUnderLoad && load != WorkerLoad::kKeepingUp)) {
     cv::Mat gray;
     cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
-    FlowPyramid pyramid = build_flow_pyramid(gray, config_.tracker.flow);
-    const std::optional<FlowSeeds> seeds = flow_pyramid_.empty() ? std::nullopt : tracker_->flow_seeds(frame.timestamp);
+    FlowPyramid pyramid = build_flow_pyramid(gray, fc);
+    const int max_run = load == WorkerLoad::kOverloaded ? fc.max_run_overloaded : fc.max_run;
+    const std::optional<FlowSeeds> seeds = flow_pyramid_.empty() ? std::nullopt : tracker_->flow_seeds(frame.timestamp, max_run);
     if (seeds) {
       const FlowFrame ff = make_flow_frame(id, frame.timestamp, frame.bgr, frame.depth, *tracker_->last_frame()->data, flow_pyramid_,
-                                           pyramid, *seeds, config_.tracker.flow, vocabulary_, bow_levels_up, T_depthcam_cam,
+                                           pyramid, *seeds, fc, vocabulary_, bow_levels_up, T_depthcam_cam,
                                            T_lastrow_cam, frame.keyframe_eligible());
       r.features = int(ff.data->size());
       flowed = tracker_->track_flow(ff);

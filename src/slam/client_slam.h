@@ -72,8 +72,9 @@ class ClientSlam {
   ClientSlam& operator=(const ClientSlam&) = delete;
 
   // Never throws on bad data: returns kRejected with a reason (wrong size/type, time going back).
-  // `behind`: the caller is falling behind live frames (FlowMode::kUnderLoad allows flow frames).
-  ProcessResult process(const RgbdFrame& frame, bool behind = false);
+  // `load`: how far the caller is behind live frames (WorkerLoad: FlowMode::kUnderLoad allows flow
+  // frames while behind; runs of them grow to FlowConfig::max_run_overloaded while overloaded).
+  ProcessResult process(const RgbdFrame& frame, WorkerLoad load = WorkerLoad::kKeepingUp);
   ClientSlamSnapshot snapshot() const;
   // Every tracked frame (camera-to-world, current estimates) of the maps that share the frame
   // holding most tracked frames (see MapFrameOf; without it: the map with most frames).

@@ -66,8 +66,8 @@ void ClientPipeline::finish() {
 
 void ClientPipeline::run() {
   lower_current_thread_priority();
-  // Until then the worker counts as behind live frames (ClientSlam::process: flow frames allowed).
-  std::chrono::steady_clock::time_point behind_until{};
+  // Until then the worker counts as behind (overloaded) its live frames (WorkerLoad).
+  std::chrono::steady_clock::time_point behind_until{}, overloaded_until{};
   while (auto frame = queue_.pop()) {
     // Live: only the newest queued frame is worth processing; older ones are skipped (acked). A
     // frame with full depth (a possible keyframe) gives way only to a newer such frame.
@@ -87,17 +87,21 @@ void ClientPipeline::run() {
       frame = std::move(newer);
       skipped_any = true;
     }
-    // A skipped frame or a frame still waiting: behind. It holds for a while (config), so that the
-    // cheaper frames that let the worker catch up do not switch themselves off at once.
+    // A skipped frame or a frame still waiting: behind; a frame skipped while already behind:
+    // overloaded. Each holds for a while (config), so that the cheaper frames that let the worker
+    // catch up do not switch themselves off at once.
     const auto now = std::chrono::steady_clock::now();
-    if (frame->live && (skipped_any || queue_.size() > 0))
-      behind_until = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                               std::chrono::duration<double>(config_.behind_hold_s));
-    report(process(*frame, frame->live && now < behind_until), *frame);
+    const auto hold = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(config_.behind_hold_s));
+    if (frame->live && skipped_any && now < behind_until) overloaded_until = now + hold;
+    if (frame->live && (skipped_any || queue_.size() > 0)) behind_until = now + hold;
+    const WorkerLoad load = !frame->live || now >= behind_until ? WorkerLoad::kKeepingUp
+                            : now < overloaded_until            ? WorkerLoad::kOverloaded
+                                                                : WorkerLoad::kBehind;
+    report(process(*frame, load), *frame);
   }
 }
 
-FrameDone ClientPipeline::process(const RgbdFrame& frame, bool behind) {
+FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
   FrameDone done;
   if (!slam_) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -110,7 +114,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, bool behind) {
     return done;
   }
   if (new_session_.exchange(false)) slam_->start_new_session();
-  const ProcessResult r = slam_->process(frame, behind);
+  const ProcessResult r = slam_->process(frame, load);
   done.wants_depth = r.wants_depth;
   if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame, r.T_cam_depthcam);
   if (r.outcome == FrameOutcome::kRejected)

@@ -46,7 +46,7 @@ class ClientPipeline {
 
  private:
   void run();
-  FrameDone process(const RgbdFrame& frame, bool behind = false);
+  FrameDone process(const RgbdFrame& frame, WorkerLoad load = WorkerLoad::kKeepingUp);
   void report(FrameDone done, const RgbdFrame& frame);
 
   static constexpr std::size_t kLatencyWindow = 512;  // frames kept for the latency percentiles

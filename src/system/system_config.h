@@ -36,8 +36,9 @@ struct FrameDone {
 struct SystemConfig {
   // Frames queued per client before submit() blocks the producer.
   std::size_t client_queue_capacity = 8;
-  // A client's worker that skipped a live frame, or has one waiting, counts as behind for this long
-  // (ClientSlam::process `behind`: flow frames under FlowMode::kUnderLoad).
+  // A client's worker that skipped a live frame, or has one waiting, counts as behind for this long,
+  // and one that skipped again while behind as overloaded (WorkerLoad: flow frames under
+  // FlowMode::kUnderLoad, longer runs of them while overloaded).
   double behind_hold_s = 1.0;
   // Vocabulary file for BoW (empty: the project's default vocabulary).
   std::string vocabulary_path;

@@ -26,10 +26,10 @@ FlowMode parse_flow_mode(const std::string& s) {
 }
 
 void FlowConfig::validate() const {
-  if (!(max_patch_error > 0) || window < 3 || window % 2 == 0 || levels < 0 || levels > 6 || iterations < 1 || !(epsilon > 0) || max_run < 1 || max_seeds < 1 ||
+  if (!(max_patch_error > 0) || window < 3 || window % 2 == 0 || levels < 0 || levels > 6 || iterations < 1 || !(epsilon > 0) || max_run < 1 || max_run_overloaded < max_run || max_seeds < 1 ||
       min_inliers < 3 || !(calibration_quantile >= 0 && calibration_quantile <= 1) || calibration_window < 1 || calibration_min < 1 ||
       calibration_min > calibration_window)
-    throw ConfigError("flow: window odd >= 3, levels 0..6, iterations >= 1, epsilon > 0, max_run, max_seeds >= 1, min_inliers >= 3, "
+    throw ConfigError("flow: window odd >= 3, levels 0..6, iterations >= 1, epsilon > 0, max_run >= 1, max_run_overloaded >= max_run, max_seeds >= 1, min_inliers >= 3, "
                       "max_patch_error > 0, calibration quantile in [0, 1], 1 <= calibration_min <= calibration_window");
 }
 

@@ -23,6 +23,12 @@ enum class FlowMode { kOff, kUnderLoad, kAlways };
 const char* to_string(FlowMode m);
 FlowMode parse_flow_mode(const std::string& s);  // "off", "under-load", "always"; throws ConfigError
 
+// How far a client's worker is behind its live frames (ClientPipeline decides): keeping up; behind
+// (it skipped a frame or has one waiting: FlowMode::kUnderLoad allows flow frames); overloaded (it
+// skipped frames again while already behind, so flow frames of FlowConfig::max_run were not enough:
+// runs of up to max_run_overloaded, since a flow frame's pose beats a skipped frame's none).
+enum class WorkerLoad { kKeepingUp, kBehind, kOverloaded };
+
 struct FlowConfig {
   FlowMode mode = FlowMode::kUnderLoad;
   int window = 9;         // Lucas-Kanade window side (pixels)
@@ -33,6 +39,7 @@ struct FlowConfig {
   // mean absolute grey level (0..255): the photometric check (occlusion, blur, a dark frame).
   double max_patch_error = 30;
   int max_run = 3;        // flow frames in a row at most; then a full frame
+  int max_run_overloaded = 8;  // ... while the worker is overloaded (WorkerLoad; >= max_run)
   int max_seeds = 200;    // keypoints followed per frame at most (map points first, thinned evenly)
   int min_inliers = 50;   // a flow frame's map-point inliers at least
   // The keyframe rule's estimate on flow frames is scaled by this quantile of the last

@@ -84,11 +84,11 @@ class Tracker {
   TrackState state() const { return state_; }
   // Flow frames (frame_flow.h, tracker_flow.cpp). flow_seeds: the last frame's matched keypoints
   // and where the motion model puts them at `timestamp`, if this frame may be a flow frame
-  // (tracking healthy, no keyframe due or deferred, the run of flow frames short); nullopt: track
+  // (tracking healthy, no keyframe due or deferred, fewer than `max_run` flow frames in a row); nullopt: track
   // it the full way. track_flow: tracks a flow frame made from those seeds; nullopt if it is not
   // good enough or a keyframe may be due (then call track(); pose, velocity and counters are
   // unchanged, only the estimate that track() calibrates against is kept).
-  std::optional<FlowSeeds> flow_seeds(double timestamp);
+  std::optional<FlowSeeds> flow_seeds(double timestamp, int max_run);
   std::optional<TrackResult> track_flow(const FlowFrame& flow);
   const Frame* last_frame() const { return last_.get(); }
   // The camera's motion over `seconds` at the current constant-velocity estimate, as the pose of

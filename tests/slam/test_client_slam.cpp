@@ -237,14 +237,14 @@ TEST_F(ClientSlamTest, LightFramesAreTrackedAndKeyframesWaitForFullDepth) {
 TEST_F(ClientSlamTest, FlowFramesTrackBetweenFullFramesAsAccuratelyAsTheFullPath) {
   // The same frames tracked three ways, stepped (deterministic): flow frames never (off), only
   // when the caller is behind (under-load; here it never is), and whenever they hold (always).
-  auto run = [&](FlowMode mode, bool behind) {
+  auto run = [&](FlowMode mode, WorkerLoad load) {
     SlamConfig cfg;
     cfg.threaded = false;
     cfg.tracker.flow.mode = mode;
     ClientSlam slam(info_, cfg, *vocabulary_);
     int flow = 0, keyframes = 0;
     for (std::size_t i = 0; i < dataset_.pairs.size(); ++i) {
-      const ProcessResult r = slam.process(frame(int(i)), behind);
+      const ProcessResult r = slam.process(frame(int(i)), load);
       EXPECT_EQ(r.outcome, FrameOutcome::kTracked) << i;
       if (r.flow) {
         ++flow;
@@ -256,10 +256,11 @@ TEST_F(ClientSlamTest, FlowFramesTrackBetweenFullFramesAsAccuratelyAsTheFullPath
     const double ate = compute_ate(*dataset_.groundtruth, slam.trajectory(), Alignment::kSE3).stats.rmse;
     return std::make_tuple(flow, keyframes, ate);
   };
-  const auto [flow_off, kf_off, ate_off] = run(FlowMode::kOff, true);
-  const auto [flow_idle, kf_idle, ate_idle] = run(FlowMode::kUnderLoad, false);
-  const auto [flow_load, kf_load, ate_load] = run(FlowMode::kUnderLoad, true);
-  const auto [flow_on, kf_on, ate_on] = run(FlowMode::kAlways, false);
+  const auto [flow_off, kf_off, ate_off] = run(FlowMode::kOff, WorkerLoad::kOverloaded);
+  const auto [flow_idle, kf_idle, ate_idle] = run(FlowMode::kUnderLoad, WorkerLoad::kKeepingUp);
+  const auto [flow_load, kf_load, ate_load] = run(FlowMode::kUnderLoad, WorkerLoad::kBehind);
+  const auto [flow_on, kf_on, ate_on] = run(FlowMode::kAlways, WorkerLoad::kKeepingUp);
+  const auto [flow_over, kf_over, ate_over] = run(FlowMode::kUnderLoad, WorkerLoad::kOverloaded);
   const int n = int(dataset_.pairs.size());
   EXPECT_EQ(flow_off, 0);
   EXPECT_EQ(flow_idle, 0);
@@ -269,4 +270,8 @@ TEST_F(ClientSlamTest, FlowFramesTrackBetweenFullFramesAsAccuratelyAsTheFullPath
   EXPECT_EQ(ate_load, ate_on);
   EXPECT_GE(kf_on, kf_off / 2);
   EXPECT_LT(ate_on, std::max(1.3 * ate_off, ate_off + 0.003)) << ate_off;
+  // Overloaded: longer runs of flow frames (FlowConfig::max_run_overloaded), still as accurate.
+  EXPECT_GT(flow_over, flow_on);
+  EXPECT_GE(kf_over, kf_off / 2);
+  EXPECT_LT(ate_over, std::max(1.3 * ate_off, ate_off + 0.003)) << ate_off;
 }

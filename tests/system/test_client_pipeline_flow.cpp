@@ -1,5 +1,6 @@
 // A client's worker that falls behind its live frames (it skipped one) tracks the next frames as
-// flow frames (FlowMode::kUnderLoad) instead of skipping more; one that keeps up never does.
+// flow frames (FlowMode::kUnderLoad) instead of skipping more; one that keeps up never does; one
+// that skips again while behind is overloaded and runs longer series of flow frames (WorkerLoad).
 #include <condition_variable>
 #include <future>
 #include <mutex>
@@ -29,13 +30,14 @@ TEST(ClientPipelineFlow, AWorkerBehindItsLiveFramesTracksFlowFramesInsteadOfSkip
   std::mutex mutex;
   std::condition_variable cv;
   std::size_t reported = 0;
-  std::promise<void> gate, stalled;
-  std::shared_future<void> open = gate.get_future().share();
-  constexpr std::uint64_t kStallAt = 30;
+  std::promise<void> gate[2], stalled[2];
+  std::shared_future<void> open[2] = {gate[0].get_future().share(), gate[1].get_future().share()};
+  constexpr std::uint64_t kStallAt = 30, kStallAgainAt = 60;
   sc.on_frame_done = [&](const FrameDone& d) {
-    if (d.seq == kStallAt) {
-      stalled.set_value();
-      open.wait();  // the worker holds here while frames queue up behind it
+    if (d.seq == kStallAt || d.seq == kStallAgainAt) {
+      const int k = d.seq == kStallAt ? 0 : 1;
+      stalled[k].set_value();
+      open[k].wait();  // the worker holds here while frames queue up behind it
     }
     std::lock_guard<std::mutex> lock(mutex);
     ++reported;
@@ -63,23 +65,33 @@ TEST(ClientPipelineFlow, AWorkerBehindItsLiveFramesTracksFlowFramesInsteadOfSkip
   }
   EXPECT_EQ(system.snapshot().clients.at(0).frames_flow, 0u) << "a worker that keeps up tracked a flow frame";
 
-  // Falling behind: the worker stalls on frame 30 while 31..33 arrive; 31 and 32 are skipped.
-  ASSERT_TRUE(system.submit(live_frame(kStallAt)));
-  stalled.get_future().wait();
-  for (std::size_t i = kStallAt + 1; i <= kStallAt + 3; ++i) ASSERT_TRUE(system.submit(live_frame(i)));
-  gate.set_value();
-  ASSERT_TRUE(wait_reported(kStallAt + 4));
-  for (std::size_t i = kStallAt + 4; i < ds.pairs.size(); ++i) {
-    ASSERT_TRUE(system.submit(live_frame(i)));
-    ASSERT_TRUE(wait_reported(i + 1));
+  // Falling behind: the worker stalls on frame 30 while 31..33 arrive; 31 and 32 are skipped. Then
+  // again at frame 60 (61 and 62 skipped) while still behind: overloaded.
+  std::uint64_t flow_behind = 0;
+  for (int k = 0; k < 2; ++k) {
+    const std::size_t at = k == 0 ? kStallAt : kStallAgainAt;
+    ASSERT_TRUE(system.submit(live_frame(at)));
+    stalled[k].get_future().wait();
+    for (std::size_t i = at + 1; i <= at + 3; ++i) ASSERT_TRUE(system.submit(live_frame(i)));
+    gate[k].set_value();
+    ASSERT_TRUE(wait_reported(at + 4));
+    for (std::size_t i = at + 4; i < (k == 0 ? kStallAgainAt : ds.pairs.size()); ++i) {
+      ASSERT_TRUE(system.submit(live_frame(i)));
+      ASSERT_TRUE(wait_reported(i + 1));
+    }
+    if (k == 0) flow_behind = system.snapshot().clients.at(0).frames_flow;
   }
   system.finish();
   const auto c = system.snapshot().clients.at(0);
-  EXPECT_EQ(c.frames_skipped, 2u);
-  EXPECT_EQ(c.frames_processed, ds.pairs.size() - 2);
-  const std::size_t after = ds.pairs.size() - (kStallAt + 4);
-  EXPECT_GE(c.frames_flow, after / 3) << "of " << after << " frames while behind";
+  EXPECT_EQ(c.frames_skipped, 4u);
+  EXPECT_EQ(c.frames_processed, ds.pairs.size() - 4);
+  const std::size_t behind = kStallAgainAt - (kStallAt + 4), overloaded = ds.pairs.size() - (kStallAgainAt + 4);
+  const std::uint64_t flow_overloaded = c.frames_flow - flow_behind;
+  EXPECT_GE(flow_behind, behind / 3) << "of " << behind << " frames while behind";
+  // Runs of at most FlowConfig::max_run (3) flow frames while behind, max_run_overloaded (8) after.
+  EXPECT_LE(4 * flow_behind, 3 * behind);
+  EXPECT_GT(4 * flow_overloaded, 3 * overloaded) << flow_overloaded << " of " << overloaded << " frames while overloaded";
   const auto ate = compute_ate(*ds.groundtruth, system.trajectories().at(1), Alignment::kSE3);
-  EXPECT_EQ(ate.stats.n, int(ds.pairs.size() - 2));  // every processed frame has a pose
+  EXPECT_EQ(ate.stats.n, int(ds.pairs.size() - 4));  // every processed frame has a pose
   EXPECT_LT(ate.stats.rmse, 0.02);
 }
