@@ -92,16 +92,17 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
                                                  const std::shared_ptr<const ScalePyramid>& pyramid,
                                                  const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
                                                  const std::optional<SE3>& T_depthcam_cam,
-                                                 const std::optional<SE3>& T_lastrow_cam, bool keyframe_depth) {
+                                                 const std::optional<SE3>& T_lastrow_cam, bool keyframe_depth,
+                                                 const cv::Mat& gray_in) {
   auto f = std::make_shared<FrameData>();
   f->id = id;
   f->timestamp = timestamp;
   f->camera = camera;
   f->rgbd = rgbd;
   f->pyramid = pyramid;
-  cv::Mat gray;
-  if (bgr.channels() == 3) cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-  else gray = bgr;
+  cv::Mat gray = gray_in;  // the caller's grey image of `bgr` if it has one
+  if (gray.empty() && bgr.channels() == 3) cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  else if (gray.empty()) gray = bgr;
   f->features = extractor.extract(gray, &camera);
   const size_t n = f->features.size();
   f->keyframe_depth = keyframe_depth && !depth_raw.empty();

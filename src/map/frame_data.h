@@ -101,7 +101,7 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
                                                  const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up = 4,
                                                  const std::optional<SE3>& T_depthcam_cam = std::nullopt,
                                                  const std::optional<SE3>& T_lastrow_cam = std::nullopt,
-                                                 bool keyframe_depth = true);
+                                                 bool keyframe_depth = true, const cv::Mat& gray = cv::Mat());
 
 // `data` with its bag-of-words vectors: `data` itself if none are pending, else a copy with them
 // computed (the copy costs far less than the transform it stands for).

@@ -107,8 +107,8 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   // A flow frame if the mode allows one now (tracking/frame_flow.h); the full way if none holds.
   std::optional<TrackResult> flowed;
   const FlowConfig& fc = config_.tracker.flow;
+  cv::Mat gray;  // converted once: a frame the flow hands to the full path reuses it
   if (fc.mode == FlowMode::kAlways || (fc.mode == FlowMode::kUnderLoad && load != WorkerLoad::kKeepingUp)) {
-    cv::Mat gray;
     cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
     FlowPyramid pyramid = build_flow_pyramid(gray, fc);
     const int max_run = load == WorkerLoad::kOverloaded ? fc.max_run_overloaded : fc.max_run;
@@ -130,7 +130,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
     r.extract_ms = sw.ms();  // flow and pose together
   } else {
     auto data = make_frame_data(id, frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_, pyramid_, vocabulary_,
-                                bow_levels_up, T_depthcam_cam, T_lastrow_cam, frame.keyframe_eligible());
+                                bow_levels_up, T_depthcam_cam, T_lastrow_cam, frame.keyframe_eligible(), gray);
     r.extract_ms = sw.ms();
     r.features = int(data->size());
     sw.reset();
