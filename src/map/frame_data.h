@@ -93,7 +93,7 @@ struct FrameData {
 // pending (PendingBow) with a non-empty `vocabulary`; with_bow computes them. With `T_lastrow_cam`
 // (the camera's motion over half of camera.readout_time, from the middle row's instant to the last
 // row's), the keypoints are compensated for the rolling shutter (map/rolling_shutter.h) after their
-// depth is read.
+// depth is read. `gray`: the caller's grey image of `bgr`, if it has one (else converted here).
 std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
                                                  const PinholeCamera& camera, const RgbdParams& rgbd,
                                                  const OrbExtractor& extractor,
