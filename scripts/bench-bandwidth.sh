@@ -13,6 +13,7 @@
 # Environment: CSLAM_BANDWIDTH_CLIENT_ARGS: more cslam-client options for the lean runs (e.g. --colour-crf 26).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/lib/bench-run.sh
 OUT="${1:-bench_out/bandwidth}"
 RUNS="${2:-3}"
 K="${3:-5}"
@@ -47,7 +48,7 @@ run_case() {
     "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
     --deterministic --http off --out-dir "$dir/out" --log-level warn > "$dir/server.log" 2>&1 &
   local server_pid=$!
-  for _ in $(seq 1 600); do [ -s "$dir/endpoint" ] && break; sleep 0.1; done
+  wait_endpoint "$dir/endpoint"
   local endpoint; endpoint=$(head -1 "$dir/endpoint")
   local extra=()
   [ "$mode" = lean ] && extra=(--depth-every "$K" ${CSLAM_BANDWIDTH_CLIENT_ARGS:-})
@@ -60,10 +61,7 @@ run_case() {
       > "$dir/client_$k.log" 2>&1 &
     pids+=($!)
   done
-  local rc=0 p
-  for p in "${pids[@]}"; do wait "$p" || rc=1; done
-  wait "$server_pid" || rc=1
-  [ "$rc" = 0 ] || echo "   (a process exited non-zero: see $dir/*.log)"
+  wait_run "$dir" "$server_pid" "${pids[@]}"
   k=0
   for ds in "$@"; do
     k=$((k + 1))

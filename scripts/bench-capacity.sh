@@ -14,6 +14,7 @@
 # (e.g. --no-dense, to measure the live dense map's cost back to back with and without it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/lib/bench-run.sh
 RUNS="${1:-3}"
 OUT="${2:-bench_out/capacity}"
 NS="${3:-1 2 3 4 6 8}"
@@ -42,7 +43,7 @@ run_case() {
     "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
     --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $SERVER_ARGS > "$dir/server.log" 2>&1 &
   local server_pid=$!
-  for _ in $(seq 1 600); do [ -s "$dir/endpoint" ] && break; sleep 0.1; done
+  wait_endpoint "$dir/endpoint"
   local endpoint; endpoint=$(head -1 "$dir/endpoint")
   # Frames are loaded and encoded before the common start time (a robot preloads in ~2-4 s on a busy machine).
   local start_at; start_at=$(python3 -c "import time; print(time.time() + 6 + 4 * $n)")
@@ -53,10 +54,7 @@ run_case() {
       --log-level warn > "$dir/client_$k.log" 2>&1 &
     pids+=($!)
   done
-  local rc=0
-  for p in "${pids[@]}"; do wait "$p" || rc=1; done
-  wait "$server_pid" || rc=1
-  [ "$rc" = 0 ] || echo "   (a process exited non-zero: see $dir/*.log)"
+  wait_run "$dir" "$server_pid" "${pids[@]}"
   echo "$load_before" > "$dir/load_before.txt"; loadavg > "$dir/load_after.txt"
   # ATE per robot, and of each fused group with one alignment.
   for k in $(seq "$first" $((first + n - 1))); do

@@ -11,6 +11,7 @@
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/lib/bench-run.sh
 OUT="${1:-bench_out/link}"
 RUNS="${2:-3}"
 N="${3:-4}"
@@ -45,7 +46,7 @@ run_case() {
     "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$N" --exit-when-done \
     --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn > "$dir/server.log" 2>&1 &
   local server_pid=$!
-  for _ in $(seq 1 600); do [ -s "$dir/endpoint" ] && break; sleep 0.1; done
+  wait_endpoint "$dir/endpoint"
   local endpoint; endpoint=$(head -1 "$dir/endpoint")
   local start_at; start_at=$(python3 -c "import time; print(time.time() + 8 + 5 * $N)")
   local extra=()
@@ -58,10 +59,7 @@ run_case() {
       > "$dir/client_$k.log" 2>&1 &
     pids+=($!)
   done
-  local rc=0 p
-  for p in "${pids[@]}"; do wait "$p" || rc=1; done
-  wait "$server_pid" || rc=1
-  [ "$rc" = 0 ] || echo "   (a process exited non-zero: see $dir/*.log)"
+  wait_run "$dir" "$server_pid" "${pids[@]}"
   for k in $(seq 1 "$N"); do
     "$BIN/cslam-eval" ate "$SCENE/robot_$k/groundtruth.txt" "$dir/out/client_$k.txt" --json > "$dir/ate_$k.json" 2>/dev/null || echo '{}' > "$dir/ate_$k.json"
   done

@@ -8,6 +8,7 @@
 # Usage: scripts/bench-live-split.sh [RUNS=3] [OUT=bench_out/live_split] [VARIANTS=""] [DATASET=../shared/data/tum_fr1_desk]
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/lib/bench-run.sh
 RUNS="${1:-3}"
 OUT="${2:-bench_out/live_split}"
 IFS='|' read -ra VARIANTS <<< "${3:-}"
@@ -39,7 +40,7 @@ run_case() {  # dir server-args
   "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients 3 --exit-when-done --http off \
     --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $args > "$dir/server.log" 2>&1 &
   local server=$!
-  for _ in $(seq 1 600); do [ -s "$dir/endpoint" ] && break; sleep 0.1; done
+  wait_endpoint "$dir/endpoint"
   local start_at; start_at=$(/usr/bin/python3 -c "import time; print(time.time() + 15)")
   local pids=() k
   for k in 1 2 3; do
@@ -48,10 +49,7 @@ run_case() {  # dir server-args
       > "$dir/client_$k.log" 2>&1 &
     pids+=($!)
   done
-  local rc=0
-  for p in "${pids[@]}"; do wait "$p" || rc=1; done
-  wait "$server" || rc=1
-  [ "$rc" = 0 ] || echo "   (a process exited non-zero: see $dir/*.log)"
+  wait_run "$dir" "$server" "${pids[@]}"
 }
 
 for r in $(seq 1 "$RUNS"); do
