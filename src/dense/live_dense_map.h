@@ -21,7 +21,7 @@
 #include "dense/backproject.h"
 #include "dense/submap.h"
 #include "geometry/camera.h"
-#include "map/keyframe_pose.h"
+#include "slam/map/keyframe_pose.h"
 
 namespace cslam {
 

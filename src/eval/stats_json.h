@@ -4,7 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "eval/stats.h"
+#include "core/stats.h"
 
 namespace cslam {
 

@@ -4,7 +4,7 @@
 #include <utility>
 #include <vector>
 
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "geometry/alignment.h"  // umeyama(), UmeyamaResult (moved to geometry, still exported here)
 #include "geometry/se3.h"
 #include "io/trajectory_io.h"

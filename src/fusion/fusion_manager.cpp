@@ -1,9 +1,9 @@
 #include "fusion/fusion_manager.h"
 
-#include "fusion/place_candidates.h"
+#include "slam/loop/place_candidates.h"
 
-#include "globalba/global_ba.h"
-#include "map/map_locks.h"
+#include "slam/loop/global_ba.h"
+#include "slam/map/map_locks.h"
 
 #include <algorithm>
 #include <shared_mutex>

@@ -21,13 +21,13 @@
 #include <thread>
 #include <vector>
 
-#include "bow/vocabulary.h"
+#include "slam/bow/vocabulary.h"
 #include "fusion/fusion_event.h"
-#include "fusion/overlap_verifier.h"
+#include "slam/loop/overlap_verifier.h"
 #include "fusion/reencounter.h"
 #include "fusion/seam.h"
-#include "loop/consistency.h"
-#include "map/map.h"
+#include "slam/loop/consistency.h"
+#include "slam/map/map.h"
 
 namespace cslam {
 

@@ -6,7 +6,7 @@
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "fusion/fusion_manager.h"
-#include "map/map_locks.h"
+#include "slam/map/map_locks.h"
 
 namespace cslam {
 

@@ -4,8 +4,8 @@
 #include <unordered_set>
 
 #include "core/stopwatch.h"
-#include "globalba/essential_graph.h"
-#include "loop/pose_graph.h"
+#include "slam/loop/essential_graph.h"
+#include "slam/loop/pose_graph.h"
 
 namespace cslam {
 

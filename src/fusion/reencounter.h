@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "geometry/se3.h"
-#include "map/map.h"
+#include "slam/map/map.h"
 
 namespace cslam {
 

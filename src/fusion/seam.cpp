@@ -3,7 +3,7 @@
 #include <map>
 #include <set>
 
-#include "match/projection_search.h"
+#include "slam/match/projection_search.h"
 
 namespace cslam {
 

@@ -6,7 +6,7 @@
 // count). The group's global BA estimates every linked pair as one point.
 #include <vector>
 
-#include "map/map.h"
+#include "slam/map/map.h"
 
 namespace cslam {
 

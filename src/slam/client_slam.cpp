@@ -9,8 +9,8 @@
 
 #include "core/log.h"
 #include "core/stopwatch.h"
-#include "globalba/global_ba.h"
-#include "map/map_locks.h"
+#include "slam/loop/global_ba.h"
+#include "slam/map/map_locks.h"
 #include "slam/map_frames.h"
 
 namespace cslam {

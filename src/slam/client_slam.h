@@ -9,11 +9,11 @@
 #include <string>
 #include <vector>
 
-#include "bow/vocabulary.h"
+#include "slam/bow/vocabulary.h"
 #include "io/trajectory_io.h"
 #include "slam/frame_record.h"
 #include "slam/slam_config.h"
-#include "system/rgbd_frame.h"
+#include "frame/rgbd_frame.h"
 
 namespace cslam {
 

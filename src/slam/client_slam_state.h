@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "io/trajectory_io.h"
-#include "map/map_state.h"
+#include "slam/map/map_state.h"
 #include "slam/client_slam.h"
 
 namespace cslam {

@@ -4,7 +4,7 @@
 
 #include "io/tum_dataset.h"
 #include "slam/client_slam.h"
-#include "system/dataset_frame.h"
+#include "io/dataset_frame.h"
 
 namespace cslam {
 

@@ -5,7 +5,7 @@
 // parent and its pose relative to it (KeyFrame::T_cam_parent), and the frame follows the chain.
 #include <vector>
 
-#include "map/keyframe.h"
+#include "slam/map/keyframe.h"
 
 namespace cslam {
 

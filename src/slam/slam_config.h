@@ -1,10 +1,10 @@
 #pragma once
 // Configuration of one client's SLAM pipeline: plain structs with defaults.
-#include "features/orb_extractor.h"
-#include "loopclosing/loop_closer.h"
-#include "map/frame_data.h"
-#include "mapping/local_mapper.h"
-#include "tracking/tracker.h"
+#include "slam/features/orb_extractor.h"
+#include "slam/loop/loop_closer.h"
+#include "slam/map/frame_data.h"
+#include "slam/mapping/local_mapper.h"
+#include "slam/tracking/tracker.h"
 
 namespace cslam {
 

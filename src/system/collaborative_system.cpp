@@ -11,7 +11,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "eval/stats_json.h"
 #include "system/loop_stats_json.h"
 #include "system/client_pipeline.h"

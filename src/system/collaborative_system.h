@@ -10,8 +10,8 @@
 
 #include "fusion/fusion_event.h"
 #include "io/trajectory_io.h"
-#include "map/keyframe_pose.h"
-#include "system/rgbd_frame.h"
+#include "slam/map/keyframe_pose.h"
+#include "frame/rgbd_frame.h"
 #include "system/system_config.h"
 
 namespace cslam {

@@ -8,7 +8,7 @@
 
 #include "eval/stats_json.h"
 #include "io/trajectory_io.h"
-#include "loopclosing/loop_closer.h"
+#include "slam/loop/loop_closer.h"
 
 namespace cslam {
 

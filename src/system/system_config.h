@@ -9,7 +9,7 @@
 #include "geometry/se3.h"
 #include "fusion/fusion_manager.h"
 #include "slam/slam_config.h"
-#include "system/rgbd_frame.h"
+#include "frame/rgbd_frame.h"
 
 namespace cslam {
 

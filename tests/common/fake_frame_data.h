@@ -3,7 +3,7 @@
 // descriptors, identity geometry. Geometry is irrelevant where it is used.
 #include <memory>
 
-#include "map/frame_data.h"
+#include "slam/map/frame_data.h"
 
 namespace cslam::test {
 

@@ -3,7 +3,7 @@
 // poses and points, keypoint <-> point links in both directions, symmetric covisibility.
 #include <gtest/gtest.h>
 
-#include "map/map.h"
+#include "slam/map/map.h"
 
 namespace cslam::test {
 

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/run_program.h"
-#include "report/xml_check.h"
+#include "support/report/xml_check.h"
 
 using cslam::test::run_program;
 using cslam::test::TempDir;

@@ -9,9 +9,9 @@
 #include "common/map_checks.h"
 #include "fusion/fusion_manager.h"
 #include "fusion/seam.h"
-#include "globalba/global_ba.h"
-#include "loopclosing/loop_closer.h"
-#include "map/map_locks.h"
+#include "slam/loop/global_ba.h"
+#include "slam/loop/loop_closer.h"
+#include "slam/map/map_locks.h"
 #include "two_maps_fixture.h"
 
 using namespace cslam;

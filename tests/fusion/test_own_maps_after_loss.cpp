@@ -8,7 +8,7 @@
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 #include "system/collaborative_system.h"
-#include "system/dataset_frame.h"
+#include "io/dataset_frame.h"
 
 using namespace cslam;
 

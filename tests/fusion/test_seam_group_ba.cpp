@@ -9,8 +9,8 @@
 #include "eval/trajectory_eval.h"
 #include "fusion/fusion_manager.h"
 #include "fusion/seam.h"
-#include "globalba/global_ba.h"
-#include "map/map_locks.h"
+#include "slam/loop/global_ba.h"
+#include "slam/map/map_locks.h"
 #include "two_maps_fixture.h"
 
 using namespace cslam;

@@ -9,7 +9,7 @@
 #include "eval/pose_check.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
-#include "map/map.h"
+#include "slam/map/map.h"
 #include "slam/client_slam.h"
 #include "slam/feed_dataset.h"
 

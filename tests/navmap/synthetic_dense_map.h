@@ -9,9 +9,9 @@
 
 #include "dense/tsdf_volume.h"
 #include "navmap/submap_view.h"
-#include "synth/renderer.h"
-#include "synth/synth_config.h"
-#include "synth/trajectory_planner.h"
+#include "support/synth/renderer.h"
+#include "support/synth/synth_config.h"
+#include "support/synth/trajectory_planner.h"
 
 namespace cslam::test {
 

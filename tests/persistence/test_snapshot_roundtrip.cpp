@@ -4,7 +4,7 @@
 #include <zlib.h>
 
 #include "eval/trajectory_eval.h"
-#include "globalba/global_ba.h"
+#include "slam/loop/global_ba.h"
 #include "proto/snapshot_adapter.h"
 #include "proto/snapshot_file.h"
 #include "snapshot.pb.h"

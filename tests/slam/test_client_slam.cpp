@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
-#include "bow/vocabulary.h"
+#include "slam/bow/vocabulary.h"
 #include "codec/depth_subsample.h"
 #include "common/run_program.h"
 #include "eval/trajectory_eval.h"
@@ -15,7 +15,7 @@
 #include "geometry/camera_io.h"
 #include "optimize/bundle_adjustment.h"
 #include "slam/client_slam.h"
-#include "system/dataset_frame.h"
+#include "io/dataset_frame.h"
 
 using namespace cslam;
 

@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "common/fake_frame_data.h"
-#include "features/orb_extractor.h"
+#include "slam/features/orb_extractor.h"
 #include "slam/frame_record.h"
 
 using namespace cslam;

@@ -11,7 +11,7 @@
 #include "core/stopwatch.h"
 #include "machine_info.h"
 #include "process.h"
-#include "report/text_output.h"
+#include "support/report/text_output.h"
 #include "report_plots.h"
 #include "report_writer.h"
 #include "run_evaluation.h"

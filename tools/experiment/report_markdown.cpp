@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "report/text_output.h"
+#include "support/report/text_output.h"
 #include "report_writer.h"
 
 namespace cslam::experiment {

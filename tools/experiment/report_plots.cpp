@@ -4,8 +4,8 @@
 #include <cmath>
 #include <filesystem>
 
-#include "report/svg_plot.h"
-#include "report/text_output.h"
+#include "support/report/svg_plot.h"
+#include "support/report/text_output.h"
 
 namespace cslam::experiment {
 

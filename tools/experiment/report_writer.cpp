@@ -6,7 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "report/text_output.h"
+#include "support/report/text_output.h"
 
 namespace cslam::experiment {
 

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "eval/trajectory_eval.h"
 
 namespace cslam::experiment {

@@ -16,10 +16,10 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
-#include "loop/pose_graph.h"
-#include "loop/sim3_ransac.h"
-#include "loop/sim3_refine.h"
+#include "core/stats.h"
+#include "slam/loop/pose_graph.h"
+#include "slam/loop/sim3_ransac.h"
+#include "slam/loop/sim3_refine.h"
 
 using namespace cslam;
 

@@ -17,7 +17,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 #include "proto/snapshot_adapter.h"

@@ -16,7 +16,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "optimize/ceres_reference.h"
 #include "optimize/fixtures.h"
 #include "optimize/schur_ba.h"

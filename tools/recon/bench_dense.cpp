@@ -16,7 +16,7 @@
 #include "dense/trajectory_recon.h"
 #include "io/dataset_camera.h"
 #include "dense/tsdf_volume.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "io/tum_dataset.h"
 
 using namespace cslam;

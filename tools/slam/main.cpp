@@ -17,9 +17,9 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "eval/stats_json.h"
-#include "features/opencv_threads.h"
+#include "slam/features/opencv_threads.h"
 #include "fusion/fusion_manager.h"
 #include "system/loop_stats_json.h"
 #include "geometry/camera_io.h"
@@ -27,7 +27,7 @@
 #include "io/tum_dataset.h"
 #include "multi.h"
 #include "slam/client_slam.h"
-#include "system/dataset_frame.h"
+#include "io/dataset_frame.h"
 
 using namespace cslam;
 

@@ -19,7 +19,7 @@
 #include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
 #include "system/collaborative_system.h"
-#include "system/dataset_frame.h"
+#include "io/dataset_frame.h"
 
 namespace cslam {
 

@@ -8,10 +8,10 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
-#include "synth/renderer.h"
-#include "synth/synth_config.h"
-#include "synth/trajectory_planner.h"
+#include "core/stats.h"
+#include "support/synth/renderer.h"
+#include "support/synth/synth_config.h"
+#include "support/synth/trajectory_planner.h"
 
 using namespace cslam;
 using namespace cslam::synth;

@@ -6,7 +6,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
-#include "synth/dataset_writer.h"
+#include "support/synth/dataset_writer.h"
 
 using namespace cslam;
 using namespace cslam::synth;

@@ -4,13 +4,13 @@
 #include <ctime>
 #include <iostream>
 
-#include "bow/keyframe_database.h"
-#include "bow/vocabulary.h"
+#include "slam/bow/keyframe_database.h"
+#include "slam/bow/vocabulary.h"
 #include "core/cli.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
-#include "features/matching.h"
-#include "features/orb_extractor.h"
+#include "core/stats.h"
+#include "slam/features/matching.h"
+#include "slam/features/orb_extractor.h"
 #include "geometry/camera.h"
 #include "image_sources.h"
 

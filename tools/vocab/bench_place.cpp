@@ -8,13 +8,13 @@
 #include <cstdio>
 #include <iostream>
 
-#include "bow/keyframe_database.h"
-#include "bow/vocabulary.h"
+#include "slam/bow/keyframe_database.h"
+#include "slam/bow/vocabulary.h"
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "features/orb_extractor.h"
-#include "features/procedural_image.h"
+#include "slam/features/orb_extractor.h"
+#include "slam/features/procedural_image.h"
 #include "geometry/camera.h"
 #include "image_sources.h"
 #include "io/dataset_camera.h"

@@ -10,7 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
-#include "features/procedural_image.h"
+#include "slam/features/procedural_image.h"
 #include "io/tum_dataset.h"
 
 namespace cslam {

@@ -4,12 +4,12 @@
 #include <iostream>
 #include <mutex>
 
-#include "bow/vocabulary.h"
+#include "slam/bow/vocabulary.h"
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
-#include "features/orb_extractor.h"
+#include "slam/features/orb_extractor.h"
 #include "image_sources.h"
 
 using namespace cslam;

@@ -1,0 +1,246 @@
+#include "slam/mapping/local_mapper.h"
+
+#include <shared_mutex>
+
+#include "core/error.h"
+#include "core/stopwatch.h"
+#include "core/thread_priority.h"
+#include "slam/match/projection_search.h"
+
+namespace cslam {
+
+LocalMapper::LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, bool threaded)
+    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded) {
+  if (threaded_) thread_ = std::thread([this] { run(); });
+}
+
+LocalMapper::~LocalMapper() { finish(); }
+
+TrackingWait parse_tracking_wait(const std::string& name) {
+  if (name == "none") return TrackingWait::kNone;
+  if (name == "new-points") return TrackingWait::kNewPoints;
+  if (name == "keyframe") return TrackingWait::kKeyframe;
+  throw ConfigError("tracking wait '" + name + "' is not none, new-points or keyframe");
+}
+
+void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
+  std::uint64_t n = 0;
+  {
+    std::unique_lock<std::mutex> lock(queue_mutex_);
+    // Backpressure: tracking waits while local mapping is a full queue behind, so that every
+    // keyframe tracking decides on is processed completely (no skipped fusion or BA).
+    if (threaded_) space_cv_.wait(lock, [&] { return stop_requested_ || inserted_ - processed_ < config_.max_pending_keyframes; });
+    queue_.push_back(kf);
+    n = ++inserted_;
+  }
+  queue_cv_.notify_one();
+  if (!threaded_ || config_.tracking_wait == TrackingWait::kNone) return;
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  space_cv_.wait(lock, [&] {
+    return stop_requested_ || (config_.tracking_wait == TrackingWait::kKeyframe ? processed_ : points_done_) >= n;
+  });
+}
+
+std::size_t LocalMapper::queued() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return queue_.size();
+}
+
+bool LocalMapper::step() {
+  KeyFramePtr kf;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    if (queue_.empty()) return false;
+    kf = queue_.front();
+    queue_.pop_front();
+  }
+  process(kf);
+  return true;
+}
+
+void LocalMapper::run() {
+  lower_current_thread_priority();
+  for (;;) {
+    KeyFramePtr kf;
+    {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      queue_cv_.wait(lock, [&] { return stop_requested_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stop requested and drained
+      kf = queue_.front();
+      queue_.pop_front();
+    }
+    process(kf);
+  }
+}
+
+void LocalMapper::finish() {
+  stopping_ = true;
+  if (threaded_) {
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      stop_requested_ = true;
+    }
+    queue_cv_.notify_all();
+    space_cv_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  } else {
+    while (step()) {
+    }
+  }
+}
+
+LocalMapperStats LocalMapper::stats() const {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  return stats_;
+}
+
+void LocalMapper::process(const KeyFramePtr& kf) {
+  Stopwatch sw;
+  {
+    MapWriteLock lock(*map_);
+    insert_into_map(kf.get());
+    cull_map_points(kf.get());
+    const auto created = create_new_map_points(*map_, kf.get(), config_.triangulation);
+    recent_points_.insert(recent_points_.end(), created.begin(), created.end());
+    std::lock_guard<std::mutex> stats_lock(stats_mutex_);
+    stats_.points_triangulated += int(created.size());
+  }
+  {
+    MapWriteLock lock(*map_);
+    fuse_with_neighbours(kf.get());
+  }
+  count_and_notify(points_done_);
+  if (config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
+  {
+    MapWriteLock lock(*map_);
+    if (!kf->bad) cull_keyframes(kf.get());
+    if (!kf->bad) map_->database.add(kf->id, kf->data->bow);
+  }
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.keyframes_processed;
+    stats_.step_ms.push_back(sw.ms());
+  }
+  if (on_processed_) on_processed_(kf);
+  count_and_notify(processed_);
+}
+
+void LocalMapper::count_and_notify(std::uint64_t& counter) {
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    ++counter;
+  }
+  space_cv_.notify_all();
+}
+
+void LocalMapper::insert_into_map(KeyFrame* kf) {
+  for (size_t i = 0; i < kf->map_points.size(); ++i) {
+    auto mp = kf->map_points[i];
+    if (!mp) continue;
+    if (mp->bad) {
+      kf->map_points[i].reset();
+      continue;
+    }
+    if (!mp->in_keyframe(kf)) {
+      Map::add_observation(kf, int(i), mp);
+      map_->update_map_point(mp.get());
+    } else if (mp->first_keyframe_seq == kf->id.seq) {
+      recent_points_.push_back(mp);  // created with this keyframe
+    }
+  }
+  map_->update_connections(kf);
+  if (kf->parent) kf->creation_reference.reset();  // the spanning tree carries it from now on
+}
+
+void LocalMapper::cull_map_points(KeyFrame* kf) {
+  int culled = 0;
+  for (auto it = recent_points_.begin(); it != recent_points_.end();) {
+    const auto& mp = *it;
+    const int age = int(kf->id.seq) - int(mp->first_keyframe_seq);
+    if (mp->bad) {
+      it = recent_points_.erase(it);
+    } else if (mp->found_ratio() < config_.min_found_ratio) {
+      map_->set_map_point_bad(mp);
+      ++culled;
+      it = recent_points_.erase(it);
+    } else if (age >= 2 && mp->num_obs <= config_.min_observations) {
+      map_->set_map_point_bad(mp);
+      ++culled;
+      it = recent_points_.erase(it);
+    } else if (age >= 3) {
+      it = recent_points_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.points_culled += culled;
+}
+
+void LocalMapper::fuse_with_neighbours(KeyFrame* kf) {
+  std::set<KeyFrame*, ById> targets;
+  for (KeyFrame* n : kf->best_covisibles(config_.fuse_neighbours)) {
+    if (n->bad || n == kf) continue;
+    targets.insert(n);
+    for (KeyFrame* n2 : n->best_covisibles(config_.fuse_second_neighbours))
+      if (!n2->bad && n2 != kf) targets.insert(n2);
+  }
+  int fused = 0;
+  std::vector<MapPointPtr> own;
+  for (const auto& mp : kf->map_points)
+    if (mp && !mp->bad) own.push_back(mp);
+  for (KeyFrame* t : targets) fused += fuse(*map_, t, own);
+  std::vector<MapPointPtr> theirs;
+  std::set<MapPoint*> seen;
+  for (KeyFrame* t : targets)
+    for (const auto& mp : t->map_points)
+      if (mp && !mp->bad && seen.insert(mp.get()).second) theirs.push_back(mp);
+  fused += fuse(*map_, kf, theirs);
+  for (const auto& mp : kf->map_points)
+    if (mp && !mp->bad) map_->update_map_point(mp.get());
+  map_->update_connections(kf);
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.points_fused += fused;
+}
+
+void LocalMapper::cull_keyframes(KeyFrame* kf) {
+  int culled = 0;
+  for (KeyFrame* cand : kf->covisibles()) {
+    if (cand->bad || cand == map_->origin().get() || cand == kf) continue;
+    const FrameData& f = *cand->data;
+    auto counted = [&](size_t i) {
+      const auto& mp = cand->map_points[i];
+      return mp && !mp->bad && f.is_close(int(i));
+    };
+    int points = 0;
+    for (size_t i = 0; i < cand->map_points.size(); ++i) points += counted(i) ? 1 : 0;
+    // Culled when more than redundant_ratio of the points are redundant; the count stops as soon
+    // as the points not (yet) found redundant rule that out (most candidates are kept).
+    const double needed = config_.redundant_ratio * points;
+    int redundant = 0, other = 0;
+    for (size_t i = 0; i < cand->map_points.size() && points - other > needed; ++i) {
+      if (!counted(i)) continue;
+      const MapPoint& mp = *cand->map_points[i];
+      bool is_redundant = false;
+      if (mp.num_obs > 3) {
+        const int level = f.features.keypoints[i].octave;
+        int seen_by = 0;
+        for (const auto& [okf, idx] : mp.observations) {
+          if (okf == cand) continue;
+          if (okf->data->features.keypoints[idx].octave <= level + 1 && ++seen_by >= 3) break;
+        }
+        is_redundant = seen_by >= 3;
+      }
+      if (is_redundant) ++redundant;
+      else ++other;
+    }
+    if (points > 0 && redundant > needed) {
+      map_->set_keyframe_bad(cand);
+      ++culled;
+    }
+  }
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.keyframes_culled += culled;
+}
+
+}  // namespace cslam

@@ -1,0 +1,105 @@
+#pragma once
+// Local mapping of one client map (ORB-SLAM2 class): keyframe insertion, recent map-point culling,
+// duplicate fusion with neighbours, local bundle adjustment and redundant keyframe culling.
+// Runs in its own thread (threaded = true) or is stepped by the caller (tests, offline runs).
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <list>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "core/pointer_set.h"
+#include "core/stats.h"
+#include "slam/map/map.h"
+#include "slam/mapping/triangulation.h"
+#include "optimize/bundle_adjustment.h"
+#include "slam/tracking/tracker.h"
+
+namespace cslam {
+
+// How long tracking waits, after handing local mapping a keyframe, before it tracks the next frame
+// (threaded mode). Tracking that runs ahead tracks frames against a keyframe whose new points are
+// not yet triangulated or fused with the neighbours' duplicates; those frames then create
+// duplicate points and keyframes, and which ones depends on thread timing (docs/slam.md).
+enum class TrackingWait {
+  kNone,       // only the max_pending_keyframes backpressure
+  kNewPoints,  // until the keyframe's points are created and fused (local BA runs on meanwhile)
+  kKeyframe,   // until local mapping finished the keyframe: the same map states as --sync
+};
+// "none" | "new-points" | "keyframe"; throws ConfigError otherwise.
+TrackingWait parse_tracking_wait(const std::string& name);
+
+struct LocalMapperConfig {
+  int min_observations = 3;        // a recent point seen by fewer keyframes (after 2 keyframes) is culled
+  double min_found_ratio = 0.25;
+  int fuse_neighbours = 10, fuse_second_neighbours = 5;
+  double redundant_ratio = 0.9;    // keyframe culling: share of its close points seen by >= 3 others
+  TriangulationConfig triangulation;  // new points from keyframe pairs
+  bool local_ba = true;
+  int local_ba_max_keyframes = 20;   // free keyframes: the new one and its strongest covisible neighbours
+  BaConfig ba;
+  // Keyframes waiting or in work before tracking waits to insert another (threaded mode).
+  std::size_t max_pending_keyframes = 2;
+  TrackingWait tracking_wait = TrackingWait::kNewPoints;
+};
+
+struct LocalMapperStats {
+  int keyframes_processed = 0, keyframes_culled = 0, points_culled = 0, points_fused = 0, points_triangulated = 0;
+  std::vector<double> ba_ms, step_ms;
+};
+
+// Called after each processed keyframe (e.g. loop detection, map fusion). Runs on the mapper thread.
+using KeyFrameProcessedCallback = std::function<void(const KeyFramePtr&)>;
+
+class LocalMapper : public KeyFrameSink {
+ public:
+  LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, bool threaded);
+  ~LocalMapper() override;
+
+  void set_on_processed(KeyFrameProcessedCallback cb) { on_processed_ = std::move(cb); }
+
+  // KeyFrameSink
+  void insert_keyframe(const KeyFramePtr& kf) override;
+  bool accepts_keyframes() const override { return !stopping_.load(); }
+
+  std::size_t queued() const;
+
+  // Processes one queued keyframe (non-threaded mode). Returns false if none was queued.
+  bool step();
+  // Processes everything queued, then stops the thread. Idempotent.
+  void finish();
+  LocalMapperStats stats() const;
+  const std::shared_ptr<Map>& map() const { return map_; }
+
+ private:
+  void run();
+  void process(const KeyFramePtr& kf);
+  void insert_into_map(KeyFrame* kf);
+  void cull_map_points(KeyFrame* kf);
+  void fuse_with_neighbours(KeyFrame* kf);
+  void local_bundle_adjustment(KeyFrame* kf);
+  void cull_keyframes(KeyFrame* kf);
+  void count_and_notify(std::uint64_t& counter);  // ++counter under queue_mutex_, wakes tracking
+
+  LocalMapperConfig config_;
+  std::shared_ptr<Map> map_;
+  const bool threaded_;
+  mutable std::mutex queue_mutex_;
+  std::condition_variable queue_cv_, space_cv_;
+  std::deque<KeyFramePtr> queue_;
+  std::atomic<bool> stopping_{false};
+  // Keyframes inserted, with their new points fused, fully processed (FIFO order; guarded by
+  // queue_mutex_). inserted_ - processed_ are queued or in work; tracking waits on space_cv_.
+  std::uint64_t inserted_ = 0, points_done_ = 0, processed_ = 0;
+  bool stop_requested_ = false;
+  std::list<MapPointPtr> recent_points_;
+  PointerSet ba_points_seen_;  // local_bundle_adjustment's scratch, reused keyframe to keyframe
+  KeyFrameProcessedCallback on_processed_;
+  mutable std::mutex stats_mutex_;
+  LocalMapperStats stats_;
+  std::thread thread_;
+};
+
+}  // namespace cslam
