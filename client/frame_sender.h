@@ -30,7 +30,7 @@
 #include "codec/video_codec.h"
 #include "proto/adapter.h"
 #include "proto/pose_feedback.h"
-#include "system/rgbd_frame.h"
+#include "frame/rgbd_frame.h"
 
 namespace cslam::client {
 

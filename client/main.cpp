@@ -19,7 +19,7 @@
 #include "geometry/camera_io.h"
 #include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
-#include "system/dataset_frame.h"
+#include "io/dataset_frame.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include "cslam.pb.h"
 #include "codec/image_codec.h"
 #include "core/error.h"
-#include "system/rgbd_frame.h"
+#include "frame/rgbd_frame.h"
 
 namespace cslam::video {
 class H264Decoder;

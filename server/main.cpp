@@ -15,14 +15,14 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
-#include "features/opencv_threads.h"
+#include "slam/features/opencv_threads.h"
 #include "server/auth/curve_keys.h"
 #include "server/http/http_server.h"
 #include "server/receiver.h"
 #include "server/state_store.h"
 #include "server/http/map_routes.h"
 #include "server/http/dense_routes.h"
-#include "mapping/local_mapper.h"
+#include "slam/mapping/local_mapper.h"
 #include "system/collaborative_system.h"
 
 namespace {

@@ -6,7 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "server/session_table.h"
 
 namespace cslam::server {

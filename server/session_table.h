@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "system/rgbd_frame.h"
+#include "frame/rgbd_frame.h"
 
 namespace cslam::server {
 

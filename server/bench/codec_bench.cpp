@@ -29,7 +29,7 @@
 #include "core/error.h"
 #include "core/stopwatch.h"
 #include "cpu_stopwatch.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "file_decode_bench.h"
 #include "io/tum_dataset.h"
 

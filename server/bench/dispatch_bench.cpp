@@ -8,12 +8,12 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "geometry/camera.h"
 #include "io/tum_dataset.h"
 #include "proto/adapter.h"
 #include "system/collaborative_system.h"
-#include "system/dataset_frame.h"
+#include "io/dataset_frame.h"
 
 namespace {
 

@@ -16,7 +16,7 @@
 #include "codec/png16_decode.h"
 #include "core/error.h"
 #include "cpu_stopwatch.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 
 namespace cslam {
 

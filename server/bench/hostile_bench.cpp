@@ -31,7 +31,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "eval/stats.h"
+#include "core/stats.h"
 #include "../../tests/network/hostile_payloads.h"
 
 namespace {
