@@ -49,7 +49,7 @@ void to_wire_ack(const FrameDone& done, std::uint32_t credits, Ack* out) {
   out->set_credits(credits);
   out->set_state(to_wire(done.fate));
   if (done.fate == FrameFate::kTracked && done.has_pose) *out->mutable_t_world_cam() = to_wire_pose(done.T_world_cam);
-  out->set_group(done.group);
+  out->set_group(done.group.value());
   out->set_map(std::uint32_t(std::max(0, done.map)));
   out->set_map_epoch(done.map_epoch);
   out->set_timestamp(done.timestamp);
@@ -67,7 +67,7 @@ PoseFeedback from_wire_ack(const Ack& ack) {
   f.has_pose = f.fate == FrameFate::kTracked && ack.has_t_world_cam();
   if (f.has_pose) f.T_world_cam = from_wire_pose(ack.t_world_cam());
   if (f.fate == FrameFate::kTracked && !f.has_pose) f.fate = FrameFate::kLost;
-  f.group = ack.group();
+  f.group = GroupId::from_value(ack.group());
   f.map = int(ack.map());
   f.map_epoch = ack.map_epoch();
   f.frames_skipped = ack.frames_skipped();

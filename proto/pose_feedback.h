@@ -3,7 +3,7 @@
 // client turns an Ack back into a PoseFeedback. Part of the protobuf adapter (proto/).
 #include "cslam.pb.h"
 #include "geometry/se3.h"
-#include "system/system_config.h"
+#include "frame/frame_done.h"
 
 namespace cslam::wire {
 
@@ -24,7 +24,7 @@ struct PoseFeedback {
   FrameFate fate = FrameFate::kRejected;
   bool has_pose = false;  // only for kTracked
   SE3 T_world_cam;        // camera-to-world in the frame of `group`
-  int group = -1;
+  GroupId group;
   int map = 0;
   std::uint64_t map_epoch = 0, frames_skipped = 0;
   double server_ms = 0;   // receipt to pose on the server

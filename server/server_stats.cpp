@@ -91,7 +91,7 @@ std::vector<std::string> ServerStats::progress_lines(const SystemSnapshot& snaps
                   unsigned(c.id), (unsigned long long)net.frames_accepted, (unsigned long long)c.frames_processed,
                   (unsigned long long)net.dropped_total(), c.queue_depth, fps, mbps,
                   net.bytes_received > 0 ? double(net.raw_bytes) / double(net.bytes_received) : 0.0,
-                  (unsigned long long)net.frames_light, to_string(c.tracking));
+                  (unsigned long long)net.frames_light, tracking_label(c.tracking));
     lines.emplace_back(buf);
   }
   const HeapStats heap = heap_stats();

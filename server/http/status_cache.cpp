@@ -42,7 +42,7 @@ nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps
   return {{"id", c.id},
           {"name", c.name},
           {"connection", connection},
-          {"tracking", to_string(c.tracking)},
+          {"tracking", tracking_label(c.tracking)},
           {"frames_received", c.frames_submitted},
           {"frames_processed", c.frames_processed},
           {"frames_dropped", c.frames_rejected},
@@ -118,8 +118,8 @@ std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, doubl
   per_client("cslam_group", "gauge", "Fused group id of the client.", [](const ClientSnapshot& c) { return c.group; });
   head("cslam_tracking_state", "gauge", "1 for the client's current tracking state.");
   for (const ClientSnapshot& c : s.clients)
-    for (TrackingState st : {TrackingState::kNotInitialized, TrackingState::kTracking, TrackingState::kLost})
-      o << "cslam_tracking_state{client=\"" << c.id << "\",state=\"" << to_string(st) << "\"} " << (c.tracking == st ? 1 : 0)
+    for (FrameFate st : {FrameFate::kNotInitialized, FrameFate::kTracked, FrameFate::kLost})
+      o << "cslam_tracking_state{client=\"" << c.id << "\",state=\"" << tracking_label(st) << "\"} " << (c.tracking == st ? 1 : 0)
         << "\n";
   head("cslam_fusion_events_total", "counter", "Accepted fusion and loop events.");
   o << "cslam_fusion_events_total " << fusion_count << "\n";

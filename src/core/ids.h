@@ -39,6 +39,26 @@ struct ById {
   }
 };
 
+// A fused group of maps (maps of one group share a frame), named after the map that founded it:
+// client * 100 + the map's index within its client. Invalid (-1) until the map is registered.
+class GroupId {
+ public:
+  GroupId() = default;
+  static GroupId of_map(ClientId client, int map_index) { return GroupId(int(client) * 100 + map_index); }
+  // A value read back from a snapshot, a request or a test (-1: none).
+  static GroupId from_value(int value) { return GroupId(value); }
+  int value() const { return value_; }
+  bool valid() const { return value_ >= 0; }
+  friend bool operator==(GroupId a, GroupId b) { return a.value_ == b.value_; }
+  friend bool operator!=(GroupId a, GroupId b) { return a.value_ != b.value_; }
+  friend bool operator<(GroupId a, GroupId b) { return a.value_ < b.value_; }
+  friend std::ostream& operator<<(std::ostream& os, GroupId g) { return os << g.value_; }
+
+ private:
+  explicit GroupId(int value) : value_(value) {}
+  int value_ = -1;
+};
+
 using KeyFrameId = ClientSeqId<KeyFrameTag>;
 using MapPointId = ClientSeqId<MapPointTag>;
 using FrameId = ClientSeqId<FrameTag>;
@@ -46,6 +66,10 @@ using FrameId = ClientSeqId<FrameTag>;
 }  // namespace cslam
 
 namespace std {
+template <>
+struct hash<cslam::GroupId> {
+  size_t operator()(cslam::GroupId g) const noexcept { return std::hash<int>()(g.value()); }
+};
 template <typename Tag>
 struct hash<cslam::ClientSeqId<Tag>> {
   size_t operator()(cslam::ClientSeqId<Tag> id) const noexcept {

@@ -134,11 +134,11 @@ DenseReconstructor::~DenseReconstructor() = default;
 void DenseReconstructor::count_skipped(SkipReason reason) { impl_->skip(reason); }
 void DenseReconstructor::add_load_time(double ms) { impl_->timing.load += ms; }
 
-FrameOutcome DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16,
+IntegrateResult DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16,
                                            const PinholeCamera& camera, const std::optional<SE3>& T_world_depthcam) {
   Impl& m = *impl_;
   if (m.finished) throw std::logic_error("DenseReconstructor::integrate after finish()");
-  FrameOutcome out;
+  IntegrateResult out;
   auto reject = [&](SkipReason r) {
     m.skip(r);
     out.reason = r;

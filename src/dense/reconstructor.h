@@ -19,7 +19,7 @@ namespace cslam {
 enum class SkipReason { kNone, kNoImage, kBadPose, kBadImage, kWrongImageSize, kNoValidDepth };
 const char* to_string(SkipReason reason);
 
-struct FrameOutcome {
+struct IntegrateResult {
   bool used = false;
   SkipReason reason = SkipReason::kNone;  // why not used
   std::size_t points = 0;                 // points back-projected from this frame
@@ -66,7 +66,7 @@ class DenseReconstructor {
   // camera's path (another instant), T_world_depthcam places it and colours are looked up where
   // its points project in the colour image. Bad frames are skipped and counted, never thrown.
   // Throws std::logic_error after finish().
-  FrameOutcome integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16, const PinholeCamera& camera,
+  IntegrateResult integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16, const PinholeCamera& camera,
                          const std::optional<SE3>& T_world_depthcam = std::nullopt);
   // Records a frame skipped by the caller (e.g. a pose without image, an unreadable file).
   void count_skipped(SkipReason reason);

@@ -38,7 +38,7 @@ void FusionManager::notify(ClientId client, const std::shared_ptr<Map>& map, con
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (!group_.count(map.get())) {
       registry_.push_back({client, map});
-      group_[map.get()] = int(client) * 100 + map->index();
+      group_[map.get()] = GroupId::of_map(client, map->index());
     }
   }
   if (!config_.enabled) return;
@@ -101,10 +101,10 @@ void FusionManager::forget(const std::vector<const Map*>& maps) {
                seams_.end());
 }
 
-int FusionManager::group_of(const Map* map) const {
+GroupId FusionManager::group_of(const Map* map) const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   auto it = group_.find(map);
-  return it == group_.end() ? -1 : it->second;
+  return it == group_.end() ? GroupId() : it->second;
 }
 
 std::vector<FusionEvent> FusionManager::events() const {
@@ -158,7 +158,7 @@ void FusionManager::process(const Pending& p) {
     loops = p.map->loops_closed();
   }
   std::vector<Registered> others, same_group;
-  int my_group = -1;
+  GroupId my_group;
   bool readjust = false;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -230,14 +230,14 @@ bool FusionManager::try_fuse(const Pending& p, const std::vector<Registered>& ot
   return false;
 }
 
-FusionEvent FusionManager::link_event(const char* kind, const Pending& p, ClientId other_client, int group,
+FusionEvent FusionManager::link_event(const char* kind, const Pending& p, ClientId other_client, GroupId group,
                                       const KeyFramePtr& candidate, const OverlapVerifyResult& v, const Seam& seam,
                                       std::chrono::steady_clock::time_point hit) const {
   FusionEvent e;
   e.kind = kind;
   e.client_a = p.client;
   e.client_b = other_client;
-  e.group = group;
+  e.group = group.value();
   e.inliers = v.final_inliers;
   e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
   e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -254,7 +254,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
                          std::chrono::steady_clock::time_point hit) {
   // Members of both groups, and which group moves (the one with fewer keyframes).
   std::vector<std::shared_ptr<Map>> group_q, group_c;
-  int gq = -1, gc = -1;
+  GroupId gq, gc;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     gq = group_.at(p.map.get());
@@ -290,7 +290,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({kept_map.get(), moved_map.get()});
     if (!kept_kf->bad && !moved_kf->bad) seam = connect_seam(*kept_map, *kept_kf, *moved_map, *moved_kf, config_.seam);
   }
-  const int kept = move_candidate_side ? gq : gc;
+  const GroupId kept = move_candidate_side ? gq : gc;
   FusionEvent e = link_event("fusion", p, other_client, kept, candidate, v, seam, hit);
   e.keyframes_moved = int(move_candidate_side ? kf_c : kf_q);
   e.keyframes_kept = int(move_candidate_side ? kf_q : kf_c);
@@ -306,7 +306,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
   logger("fusion")->info("fused client {} with client {} into group {} ({} keyframes moved onto {}): {} inliers, {} "
                          "projection matches, window fit {} inliers over {} keyframes, {} seam points, {} cross-map "
                          "covisibility edges, {:.1f} ms",
-                         p.client, other_client, kept, e.keyframes_moved, e.keyframes_kept, v.final_inliers,
+                         p.client, other_client, kept.value(), e.keyframes_moved, e.keyframes_kept, v.final_inliers,
                          v.projection_matches, v.window_inliers, v.window_keyframes, e.seam_points, e.seam_edges,
                          e.duration_ms);
   start_group_ba(kept);
@@ -318,7 +318,7 @@ void FusionManager::stop_group_ba() {
   group_ba_abort_ = false;
 }
 
-void FusionManager::start_group_ba(int group) {
+void FusionManager::start_group_ba(GroupId group) {
   stop_group_ba();
   if (!config_.group_ba) return;
   if (!config_.threaded) {
@@ -332,11 +332,11 @@ void FusionManager::start_group_ba(int group) {
 }
 
 bool FusionManager::run_group_ba(const Map* map) {
-  const int g = group_of(map);
-  return g >= 0 && run_group_ba_of(g);
+  const GroupId g = group_of(map);
+  return g.valid() && run_group_ba_of(g);
 }
 
-bool FusionManager::run_group_ba_of(int group) {
+bool FusionManager::run_group_ba_of(GroupId group) {
   Stopwatch sw;
   std::vector<std::shared_ptr<Map>> members;  // kept alive for the run
   std::vector<std::pair<MapPointPtr, MapPointPtr>> links;
@@ -377,7 +377,7 @@ bool FusionManager::run_group_ba_of(int group) {
     group_ba_stats_.last_keyframes = int(gba.num_keyframes());
     group_ba_stats_.last_points = int(gba.num_points());
     group_ba_stats_.last_linked_points = int(links.size());
-    logger("fusion")->info("group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms", group,
+    logger("fusion")->info("group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms", group.value(),
                            maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms());
   } else {
     ++group_ba_stats_.discarded;

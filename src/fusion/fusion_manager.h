@@ -67,10 +67,10 @@ class FusionManager {
   // from the registry, groups, consistency state and seams. Call only for maps of an unfused client.
   void forget(const std::vector<const Map*>& maps);
 
-  int group_of(const Map* map) const;  // -1 if unknown
+  GroupId group_of(const Map* map) const;  // invalid if unknown
   // Persistence (fusion_manager_state.cpp): registers a restored map in its saved group (its
-  // poses are already in that group's frame); -1: a group of its own.
-  void restore_group(ClientId client, const std::shared_ptr<Map>& map, int group);
+  // poses are already in that group's frame); invalid: a group of its own.
+  void restore_group(ClientId client, const std::shared_ptr<Map>& map, GroupId group);
   std::vector<FusionEvent> events() const;
   GroupBaStats group_ba_stats() const;
   std::size_t dropped() const;
@@ -95,7 +95,7 @@ class FusionManager {
                    const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
   // The event of a link (fusion or re-encounter) between the query keyframe and `candidate`; the
   // caller adds which keyframes moved and which stayed.
-  FusionEvent link_event(const char* kind, const Pending& p, ClientId other_client, int group,
+  FusionEvent link_event(const char* kind, const Pending& p, ClientId other_client, GroupId group,
                          const KeyFramePtr& candidate, const OverlapVerifyResult& v, const Seam& seam,
                          std::chrono::steady_clock::time_point hit) const;
   // Fusion, then re-encounters, with the maps of the other groups / of the query's own group.
@@ -115,8 +115,8 @@ class FusionManager {
                                              double min_score);
   // Consistent candidates of `other` for the query keyframe (pair-wise consistency state).
   std::vector<KeyFrameId> consistent_candidates(const Pending& p, Map& other, const BowVector& bow, double min_score);
-  void start_group_ba(int group);
-  bool run_group_ba_of(int group);
+  void start_group_ba(GroupId group);
+  bool run_group_ba_of(GroupId group);
   void stop_group_ba();
   struct StoredSeam {
     std::weak_ptr<Map> kept_map, moved_map;
@@ -138,13 +138,13 @@ class FusionManager {
 
   mutable std::mutex state_mutex_;  // groups, registry, events
   std::vector<Registered> registry_;
-  std::map<const Map*, int> group_;
+  std::map<const Map*, GroupId> group_;
   std::map<std::pair<const Map*, const Map*>, ConsistencyChecker> consistency_;
   std::vector<FusionEvent> events_;
   std::vector<StoredSeam> seams_;
   std::map<const Map*, int> keyframes_seen_;  // keyframes processed per map (fusion thread)
   std::map<const Map*, std::uint64_t> loops_seen_;  // Map::loops_closed() when last processed
-  std::set<int> group_ba_pending_;  // groups whose last group BA was discarded (a map moved meanwhile)
+  std::set<GroupId> group_ba_pending_;  // groups whose last group BA was discarded (a map moved meanwhile)
   // keyframes_seen_ of the query map when the pair (query, other) last fused or re-encountered
   std::map<std::pair<const Map*, const Map*>, int> last_link_;
   GroupBaStats group_ba_stats_;

@@ -33,7 +33,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
                                 const KeyFramePtr& candidate, const OverlapVerifyResult& v,
                                 std::chrono::steady_clock::time_point hit) {
   std::vector<MapPointPtr> anchors;  // the query map's points linked by earlier seams
-  int group = -1;
+  GroupId group;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     group = group_.at(p.map.get());
@@ -71,7 +71,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
   logger("fusion")->info("client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
                          "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
                          "locked {:.1f} ms, {:.1f} ms from detection",
-                         p.client, other_client, group, v.final_inliers, 100 * c.T_correction.translation().norm(),
+                         p.client, other_client, group.value(), v.final_inliers, 100 * c.T_correction.translation().norm(),
                          Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors,
                          c.pose_graph_ms, e.seam_points, locked_ms, e.duration_ms);
   start_group_ba(group);

@@ -15,16 +15,6 @@
 
 namespace cslam {
 
-const char* to_string(FrameOutcome o) {
-  switch (o) {
-    case FrameOutcome::kTracked: return "tracked";
-    case FrameOutcome::kLost: return "lost";
-    case FrameOutcome::kNotInitialized: return "not_initialized";
-    case FrameOutcome::kRejected: return "rejected";
-  }
-  return "unknown";
-}
-
 ClientSlam::ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const Vocabulary> vocabulary,
                        KeyFrameListener listener)
     : info_(std::move(info)),
@@ -72,7 +62,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   ProcessResult r;
   const auto& cam = info_.camera;
   auto reject = [&](std::string why) {
-    r.outcome = FrameOutcome::kRejected;
+    r.fate = FrameFate::kRejected;
     r.reject_reason = std::move(why);
     std::lock_guard<std::mutex> lock(mutex_);
     ++snapshot_.frames_rejected;
@@ -149,13 +139,12 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   r.keyframe = t.keyframe;
   if (T_depthcam_motion) r.T_cam_depthcam = T_depthcam_motion->inverse();
   r.inliers = t.inliers;
-  r.outcome = t.ok ? FrameOutcome::kTracked
-                   : (t.state == TrackState::kNotInitialized ? FrameOutcome::kNotInitialized : FrameOutcome::kLost);
+  r.fate = t.ok ? FrameFate::kTracked : t.state == FrameFate::kNotInitialized ? FrameFate::kNotInitialized : FrameFate::kLost;
 
   // Long loss: start a new map (merged later by map fusion); never stop processing.
   if (t.ok) {
     lost_since_ = -1;
-  } else if (t.state == TrackState::kLost) {
+  } else if (t.state == FrameFate::kLost) {
     if (lost_since_ < 0) lost_since_ = frame.timestamp;
     if (frame.timestamp - lost_since_ > config_.max_lost_seconds) {
       start_new_map();
@@ -175,7 +164,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
     if (++records_since_reanchor_ >= kReanchorEvery && reanchor_records()) records_since_reanchor_ = 0;
     ++snapshot_.frames_tracked;
     snapshot_.T_world_cam = t.T_cam_world.inverse();
-  } else if (r.outcome == FrameOutcome::kLost) {
+  } else if (r.fate == FrameFate::kLost) {
     ++snapshot_.frames_lost;
   }
   snapshot_.maps = int(maps_.size());
@@ -223,7 +212,7 @@ std::vector<std::shared_ptr<Map>> ClientSlam::main_frame_maps(const MapFrameOf& 
   }
   std::vector<long> labels(maps.size(), -1);
   if (frame_of)
-    for (std::size_t i = 0; i < maps.size(); ++i) labels[i] = frame_of(maps[i].get());
+    for (std::size_t i = 0; i < maps.size(); ++i) labels[i] = frame_of(maps[i].get()).value();
   const std::vector<char> in = maps_in_main_frame(frames, std::move(labels));
   std::vector<std::shared_ptr<Map>> out;
   for (std::size_t i = 0; i < maps.size(); ++i)

@@ -17,11 +17,8 @@
 
 namespace cslam {
 
-enum class FrameOutcome { kTracked, kLost, kNotInitialized, kRejected };
-const char* to_string(FrameOutcome o);
-
 struct ProcessResult {
-  FrameOutcome outcome = FrameOutcome::kRejected;
+  FrameFate fate = FrameFate::kRejected;  // never kSkipped here: skipping is the worker's
   std::string reject_reason;
   bool new_keyframe = false;
   bool flow = false;  // tracked as a flow frame (tracking/frame_flow.h): no ORB extraction, no local-map search
@@ -38,7 +35,7 @@ struct ProcessResult {
 };
 
 struct ClientSlamSnapshot {
-  TrackState state = TrackState::kNotInitialized;
+  FrameFate state = FrameFate::kNotInitialized;
   std::uint64_t frames_processed = 0, frames_tracked = 0, frames_lost = 0, frames_rejected = 0;
   std::uint64_t frames_flow = 0;  // of them tracked as flow frames
   int maps = 0, keyframes = 0, map_points = 0;
@@ -56,10 +53,10 @@ struct ClientSlamTimings {
 using KeyFrameListener = std::function<void(ClientId, const std::shared_ptr<Map>&, const KeyFramePtr&)>;
 
 // Which of a client's maps share one frame: frame_of(map) labels the frame the map's poses are in
-// (maps with equal labels >= 0 share it, e.g. map fusion's group; -1: a frame of its own). A
+// (maps with equal valid labels share it, e.g. map fusion's group; invalid: a frame of its own). A
 // client has several maps after a long tracking loss or a new session; once map fusion has joined
 // them, their frames belong in one trajectory. Without it every map is a frame of its own.
-using MapFrameOf = std::function<int(const Map*)>;
+using MapFrameOf = std::function<GroupId(const Map*)>;
 
 struct ClientSlamState;  // slam/client_slam_state.h
 

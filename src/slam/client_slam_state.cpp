@@ -117,7 +117,7 @@ void ClientSlam::restore_state(const ClientSlamState& s, const std::string& sour
   maps_ = std::move(maps);
   records_ = std::move(records);
   last_seq_ = s.last_seq;
-  snapshot_.state = TrackState::kLost;
+  snapshot_.state = FrameFate::kLost;
   snapshot_.frames_processed = s.frames_processed;
   snapshot_.frames_tracked = s.frames_tracked;
   snapshot_.frames_lost = s.frames_lost;

@@ -8,17 +8,6 @@
 
 namespace cslam {
 
-const char* to_string(FrameFate f) {
-  switch (f) {
-    case FrameFate::kNotInitialized: return "not_initialized";
-    case FrameFate::kTracked: return "tracked";
-    case FrameFate::kLost: return "lost";
-    case FrameFate::kSkipped: return "skipped";
-    case FrameFate::kRejected: return "rejected";
-  }
-  return "unknown";
-}
-
 namespace {
 
 double percentile(std::vector<double> v, double p) {
@@ -31,7 +20,7 @@ double percentile(std::vector<double> v, double p) {
 }  // namespace
 
 ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
-                               KeyFrameListener listener, std::function<int(const Map*)> group_of)
+                               KeyFrameListener listener, std::function<GroupId(const Map*)> group_of)
     : info_(info), config_(config), group_of_(std::move(group_of)), queue_(config.client_queue_capacity) {
   if (config_.run_slam) slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
   counters_.id = info_.id;
@@ -107,7 +96,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
     std::lock_guard<std::mutex> lock(mutex_);
     counted_trajectory_.push_back({frame.timestamp, SE3()});
     ++counters_.frames_processed;
-    counters_.tracking = TrackingState::kTracking;
+    counters_.tracking = FrameFate::kTracked;
     counters_.last_timestamp = frame.timestamp;
     done.fate = FrameFate::kTracked;
     done.has_pose = true;  // identity: the counting-only pipeline's trajectory
@@ -117,14 +106,9 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
   const ProcessResult r = slam_->process(frame, load);
   done.wants_depth = r.wants_depth;
   if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame, r.T_cam_depthcam);
-  if (r.outcome == FrameOutcome::kRejected)
+  if (r.fate == FrameFate::kRejected)
     logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);
-  switch (r.outcome) {
-    case FrameOutcome::kTracked: done.fate = FrameFate::kTracked; break;
-    case FrameOutcome::kLost: done.fate = FrameFate::kLost; break;
-    case FrameOutcome::kNotInitialized: done.fate = FrameFate::kNotInitialized; break;
-    case FrameOutcome::kRejected: done.fate = FrameFate::kRejected; break;
-  }
+  done.fate = r.fate;
   if (done.fate == FrameFate::kTracked) {
     // The same computation as the frame's trajectory entry; a frame that did not make it into
     // the trajectory gets no pose (never the previous frame's).
@@ -138,7 +122,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
   }
   std::lock_guard<std::mutex> lock(mutex_);
   ++counters_.frames_processed;
-  if (r.outcome == FrameOutcome::kRejected) ++counters_.frames_rejected;
+  if (r.fate == FrameFate::kRejected) ++counters_.frames_rejected;
   counters_.last_timestamp = frame.timestamp;
   return done;
 }
@@ -156,10 +140,10 @@ void ClientPipeline::report(FrameDone done, const RgbdFrame& frame) {
       std::shared_lock<std::shared_mutex> map_lock(m->mutex);
       done.map_epoch += m->big_change_index();
     }
-    const int g = done.map >= 0 && std::size_t(done.map) < maps.size() && group_of_ ? group_of_(maps[done.map].get()) : -1;
-    done.group = g < 0 ? int(info_.id) * 100 : g;
+    const GroupId g = done.map >= 0 && std::size_t(done.map) < maps.size() && group_of_ ? group_of_(maps[done.map].get()) : GroupId();
+    done.group = g.valid() ? g : GroupId::of_map(info_.id, 0);
   } else {
-    done.group = int(info_.id);
+    done.group = GroupId::from_value(info_.id);  // counting-only pipeline
   }
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -188,9 +172,7 @@ ClientSnapshot ClientPipeline::snapshot() const {
   s.queue_depth = queue_.size();
   if (slam_) {
     const ClientSlamSnapshot q = slam_->snapshot();
-    s.tracking = q.state == TrackState::kOk ? TrackingState::kTracking
-                 : q.state == TrackState::kLost ? TrackingState::kLost
-                                                : TrackingState::kNotInitialized;
+    s.tracking = q.state;
     s.keyframes = q.keyframes;
     s.map_points = q.map_points;
     s.T_world_cam = q.T_world_cam;

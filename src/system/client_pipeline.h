@@ -20,10 +20,10 @@ namespace cslam {
 
 class ClientPipeline {
  public:
-  // `group_of` names the fused group of one of this client's maps (-1: none yet); it is called
+  // `group_of` names the fused group of one of this client's maps (invalid: none yet); it is called
   // on the worker thread and must not lock the system's client table.
   ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
-                 KeyFrameListener listener, std::function<int(const Map*)> group_of = {});
+                 KeyFrameListener listener, std::function<GroupId(const Map*)> group_of = {});
   ~ClientPipeline();
 
   // Stepped (SystemConfig::stepped): the frame is processed before submit returns.
@@ -53,7 +53,7 @@ class ClientPipeline {
 
   const ClientInfo info_;
   const SystemConfig& config_;
-  std::function<int(const Map*)> group_of_;
+  std::function<GroupId(const Map*)> group_of_;
   std::unique_ptr<ClientSlam> slam_;  // null when run_slam is off
   BoundedQueue<RgbdFrame> queue_;
   mutable std::mutex mutex_;

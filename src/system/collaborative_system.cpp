@@ -19,13 +19,8 @@
 
 namespace cslam {
 
-const char* to_string(TrackingState s) {
-  switch (s) {
-    case TrackingState::kNotInitialized: return "not_initialized";
-    case TrackingState::kTracking: return "tracking";
-    case TrackingState::kLost: return "lost";
-  }
-  return "unknown";
+const char* tracking_label(FrameFate state) {
+  return state == FrameFate::kTracked ? "tracking" : to_string(state);
 }
 
 struct CollaborativeSystem::Impl {
@@ -37,11 +32,12 @@ struct CollaborativeSystem::Impl {
   std::unique_ptr<FusionManager> fusion;
   bool finished = false;
 
-  int group_of(ClientPipeline& p) const {
-    if (!fusion || !p.slam()) return p.info().id;
+  // The fused group of the client's main map; an unfused client is labelled like its first map.
+  GroupId group_of(ClientPipeline& p) const {
+    if (!fusion || !p.slam()) return GroupId::from_value(p.info().id);  // counting-only pipelines
     auto map = p.slam()->main_map();
-    const int g = map ? fusion->group_of(map.get()) : -1;
-    return g < 0 ? int(p.info().id) * 100 : g;
+    const GroupId g = map ? fusion->group_of(map.get()) : GroupId();
+    return g.valid() ? g : GroupId::of_map(p.info().id, 0);
   }
 };
 
@@ -78,7 +74,7 @@ void CollaborativeSystem::add_client(const ClientInfo& info) {
     FusionManager* fusion = impl_->fusion.get();
     listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion->notify(c, m, kf); };
   }
-  std::function<int(const Map*)> group_of;
+  std::function<GroupId(const Map*)> group_of;
   if (impl_->fusion) {
     FusionManager* fusion = impl_->fusion.get();
     group_of = [fusion](const Map* m) { return fusion->group_of(m); };
@@ -153,7 +149,7 @@ SystemSnapshot CollaborativeSystem::snapshot() const {
   s.uptime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - impl_->start).count();
   for (const auto& [id, p] : impl_->clients) {
     s.clients.push_back(p->snapshot());
-    s.clients.back().group = impl_->group_of(*p);
+    s.clients.back().group = impl_->group_of(*p).value();
   }
   if (impl_->fusion) {
     s.events = impl_->fusion->events();
@@ -178,15 +174,15 @@ void CollaborativeSystem::final_global_ba_locked() {
   // group BA at the end made the stepped synthetic demo worse (combined ATE 0.0066 -> 0.0080 m)
   // and fr1/desk K = 3 better (0.0164 -> 0.0154 m), so there is no case for it. The rest: one
   // global BA each.
-  std::map<int, int> maps_in_group;
-  auto group_of = [this](const Map& m) { return impl_->fusion ? impl_->fusion->group_of(&m) : -1; };
+  std::map<GroupId, int> maps_in_group;
+  auto group_of = [this](const Map& m) { return impl_->fusion ? impl_->fusion->group_of(&m) : GroupId(); };
   for (const auto& [id, p] : impl_->clients)
     if (p->slam())
       for (const auto& m : p->slam()->maps())
-        if (const int g = group_of(*m); g >= 0) ++maps_in_group[g];
+        if (const GroupId g = group_of(*m); g.valid()) ++maps_in_group[g];
   auto fused = [&](const Map& m) {
-    const int g = group_of(m);
-    return g >= 0 && maps_in_group[g] > 1;
+    const GroupId g = group_of(m);
+    return g.valid() && maps_in_group[g] > 1;
   };
   for (const auto& [id, p] : impl_->clients)
     if (p->slam()) p->slam()->final_global_ba(fused);
@@ -195,7 +191,7 @@ void CollaborativeSystem::final_global_ba_locked() {
 std::map<int, std::vector<ClientId>> CollaborativeSystem::groups() const {
   std::map<int, std::vector<ClientId>> out;
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  for (const auto& [id, p] : impl_->clients) out[impl_->group_of(*p)].push_back(id);
+  for (const auto& [id, p] : impl_->clients) out[impl_->group_of(*p).value()].push_back(id);
   return out;
 }
 
@@ -211,7 +207,7 @@ std::vector<ViewerPoint> CollaborativeSystem::map_points(int group, std::size_t 
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     for (const auto& [id, p] : impl_->clients)
-      if (p->slam() && impl_->group_of(*p) == group)
+      if (p->slam() && impl_->group_of(*p).value() == group)
         if (auto m = p->slam()->main_map()) maps.emplace_back(id, m);
   }
   std::vector<ViewerPoint> out;
@@ -249,7 +245,7 @@ Trajectory CollaborativeSystem::keyframe_trajectory(ClientId client) const {
 std::vector<KeyframePose> CollaborativeSystem::keyframe_poses() const {
   struct MapOf {
     std::shared_ptr<Map> map;
-    int group;
+    GroupId group;
   };
   std::vector<MapOf> maps;
   {
@@ -258,10 +254,9 @@ std::vector<KeyframePose> CollaborativeSystem::keyframe_poses() const {
       if (!p->slam()) continue;
       const auto main = p->slam()->main_map();
       for (const auto& m : p->slam()->maps()) {
-        const int fused = impl_->fusion ? impl_->fusion->group_of(m.get()) : -1;
-        // An unfused main map is labelled like the client's group in the status (id * 100).
-        const int own = int(id) * 100 + (m == main ? 0 : m->index());
-        maps.push_back({m, fused >= 0 ? fused : own});
+        const GroupId fused = impl_->fusion ? impl_->fusion->group_of(m.get()) : GroupId();
+        // An unfused main map is labelled like the client's group in the status.
+        maps.push_back({m, fused.valid() ? fused : GroupId::of_map(id, m == main ? 0 : m->index())});
       }
     }
   }
@@ -269,7 +264,7 @@ std::vector<KeyframePose> CollaborativeSystem::keyframe_poses() const {
   for (const auto& [m, group] : maps) {
     std::shared_lock<std::shared_mutex> lock(m->mutex);
     for (const auto& kf : m->keyframes())
-      if (!kf->bad) out.push_back({kf->id, group, m->index(), kf->T_world_cam()});
+      if (!kf->bad) out.push_back({kf->id, group.value(), m->index(), kf->T_world_cam()});
   }
   std::sort(out.begin(), out.end(), [](const KeyframePose& a, const KeyframePose& b) { return a.id < b.id; });
   return out;
@@ -293,7 +288,7 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
                                               {"samples", c.pose_latency_samples}}},
                          {"trajectory_poses", trajs.at(c.id).size()},
                          {"keyframes", c.keyframes}, {"map_points", c.map_points}, {"maps", c.maps}, {"group", c.group},
-                         {"tracking", to_string(c.tracking)}};
+                         {"tracking", tracking_label(c.tracking)}};
     std::lock_guard<std::mutex> lock(impl_->mutex);
     const auto& p = impl_->clients.at(c.id);
     if (impl_->config.run_slam) {
@@ -353,7 +348,7 @@ SystemState CollaborativeSystem::export_state() const {
     ClientSlamState cs = p->slam()->export_state();
     const auto maps = p->slam()->maps();
     for (auto& ms : cs.maps)
-      if (impl_->fusion && std::size_t(ms.index) < maps.size()) ms.group = impl_->fusion->group_of(maps[ms.index].get());
+      if (impl_->fusion && std::size_t(ms.index) < maps.size()) ms.group = impl_->fusion->group_of(maps[ms.index].get()).value();
     state.clients.push_back(std::move(cs));
   }
   return state;
@@ -383,7 +378,7 @@ void CollaborativeSystem::restore_state(const SystemState& state, const std::str
     // (A failed insert below leaves only expired weak entries behind.)
     const auto maps = pipeline->slam()->maps();
     if (fusion)
-      for (std::size_t i = 0; i < maps.size() && i < cs.maps.size(); ++i) fusion->restore_group(cs.info.id, maps[i], cs.maps[i].group);
+      for (std::size_t i = 0; i < maps.size() && i < cs.maps.size(); ++i) fusion->restore_group(cs.info.id, maps[i], GroupId::from_value(cs.maps[i].group));
     {
       std::lock_guard<std::mutex> lock(impl_->mutex);
       check_new(cs.info.id);

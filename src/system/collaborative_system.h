@@ -16,13 +16,14 @@
 
 namespace cslam {
 
-enum class TrackingState { kNotInitialized, kTracking, kLost };
-const char* to_string(TrackingState s);
+// A client's tracking state for status pages: its tracker's state (the fate of its last processed
+// frame: not initialised, tracked or lost), labelled "not_initialized", "tracking" or "lost".
+const char* tracking_label(FrameFate state);
 
 struct ClientSnapshot {
   ClientId id = 0;
   std::string name;
-  TrackingState tracking = TrackingState::kNotInitialized;
+  FrameFate tracking = FrameFate::kNotInitialized;  // kNotInitialized, kTracked or kLost
   std::uint64_t frames_submitted = 0, frames_processed = 0, frames_rejected = 0, frames_lost = 0;
   std::uint64_t frames_skipped = 0;  // live frames skipped because a newer one was queued
   std::uint64_t frames_flow = 0;     // frames tracked as flow frames (tracking/frame_flow.h)

@@ -9,29 +9,10 @@
 #include "geometry/se3.h"
 #include "fusion/fusion_manager.h"
 #include "slam/slam_config.h"
+#include "frame/frame_done.h"
 #include "frame/rgbd_frame.h"
 
 namespace cslam {
-
-// What became of one submitted frame, reported by its client's worker once it is consumed.
-enum class FrameFate { kNotInitialized, kTracked, kLost, kSkipped, kRejected };
-const char* to_string(FrameFate f);
-
-struct FrameDone {
-  ClientId client = 0;
-  std::uint64_t seq = 0;
-  double timestamp = 0;
-  FrameFate fate = FrameFate::kRejected;
-  bool has_pose = false;     // only for kTracked: never a stale pose
-  SE3 T_world_cam;           // camera-to-world in the frame of `group` (the tracked map's frame)
-  int group = -1;            // fused group of the map the frame was tracked in
-  int map = 0;               // index of the client's map the frame was tracked in
-  std::uint64_t map_epoch = 0;       // bumps when a fusion, group BA or loop correction may move maps
-  std::uint64_t frames_skipped = 0;  // live frames of this client skipped so far
-  double server_ms = 0;              // submit() to done, milliseconds
-  // A light frame on which tracking needed full depth: the robot's next frame should carry it.
-  bool wants_depth = false;
-};
 
 struct SystemConfig {
   // Frames queued per client before submit() blocks the producer.

@@ -57,30 +57,30 @@ std::shared_ptr<const Vocabulary>* ClientSlamTest::vocabulary_ = nullptr;
 }  // namespace
 
 TEST_F(ClientSlamTest, RejectsMalformedFramesAndKeepsTracking) {
-  for (int i = 0; i < 10; ++i) EXPECT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(slam_->process(frame(i)).fate, FrameFate::kTracked) << i;
 
   RgbdFrame wrong_size = frame(10);
   cv::resize(wrong_size.bgr, wrong_size.bgr, cv::Size(100, 80));
   auto r = slam_->process(wrong_size);
-  EXPECT_EQ(r.outcome, FrameOutcome::kRejected);
+  EXPECT_EQ(r.fate, FrameFate::kRejected);
   EXPECT_NE(r.reject_reason.find("colour"), std::string::npos) << r.reject_reason;
 
   RgbdFrame wrong_depth = frame(10);
   wrong_depth.depth.convertTo(wrong_depth.depth, CV_32F);
-  EXPECT_EQ(slam_->process(wrong_depth).outcome, FrameOutcome::kRejected);
+  EXPECT_EQ(slam_->process(wrong_depth).fate, FrameFate::kRejected);
 
   RgbdFrame old_time = frame(5);  // timestamp goes back
-  EXPECT_EQ(slam_->process(old_time).outcome, FrameOutcome::kRejected);
+  EXPECT_EQ(slam_->process(old_time).fate, FrameFate::kRejected);
 
   for (double offset : {0.5, -0.2, std::nan("")}) {  // a depth image that cannot be this frame's
     RgbdFrame far_depth = frame(10);
     far_depth.depth_time_offset = offset;
     r = slam_->process(far_depth);
-    EXPECT_EQ(r.outcome, FrameOutcome::kRejected) << offset;
+    EXPECT_EQ(r.fate, FrameFate::kRejected) << offset;
     EXPECT_NE(r.reject_reason.find("depth image"), std::string::npos) << r.reject_reason;
   }
 
-  for (int i = 10; i < 20; ++i) EXPECT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  for (int i = 10; i < 20; ++i) EXPECT_EQ(slam_->process(frame(i)).fate, FrameFate::kTracked) << i;
   const auto s = slam_->snapshot();
   EXPECT_EQ(s.frames_rejected, 6u);
   EXPECT_EQ(s.frames_tracked, 20u);
@@ -88,19 +88,19 @@ TEST_F(ClientSlamTest, RejectsMalformedFramesAndKeepsTracking) {
 }
 
 TEST_F(ClientSlamTest, BlackFramesAndMissingDepthLoseTrackingThenRecover) {
-  for (int i = 0; i < 15; ++i) ASSERT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  for (int i = 0; i < 15; ++i) ASSERT_EQ(slam_->process(frame(i)).fate, FrameFate::kTracked) << i;
   // Black image with no depth: no features, tracking is lost (not a crash).
   RgbdFrame black = frame(15);
   black.bgr.setTo(cv::Scalar(0, 0, 0));
   black.depth.setTo(0);
-  EXPECT_EQ(slam_->process(black).outcome, FrameOutcome::kLost);
+  EXPECT_EQ(slam_->process(black).fate, FrameFate::kLost);
   // Saturated image.
   RgbdFrame white = frame(16);
   white.bgr.setTo(cv::Scalar(255, 255, 255));
-  EXPECT_EQ(slam_->process(white).outcome, FrameOutcome::kLost);
+  EXPECT_EQ(slam_->process(white).fate, FrameFate::kLost);
   // Valid frames again: relocalisation against the keyframe database brings tracking back.
   int tracked_after = 0;
-  for (int i = 17; i < 40; ++i) tracked_after += slam_->process(frame(i)).outcome == FrameOutcome::kTracked ? 1 : 0;
+  for (int i = 17; i < 40; ++i) tracked_after += slam_->process(frame(i)).fate == FrameFate::kTracked ? 1 : 0;
   EXPECT_GE(tracked_after, 20);
   EXPECT_EQ(slam_->snapshot().maps, 1);
   // The recovered poses are consistent with the ones before the loss.
@@ -112,9 +112,9 @@ TEST_F(ClientSlamTest, NoDepthAtAllNeverInitialises) {
   for (int i = 0; i < 5; ++i) {
     RgbdFrame f = frame(i);
     f.depth.setTo(0);
-    EXPECT_EQ(slam_->process(f).outcome, FrameOutcome::kNotInitialized);
+    EXPECT_EQ(slam_->process(f).fate, FrameFate::kNotInitialized);
   }
-  EXPECT_EQ(slam_->process(frame(5)).outcome, FrameOutcome::kTracked);  // first frame with depth initialises
+  EXPECT_EQ(slam_->process(frame(5)).fate, FrameFate::kTracked);  // first frame with depth initialises
 }
 
 namespace {
@@ -139,7 +139,7 @@ double map_reprojection_cost(Map& map) {
 }  // namespace
 
 TEST_F(ClientSlamTest, FinalGlobalBaRefinesEachMapAfterFinish) {
-  for (int i = 0; i < 60; ++i) ASSERT_EQ(slam_->process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  for (int i = 0; i < 60; ++i) ASSERT_EQ(slam_->process(frame(i)).fate, FrameFate::kTracked) << i;
   EXPECT_THROW(slam_->final_global_ba(), std::logic_error);  // local mapping may still be working
   slam_->finish();
   auto map = slam_->main_map();
@@ -178,7 +178,7 @@ TEST_F(ClientSlamTest, FinalGlobalBaOffByConfig) {
   cfg.threaded = false;
   cfg.final_global_ba_iterations = 0;
   ClientSlam slam(info_, cfg, *vocabulary_);
-  for (int i = 0; i < 20; ++i) ASSERT_EQ(slam.process(frame(i)).outcome, FrameOutcome::kTracked) << i;
+  for (int i = 0; i < 20; ++i) ASSERT_EQ(slam.process(frame(i)).fate, FrameFate::kTracked) << i;
   slam.finish();
   EXPECT_EQ(slam.final_global_ba(), 0);
 }
@@ -192,10 +192,10 @@ TEST_F(ClientSlamTest, LightFramesAreTrackedAndKeyframesWaitForFullDepth) {
   RgbdFrame first = frame(0);
   first.depth = cv::Mat();
   ProcessResult r = slam_->process(first);
-  EXPECT_EQ(r.outcome, FrameOutcome::kNotInitialized);
+  EXPECT_EQ(r.fate, FrameFate::kNotInitialized);
   EXPECT_TRUE(r.wants_depth);  // no map without depth
   r = slam_->process(frame(1));
-  ASSERT_EQ(r.outcome, FrameOutcome::kTracked);
+  ASSERT_EQ(r.fate, FrameFate::kTracked);
   EXPECT_FALSE(r.wants_depth);
 
   const int n = std::min<int>(int(dataset_.pairs.size()), 90);
@@ -213,7 +213,7 @@ TEST_F(ClientSlamTest, LightFramesAreTrackedAndKeyframesWaitForFullDepth) {
       ++colour_only;
     }
     r = slam_->process(f);
-    EXPECT_EQ(r.outcome, FrameOutcome::kTracked) << i;
+    EXPECT_EQ(r.fate, FrameFate::kTracked) << i;
     if (!with_depth) {
       EXPECT_FALSE(r.new_keyframe) << "light frame " << i << " became a keyframe";
     } else {
@@ -245,7 +245,7 @@ TEST_F(ClientSlamTest, FlowFramesTrackBetweenFullFramesAsAccuratelyAsTheFullPath
     int flow = 0, keyframes = 0;
     for (std::size_t i = 0; i < dataset_.pairs.size(); ++i) {
       const ProcessResult r = slam.process(frame(int(i)), load);
-      EXPECT_EQ(r.outcome, FrameOutcome::kTracked) << i;
+      EXPECT_EQ(r.fate, FrameFate::kTracked) << i;
       if (r.flow) {
         ++flow;
         EXPECT_FALSE(r.new_keyframe) << i;  // keyframes come from full frames only

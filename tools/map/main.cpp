@@ -29,7 +29,7 @@ namespace {
 int group_of(const ClientSlamState& c, int map_index) {
   if (map_index < 0) return -1;
   const int g = c.maps[std::size_t(map_index)].group;
-  return g >= 0 ? g : int(c.info.id) * 100 + map_index;
+  return g >= 0 ? g : GroupId::of_map(c.info.id, map_index).value();
 }
 
 int cmd_info(int argc, char** argv) {

@@ -157,15 +157,15 @@ int run(int argc, char** argv) {
     features.push_back(r.features);
     if (std::getenv("CSLAM_TRACE")) std::fprintf(stderr, "frame %d feats %d inliers %d kf %d flow %d t %.6f\n", n, r.features, r.inliers, int(r.new_keyframe), int(r.flow), frame.timestamp);
     ++n;
-    if (r.outcome == FrameOutcome::kLost) ++lost;
-    if (r.outcome == FrameOutcome::kRejected) {
+    if (r.fate == FrameFate::kLost) ++lost;
+    if (r.fate == FrameFate::kRejected) {
       ++rejected;
       logger("slam")->warn("frame {} rejected: {}", n, r.reject_reason);
     }
     if (!quiet && (n % 50 == 0 || n == int(pairs.size()))) {
       const auto s = slam.snapshot();
       std::fprintf(stderr, "\r[cslam-slam] %d/%zu frames  %s  kf=%d mp=%d lost=%d  %.1f fps   ", n, pairs.size(),
-                   to_string(r.outcome), s.keyframes, s.map_points, lost, n / (wall.ms() / 1000.0));
+                   to_string(r.fate), s.keyframes, s.map_points, lost, n / (wall.ms() / 1000.0));
     }
   }
   loader.join();
@@ -174,8 +174,8 @@ int run(int argc, char** argv) {
   // Maps joined by fusion were refined together by the group BA after it (as on the server).
   const auto all_maps = slam.maps();
   auto fused = [&](const Map& m) {
-    const int g = fusion.group_of(&m);
-    return g >= 0 && std::count_if(all_maps.begin(), all_maps.end(), [&](const auto& o) { return fusion.group_of(o.get()) == g; }) > 1;
+    const GroupId g = fusion.group_of(&m);
+    return g.valid() && std::count_if(all_maps.begin(), all_maps.end(), [&](const auto& o) { return fusion.group_of(o.get()) == g; }) > 1;
   };
   slam.final_global_ba(fused);
   const double wall_s = wall.ms() / 1000.0;
@@ -242,10 +242,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   cslam::run_opencv_on_calling_threads();
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::cerr << "cslam-slam: error: " << e.what() << "\n";
-    return 1;
-  }
+  return run_main("cslam-slam", argc, argv, run);
 }

@@ -19,7 +19,7 @@ Tracker::Tracker(TrackerConfig config, std::shared_ptr<Map> map, KeyFrameSink* s
 void Tracker::reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink) {
   map_ = std::move(new_map);
   sink_ = sink;
-  state_ = TrackState::kNotInitialized;
+  state_ = FrameFate::kNotInitialized;
   last_.reset();
   last_full_.reset();
   has_velocity_ = false;
@@ -36,7 +36,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
   Frame frame(std::move(data));
   TrackResult result;
   bool ok = false;
-  if (state_ == TrackState::kNotInitialized) {
+  if (state_ == FrameFate::kNotInitialized) {
     ok = initialize(frame);
     result.initialized_map = ok;
     if (ok) result.keyframe = reference_kf_->id;
@@ -49,7 +49,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
     {
       std::shared_lock<std::shared_mutex> lock(map_->mutex);
       tracked_change_index_ = map_->big_change_index();
-      if (state_ == TrackState::kOk) {
+      if (state_ == FrameFate::kTracked) {
         update_last_frame();
         if (last_full_ && last_full_->reference && !last_full_->reference->bad)
           last_full_->T_cam_world = last_full_->T_cam_ref * last_full_->reference->T_cam_world;
@@ -63,7 +63,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       if (ok) ok = track_local_map(frame);
       if (ok && frame.reference) frame.T_cam_ref = frame.T_cam_world * frame.reference->T_world_cam();
     }
-    state_ = ok ? TrackState::kOk : TrackState::kLost;
+    state_ = ok ? FrameFate::kTracked : FrameFate::kLost;
     if (ok) {
       if (last_ && last_->has_pose) {
         velocity_ = frame.T_cam_world * last_->T_cam_world.inverse();
@@ -139,7 +139,7 @@ bool Tracker::initialize(Frame& frame) {
   reference_kf_ = kf;
   last_keyframe_ = kf;
   frames_since_keyframe_ = 0;
-  state_ = TrackState::kOk;
+  state_ = FrameFate::kTracked;
   last_inliers_ = with_depth;
   if (sink_) sink_->insert_keyframe(kf);
   return true;
@@ -217,7 +217,7 @@ int drop_outliers_count_map_points(Frame& frame) {
 }  // namespace
 
 std::optional<SE3> Tracker::predicted_motion(double seconds) const {
-  if (state_ != TrackState::kOk || !has_velocity_ || !(velocity_dt_ > 0) || !std::isfinite(seconds)) return std::nullopt;
+  if (state_ != FrameFate::kTracked || !has_velocity_ || !(velocity_dt_ > 0) || !std::isfinite(seconds)) return std::nullopt;
   return velocity_.scaled(seconds / velocity_dt_);
 }
 

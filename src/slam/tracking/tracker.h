@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "core/pointer_set.h"
+#include "frame/frame_fate.h"
 #include "slam/map/frame.h"
 #include "slam/map/map.h"
 #include "optimize/pose_optimizer.h"
@@ -15,7 +16,6 @@
 
 namespace cslam {
 
-enum class TrackState { kNotInitialized, kOk, kLost };
 
 struct TrackerConfig {
   int min_init_points = 500;          // keypoints with depth needed to initialise a map
@@ -59,7 +59,7 @@ class KeyFrameSink {
 };
 
 struct TrackResult {
-  TrackState state = TrackState::kNotInitialized;
+  FrameFate state = FrameFate::kNotInitialized;
   bool ok = false;
   bool new_keyframe = false;
   bool relocalized = false;
@@ -81,7 +81,7 @@ class Tracker {
   Tracker(TrackerConfig config, std::shared_ptr<Map> map, KeyFrameSink* sink);
 
   TrackResult track(std::shared_ptr<const FrameData> data);
-  TrackState state() const { return state_; }
+  FrameFate state() const { return state_; }
   // Flow frames (frame_flow.h, tracker_flow.cpp). flow_seeds: the last frame's matched keypoints
   // and where the motion model puts them at `timestamp`, if this frame may be a flow frame
   // (tracking healthy, no keyframe due or deferred, fewer than `max_run` flow frames in a row); nullopt: track
@@ -101,7 +101,7 @@ class Tracker {
   // Continues in an existing (restored) map: lost, so the next frames relocalise in it.
   void resume_lost(std::shared_ptr<Map> map, KeyFrameSink* sink) {
     reset(std::move(map), sink);
-    state_ = TrackState::kLost;
+    state_ = FrameFate::kLost;
   }
 
  private:
@@ -130,7 +130,7 @@ class Tracker {
   TrackerConfig config_;
   std::shared_ptr<Map> map_;
   KeyFrameSink* sink_;
-  TrackState state_ = TrackState::kNotInitialized;
+  FrameFate state_ = FrameFate::kNotInitialized;
   std::unique_ptr<Frame> last_;
   std::unique_ptr<Frame> last_full_;  // while flow frames follow it: the last full frame (track_with_motion_model)
   bool last_is_keyframe_ = false;

@@ -12,7 +12,7 @@ namespace cslam {
 
 std::optional<FlowSeeds> Tracker::flow_seeds(double timestamp, int max_run) {
   const FlowConfig& fc = config_.flow;
-  if (state_ != TrackState::kOk || !has_velocity_ || !last_ || !last_->has_pose || keyframe_deferred_) return std::nullopt;
+  if (state_ != FrameFate::kTracked || !has_velocity_ || !last_ || !last_->has_pose || keyframe_deferred_) return std::nullopt;
   if (flow_run_ >= max_run || frames_since_reloc_ < std::uint32_t(config_.max_frames_between_keyframes)) return std::nullopt;
   // A keyframe due at this frame by the frame count needs the full path (and its keypoints).
   if (config_.keyframe_every_frames > 0 && frames_since_keyframe_ + 1 >= std::uint32_t(config_.keyframe_every_frames))
