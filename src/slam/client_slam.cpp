@@ -1,6 +1,7 @@
 #include "slam/client_slam.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <optional>
 #include <shared_mutex>
@@ -9,6 +10,7 @@
 
 #include "core/log.h"
 #include "core/stopwatch.h"
+#include "frame/frame_check.h"
 #include "slam/loop/global_ba.h"
 #include "slam/map/map_locks.h"
 #include "slam/map_frames.h"
@@ -68,18 +70,9 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
     ++snapshot_.frames_rejected;
     return r;
   };
+  assert(frame_problem(frame, info_.camera).empty());  // checked where the frame was built (frame/frame_check.h)
   if (finished_) return reject("worker finished");
-  if (frame.bgr.empty() || frame.bgr.type() != CV_8UC3 || frame.bgr.cols != cam.width || frame.bgr.rows != cam.height)
-    return reject("colour image is not " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " BGR8");
-  // No depth image: a colour-only frame (tracked, never a keyframe; see ProcessResult::wants_depth).
-  // Subsampled depth (depth_subsample > 1) comes spread to full size: tracked, never a keyframe.
-  if (!frame.depth.empty() && (frame.depth.type() != CV_16UC1 || frame.depth.cols != cam.width || frame.depth.rows != cam.height))
-    return reject("depth image is not " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " 16-bit");
-  if (!std::isfinite(frame.timestamp) || frame.timestamp <= last_timestamp_)
-    return reject("timestamp " + std::to_string(frame.timestamp) + " does not increase");
-  if (!std::isfinite(frame.depth_time_offset) || std::abs(frame.depth_time_offset) > kMaxDepthTimeOffset)
-    return reject("depth image " + std::to_string(frame.depth_time_offset) + " s from the colour image (at most " +
-                  std::to_string(kMaxDepthTimeOffset) + " s)");
+  if (frame.timestamp <= last_timestamp_) return reject("timestamp " + std::to_string(frame.timestamp) + " does not increase");
   last_timestamp_ = frame.timestamp;
 
   Stopwatch sw;

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "frame/frame_check.h"
 #include "core/stats.h"
 #include "eval/stats_json.h"
 #include "system/loop_stats_json.h"
@@ -99,13 +100,9 @@ bool CollaborativeSystem::submit(RgbdFrame frame) {
     if (it == impl_->clients.end()) return false;
     pipeline = it->second.get();
   }
-  const PinholeCamera& cam = pipeline->info().camera;
-  const bool depth_ok = frame.depth.empty() ||  // a colour-only frame
-                        (frame.depth.type() == CV_16UC1 && frame.depth.cols == cam.width && frame.depth.rows == cam.height);
-  if (frame.bgr.type() != CV_8UC3 || frame.bgr.cols != cam.width || frame.bgr.rows != cam.height || !depth_ok) {
-    throw std::invalid_argument("frame of client " + std::to_string(frame.client) + " does not match its camera (" +
-                                std::to_string(cam.width) + "x" + std::to_string(cam.height) + ", BGR8 + depth16)");
-  }
+  // The frame's builder checked it (frame/frame_check.h); a malformed one here is a programming error.
+  if (const std::string why = frame_problem(frame, pipeline->info().camera); !why.empty())
+    throw std::invalid_argument("frame " + std::to_string(frame.seq) + " of client " + std::to_string(frame.client) + ": " + why);
   // Pipelines are only destroyed in the destructor, after finish(): the pointer stays valid.
   return pipeline->submit(std::move(frame));
 }
@@ -116,7 +113,7 @@ bool CollaborativeSystem::retire_client(ClientId id, const std::string& dir) {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     auto it = impl_->clients.find(id);
     if (it == impl_->clients.end() || impl_->finished) return it == impl_->clients.end();
-    const int group = impl_->group_of(*it->second);
+    const GroupId group = impl_->group_of(*it->second);
     for (const auto& [other, p] : impl_->clients)
       if (other != id && impl_->group_of(*p) == group) return false;  // fused: the map stays with its group
     pipeline = std::move(it->second);

@@ -119,8 +119,8 @@ TEST(Reencounter, LoopClosureInAFusedMapRebalancesTheGroup) {
   cfg.threaded = false;              // the group BA runs inside notify()
   cfg.reencounter.enabled = false;   // only the loop closure may start it
   FusionManager fusion(cfg, std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
-  fusion.restore_group(1, m.a.map, 7);
-  fusion.restore_group(2, m.b.map, 7);
+  fusion.restore_group(1, m.a.map, GroupId::from_value(7));
+  fusion.restore_group(2, m.b.map, GroupId::from_value(7));
   KeyFramePtr kf;
   {
     std::shared_lock<std::shared_mutex> lock(m.a.map->mutex);

@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
+#include "frame/frame_check.h"
 #include "core/stats.h"
 #include "eval/stats_json.h"
 #include "slam/features/opencv_threads.h"
@@ -139,6 +140,8 @@ int run(int argc, char** argv) {
   int depth_requested_at = -1, light_frames = 0;
   while (auto item = loaded.pop()) {
     RgbdFrame frame = dataset_frame(item->first, std::move(item->second), info.id, std::uint64_t(n));
+    if (const std::string why = frame_problem(frame, info.camera); !why.empty())  // the dataset is this tool's boundary
+      throw InputError(args.get("dataset"), "frame " + std::to_string(n) + ": " + why + " (does --camera match the dataset?)");
     const bool requested = depth_requested_at >= 0 && n > depth_requested_at + depth_delay;
     if (n % depth_every != 0 && !requested) {
       if (light_depth > 1) {  // what the server makes of a light frame's depth
