@@ -161,7 +161,8 @@ int run_main(const char* program, int argc, char** argv, int (*run)(int, char**)
   try {
     return run(argc, argv);
   } catch (const ConfigError& e) {
-    std::cerr << e.what() << "\n";
+    const std::string what = e.what();
+    std::cerr << (what.rfind(program, 0) == 0 ? "" : std::string(program) + ": ") << what << "\n";
     return 2;
   } catch (const std::exception& e) {
     std::cerr << program << ": " << e.what() << "\n";

@@ -47,7 +47,8 @@ class CliArgs {
 };
 
 // The body of every program's main(): runs `run`, prints a one-line error on failure and returns
-// the exit code (configuration/usage errors 2, anything else 1).
+// the exit code (configuration/usage errors 2, anything else 1). Every message starts with
+// `program` ("cslam-x: ..."; a ConfigError that already names it is printed as it is).
 int run_main(const char* program, int argc, char** argv, int (*run)(int, char**));
 
 }  // namespace cslam

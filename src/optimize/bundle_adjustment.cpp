@@ -8,22 +8,14 @@
 #include <limits>
 
 #include "optimize/pose_param.h"
+#include "optimize/reprojection_chi2.h"
 #include "optimize/schur_ba.h"
 #include "optimize/sparse_ba.h"
 
 namespace cslam {
 
 double ba_observation_chi2(const BaCamera& cam, const Eigen::Vector3d& pw, const BaObservation& o) {
-  const Eigen::Vector3d p = cam.T_cam_world * pw;
-  if (p.z() <= 0) return std::numeric_limits<double>::infinity();
-  const auto& k = cam.intrinsics;
-  const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
-  double e2 = (u - o.uv.x()) * (u - o.uv.x()) + (v - o.uv.y()) * (v - o.uv.y());
-  if (o.u_right >= 0) {
-    const double ur = u - k.bf / p.z();
-    e2 += (ur - o.u_right) * (ur - o.u_right);
-  }
-  return e2 * o.inv_sigma2;
+  return reprojection_chi2(cam.intrinsics, cam.T_cam_world * pw, o.uv, o.u_right, o.inv_sigma2);
 }
 
 BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::atomic<bool>* abort) {

@@ -13,6 +13,7 @@
 
 #include "optimize/lm_driver.h"
 #include "optimize/pose_param.h"
+#include "optimize/reprojection_chi2.h"
 #include "optimize/se3_projection.h"
 
 namespace cslam {
@@ -115,15 +116,7 @@ class PoseProblem {
 };
 
 double chi2_at(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const PoseObservation& o, const StereoIntrinsics& k) {
-  const Eigen::Vector3d p = R * o.p_world + t;
-  if (p.z() <= 0) return std::numeric_limits<double>::infinity();
-  const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
-  double e2 = (u - o.uv.x()) * (u - o.uv.x()) + (v - o.uv.y()) * (v - o.uv.y());
-  if (o.u_right >= 0) {
-    const double ur = u - k.bf / p.z();
-    e2 += (ur - o.u_right) * (ur - o.u_right);
-  }
-  return e2 * o.inv_sigma2;
+  return reprojection_chi2(k, R * o.p_world + t, o.uv, o.u_right, o.inv_sigma2);
 }
 
 }  // namespace

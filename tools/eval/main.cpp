@@ -142,24 +142,25 @@ const char* kUsage =
     "  events STATS.json --gt GT [--offset S|auto --est EST]         loop / fusion transforms vs ground truth\n"
     "Run 'cslam-eval COMMAND --help' for a command's options.\n";
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
     std::cout << kUsage;
     return argc < 2 ? 2 : 0;
   }
   const std::string cmd = argv[1];
-  try {
-    if (cmd == "ate") return cmd_ate(argc, argv);
-    if (cmd == "rpe") return cmd_rpe(argc, argv);
-    if (cmd == "split") return cmd_split(argc, argv);
-    if (cmd == "cloud") return cslam::cmd_cloud(argc, argv);
-    if (cmd == "events") return cslam::cmd_events(argc, argv);
-    std::cerr << "cslam-eval: unknown command '" << cmd << "'\n" << kUsage;
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "cslam-eval " << cmd << ": error: " << e.what() << "\n";
-    return 1;
-  }
+  if (cmd == "ate") return cmd_ate(argc, argv);
+  if (cmd == "rpe") return cmd_rpe(argc, argv);
+  if (cmd == "split") return cmd_split(argc, argv);
+  if (cmd == "cloud") return cslam::cmd_cloud(argc, argv);
+  if (cmd == "events") return cslam::cmd_events(argc, argv);
+  std::cerr << "cslam-eval: unknown command '" << cmd << "'\n" << kUsage;
+  return 2;
+}
+
+}  // namespace
+
+// Errors name the subcommand: "cslam-eval ate: ...".
+int main(int argc, char** argv) {
+  const std::string program = argc < 2 ? "cslam-eval" : "cslam-eval " + std::string(argv[1]);
+  return run_main(program.c_str(), argc, argv, run);
 }

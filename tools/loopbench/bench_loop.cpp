@@ -193,11 +193,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::cerr << "cslam-bench-loop: " << e.what() << "\n";
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return run_main("cslam-bench-loop", argc, argv, run); }

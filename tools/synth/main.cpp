@@ -103,12 +103,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    const std::string what = e.what();
-    std::fprintf(stderr, "%serror: %s\n", what.rfind("cslam-synth", 0) == 0 ? "" : "cslam-synth: ", what.c_str());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return run_main("cslam-synth", argc, argv, run); }

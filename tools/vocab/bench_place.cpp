@@ -206,31 +206,28 @@ int synthetic_crossing(const Vocabulary& voc, const OrbExtractor& extractor, int
   return crossing_ok ? 0 : 1;
 }
 
+int run(int argc, char** argv) {
+  CliArgs args("cslam-bench-place", "Place-recognition recall/precision of the vocabulary and keyframe database.");
+  args.option("tum", "TUM dataset folder with groundtruth.txt", std::string(CSLAM_SHARED_DATA_DIR) + "/tum_fr1_rpy")
+      .option("query-tum", "second dataset in the same world frame: keyframes from --tum, queries from this one", "")
+      .option("vocabulary", "vocabulary file ('default' = the committed one)", "default")
+      .option("db-every", "database keyframe every n-th frame of the first half", "10")
+      .option("query-every", "query every n-th frame of the second half", "1")
+      .option("max-angle", "viewing-direction angle for a true match (deg)", "15")
+      .option("max-dist", "position distance for a true match (m)", "0.3")
+      .option("levels-up", "direct-index level counted from the leaves", "4")
+      .flag("skip-synthetic", "only the real sequence");
+  if (!args.parse(argc, argv)) return 0;
+  std::string path = args.get("vocabulary");
+  if (path == "default") path = default_vocabulary_path();
+  const Vocabulary voc = Vocabulary::load(path);
+  std::printf("vocabulary %s: k=%d L=%d, %zu words\n", path.c_str(), voc.branching(), voc.depth(), voc.num_words());
+  const OrbExtractor extractor;
+  real_sequence(args, voc, extractor);
+  if (args.flag_set("skip-synthetic")) return 0;
+  return synthetic_crossing(voc, extractor, args.get_int("levels-up"));
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    CliArgs args("cslam-bench-place", "Place-recognition recall/precision of the vocabulary and keyframe database.");
-    args.option("tum", "TUM dataset folder with groundtruth.txt", std::string(CSLAM_SHARED_DATA_DIR) + "/tum_fr1_rpy")
-        .option("query-tum", "second dataset in the same world frame: keyframes from --tum, queries from this one", "")
-        .option("vocabulary", "vocabulary file ('default' = the committed one)", "default")
-        .option("db-every", "database keyframe every n-th frame of the first half", "10")
-        .option("query-every", "query every n-th frame of the second half", "1")
-        .option("max-angle", "viewing-direction angle for a true match (deg)", "15")
-        .option("max-dist", "position distance for a true match (m)", "0.3")
-        .option("levels-up", "direct-index level counted from the leaves", "4")
-        .flag("skip-synthetic", "only the real sequence");
-    if (!args.parse(argc, argv)) return 0;
-    std::string path = args.get("vocabulary");
-    if (path == "default") path = default_vocabulary_path();
-    const Vocabulary voc = Vocabulary::load(path);
-    std::printf("vocabulary %s: k=%d L=%d, %zu words\n", path.c_str(), voc.branching(), voc.depth(), voc.num_words());
-    const OrbExtractor extractor;
-    real_sequence(args, voc, extractor);
-    if (args.flag_set("skip-synthetic")) return 0;
-    return synthetic_crossing(voc, extractor, args.get_int("levels-up"));
-  } catch (const std::exception& e) {
-    std::cerr << "cslam-bench-place: " << e.what() << "\n";
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return run_main("cslam-bench-place", argc, argv, run); }

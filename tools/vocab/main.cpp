@@ -118,21 +118,18 @@ void usage() {
                "Run 'cslam-vocab <command> --help' for the options of a command.\n";
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
     usage();
     return argc < 2 ? 2 : 0;
   }
-  try {
-    const std::string cmd = argv[1];
-    if (cmd == "train") return cmd_train(argc, argv);
-    if (cmd == "info") return cmd_info(argc, argv);
-    std::cerr << "cslam-vocab: unknown command '" << cmd << "' (see --help)\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "cslam-vocab: " << e.what() << "\n";
-    return 1;
-  }
+  const std::string cmd = argv[1];
+  if (cmd == "train") return cmd_train(argc, argv);
+  if (cmd == "info") return cmd_info(argc, argv);
+  std::cerr << "cslam-vocab: unknown command '" << cmd << "' (see --help)\n";
+  return 2;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return run_main("cslam-vocab", argc, argv, run); }

@@ -16,60 +16,21 @@
 namespace cslam {
 
 LoopCloser::LoopCloser(LoopClosingConfig config, std::shared_ptr<Map> map, bool threaded)
-    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded), consistency_(config_.consistency) {
-  if (threaded_) thread_ = std::thread([this] { run(); });
+    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded), consistency_(config_.consistency),
+      worker_(threaded, [this](const KeyFramePtr& kf) { process(kf); }) {
+  worker_.start();
 }
 
 LoopCloser::~LoopCloser() { finish(); }
 
 void LoopCloser::insert_keyframe(const KeyFramePtr& kf) {
-  if (!config_.enabled) return;
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    if (stop_) return;
-    if (queue_.size() >= config_.queue_capacity) queue_.pop_front();
-    queue_.push_back(kf);
-  }
-  queue_cv_.notify_one();
+  if (config_.enabled) worker_.push(kf, config_.queue_capacity);
 }
 
-bool LoopCloser::step() {
-  KeyFramePtr kf;
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    if (queue_.empty()) return false;
-    kf = queue_.front();
-    queue_.pop_front();
-  }
-  process(kf);
-  return true;
-}
-
-void LoopCloser::run() {
-  lower_current_thread_priority();
-  for (;;) {
-    KeyFramePtr kf;
-    {
-      std::unique_lock<std::mutex> lock(queue_mutex_);
-      queue_cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
-      if (queue_.empty()) return;
-      kf = queue_.front();
-      queue_.pop_front();
-    }
-    process(kf);
-  }
-}
+bool LoopCloser::step() { return worker_.step(); }
 
 void LoopCloser::finish() {
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    stop_ = true;
-  }
-  queue_cv_.notify_all();
-  if (thread_.joinable()) thread_.join();
-  if (!threaded_)
-    while (step()) {
-    }
+  worker_.stop();
   if (gba_thread_.joinable()) gba_thread_.join();  // let a running global BA complete
 }
 

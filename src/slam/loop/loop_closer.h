@@ -7,12 +7,11 @@
 // optimised (Ceres) and points follow their reference keyframes. A global BA then runs in the
 // background, interrupted by a new loop or a fusion.
 #include <atomic>
-#include <condition_variable>
-#include <deque>
 #include <memory>
 #include <mutex>
 #include <thread>
 
+#include "core/queue_worker.h"
 #include "slam/loop/overlap_verifier.h"
 #include "slam/loop/consistency.h"
 #include "slam/map/map.h"
@@ -67,7 +66,6 @@ class LoopCloser {
   bool run_global_ba();
 
  private:
-  void run();
   bool detect(const KeyFramePtr& kf, KeyFramePtr& candidate, OverlapVerifyResult& verified);
   void correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, const OverlapVerifyResult& verified);
   void start_global_ba();
@@ -80,17 +78,13 @@ class LoopCloser {
   std::uint32_t last_loop_seq_ = 0;
   bool had_loop_ = false;
 
-  std::mutex queue_mutex_;
-  std::condition_variable queue_cv_;
-  std::deque<KeyFramePtr> queue_;
-  bool stop_ = false;
-  std::thread thread_;
-
   std::thread gba_thread_;
   std::atomic<bool> gba_abort_{false};
 
   mutable std::mutex stats_mutex_;
   LoopClosingStats stats_;
+
+  QueueWorker<KeyFramePtr> worker_;  // last: its thread ends before the members it uses go
 };
 
 }  // namespace cslam

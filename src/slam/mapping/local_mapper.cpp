@@ -4,14 +4,14 @@
 
 #include "core/error.h"
 #include "core/stopwatch.h"
-#include "core/thread_priority.h"
 #include "slam/match/projection_search.h"
 
 namespace cslam {
 
 LocalMapper::LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, bool threaded)
-    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded) {
-  if (threaded_) thread_ = std::thread([this] { run(); });
+    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded),
+      worker_(threaded, [this](const KeyFramePtr& kf) { process(kf); }) {
+  worker_.start();
 }
 
 LocalMapper::~LocalMapper() { finish(); }
@@ -24,69 +24,21 @@ TrackingWait parse_tracking_wait(const std::string& name) {
 }
 
 void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
-  std::uint64_t n = 0;
-  {
-    std::unique_lock<std::mutex> lock(queue_mutex_);
-    // Backpressure: tracking waits while local mapping is a full queue behind, so that every
-    // keyframe tracking decides on is processed completely (no skipped fusion or BA).
-    if (threaded_) space_cv_.wait(lock, [&] { return stop_requested_ || inserted_ - processed_ < config_.max_pending_keyframes; });
-    queue_.push_back(kf);
-    n = ++inserted_;
-  }
-  queue_cv_.notify_one();
+  // Backpressure: tracking waits while local mapping is a full queue behind, so that every
+  // keyframe tracking decides on is processed completely (no skipped fusion or BA).
+  const std::uint64_t n = worker_.push_waiting(kf, config_.max_pending_keyframes);
   if (!threaded_ || config_.tracking_wait == TrackingWait::kNone) return;
-  std::unique_lock<std::mutex> lock(queue_mutex_);
-  space_cv_.wait(lock, [&] {
-    return stop_requested_ || (config_.tracking_wait == TrackingWait::kKeyframe ? processed_ : points_done_) >= n;
-  });
+  const bool whole_keyframe = config_.tracking_wait == TrackingWait::kKeyframe;
+  worker_.wait_until([&] { return (whole_keyframe ? worker_.done() : points_done_) >= n; });
 }
 
-std::size_t LocalMapper::queued() const {
-  std::lock_guard<std::mutex> lock(queue_mutex_);
-  return queue_.size();
-}
+std::size_t LocalMapper::queued() const { return worker_.queued(); }
 
-bool LocalMapper::step() {
-  KeyFramePtr kf;
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    if (queue_.empty()) return false;
-    kf = queue_.front();
-    queue_.pop_front();
-  }
-  process(kf);
-  return true;
-}
-
-void LocalMapper::run() {
-  lower_current_thread_priority();
-  for (;;) {
-    KeyFramePtr kf;
-    {
-      std::unique_lock<std::mutex> lock(queue_mutex_);
-      queue_cv_.wait(lock, [&] { return stop_requested_ || !queue_.empty(); });
-      if (queue_.empty()) return;  // stop requested and drained
-      kf = queue_.front();
-      queue_.pop_front();
-    }
-    process(kf);
-  }
-}
+bool LocalMapper::step() { return worker_.step(); }
 
 void LocalMapper::finish() {
   stopping_ = true;
-  if (threaded_) {
-    {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      stop_requested_ = true;
-    }
-    queue_cv_.notify_all();
-    space_cv_.notify_all();
-    if (thread_.joinable()) thread_.join();
-  } else {
-    while (step()) {
-    }
-  }
+  worker_.stop();
 }
 
 LocalMapperStats LocalMapper::stats() const {
@@ -109,7 +61,7 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     MapWriteLock lock(*map_);
     fuse_with_neighbours(kf.get());
   }
-  count_and_notify(points_done_);
+  worker_.update([&] { ++points_done_; });
   if (config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
   {
     MapWriteLock lock(*map_);
@@ -121,16 +73,7 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     ++stats_.keyframes_processed;
     stats_.step_ms.push_back(sw.ms());
   }
-  if (on_processed_) on_processed_(kf);
-  count_and_notify(processed_);
-}
-
-void LocalMapper::count_and_notify(std::uint64_t& counter) {
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    ++counter;
-  }
-  space_cv_.notify_all();
+  if (on_processed_) on_processed_(kf);  // the worker then counts the keyframe done
 }
 
 void LocalMapper::insert_into_map(KeyFrame* kf) {

@@ -3,14 +3,12 @@
 // duplicate fusion with neighbours, local bundle adjustment and redundant keyframe culling.
 // Runs in its own thread (threaded = true) or is stepped by the caller (tests, offline runs).
 #include <atomic>
-#include <condition_variable>
-#include <deque>
 #include <list>
 #include <mutex>
 #include <string>
-#include <thread>
 
 #include "core/pointer_set.h"
+#include "core/queue_worker.h"
 #include "core/stats.h"
 #include "slam/map/map.h"
 #include "slam/mapping/triangulation.h"
@@ -74,32 +72,26 @@ class LocalMapper : public KeyFrameSink {
   const std::shared_ptr<Map>& map() const { return map_; }
 
  private:
-  void run();
   void process(const KeyFramePtr& kf);
   void insert_into_map(KeyFrame* kf);
   void cull_map_points(KeyFrame* kf);
   void fuse_with_neighbours(KeyFrame* kf);
   void local_bundle_adjustment(KeyFrame* kf);
   void cull_keyframes(KeyFrame* kf);
-  void count_and_notify(std::uint64_t& counter);  // ++counter under queue_mutex_, wakes tracking
 
   LocalMapperConfig config_;
   std::shared_ptr<Map> map_;
   const bool threaded_;
-  mutable std::mutex queue_mutex_;
-  std::condition_variable queue_cv_, space_cv_;
-  std::deque<KeyFramePtr> queue_;
   std::atomic<bool> stopping_{false};
-  // Keyframes inserted, with their new points fused, fully processed (FIFO order; guarded by
-  // queue_mutex_). inserted_ - processed_ are queued or in work; tracking waits on space_cv_.
-  std::uint64_t inserted_ = 0, points_done_ = 0, processed_ = 0;
-  bool stop_requested_ = false;
+  // Keyframes whose new points are fused (FIFO order; guarded by the worker's queue mutex). The
+  // worker counts the keyframes inserted and fully processed; tracking waits on either.
+  std::uint64_t points_done_ = 0;
   std::list<MapPointPtr> recent_points_;
   PointerSet ba_points_seen_;  // local_bundle_adjustment's scratch, reused keyframe to keyframe
   KeyFrameProcessedCallback on_processed_;
   mutable std::mutex stats_mutex_;
   LocalMapperStats stats_;
-  std::thread thread_;
+  QueueWorker<KeyFramePtr> worker_;  // last: its thread ends before the members it uses go
 };
 
 }  // namespace cslam
