@@ -34,22 +34,25 @@ ClientSlam::ClientSlam(ClientInfo info, SlamConfig config, std::shared_ptr<const
 
 ClientSlam::~ClientSlam() { finish(); }
 
-void ClientSlam::start_new_map() {
+std::unique_ptr<LocalMapper> ClientSlam::attach_workers(const std::shared_ptr<Map>& map) {
   if (mapper_) mapper_->finish();
   if (loop_closer_) loop_closer_->finish();
-  auto map = std::make_shared<Map>(info_.id, int(maps_.size()), ids_);
   auto mapper = std::make_unique<LocalMapper>(config_.mapper, map, config_.threaded);
   loop_closer_ = std::make_unique<LoopCloser>(config_.loop, map, config_.threaded);
-  {
-    const ClientId client = info_.id;
-    std::weak_ptr<Map> weak = map;
-    LoopCloser* loop = loop_closer_.get();
-    mapper->set_on_processed([this, client, weak, loop](const KeyFramePtr& kf) {
-      loop->insert_keyframe(kf);
-      if (listener_)
-        if (auto m = weak.lock()) listener_(client, m, kf);
-    });
-  }
+  const ClientId client = info_.id;
+  std::weak_ptr<Map> weak = map;
+  LoopCloser* loop = loop_closer_.get();
+  mapper->set_on_processed([this, client, weak, loop](const KeyFramePtr& kf) {
+    loop->insert_keyframe(kf);
+    if (listener_)
+      if (auto m = weak.lock()) listener_(client, m, kf);
+  });
+  return mapper;
+}
+
+void ClientSlam::start_new_map() {
+  auto map = std::make_shared<Map>(info_.id, int(maps_.size()), ids_);
+  std::unique_ptr<LocalMapper> mapper = attach_workers(map);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     maps_.push_back(map);

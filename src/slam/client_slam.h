@@ -108,6 +108,10 @@ class ClientSlam {
   void start_new_session();
 
  private:
+  // Finishes the current map's local mapper and loop closer and starts both on `map`, the mapper
+  // handing each keyframe it finished to the loop closer and the listener. The caller gives the
+  // tracker the returned mapper, then keeps it in mapper_.
+  std::unique_ptr<LocalMapper> attach_workers(const std::shared_ptr<Map>& map);
   void start_new_map();
   // reanchor_culled() over the records (frame_record.h) with every map's lock held shared,
   // taken without waiting. Caller holds mutex_; false if a map was busy (tried again later).

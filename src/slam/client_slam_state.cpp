@@ -94,21 +94,8 @@ void ClientSlam::restore_state(const ClientSlamState& s, const std::string& sour
   }
 
   // The workers of the map tracking continues in (as start_new_map attaches them to a new map).
-  if (mapper_) mapper_->finish();
-  if (loop_closer_) loop_closer_->finish();
   const auto& map = maps[s.current_map];
-  auto mapper = std::make_unique<LocalMapper>(config_.mapper, map, config_.threaded);
-  loop_closer_ = std::make_unique<LoopCloser>(config_.loop, map, config_.threaded);
-  {
-    const ClientId client = info_.id;
-    std::weak_ptr<Map> weak = map;
-    LoopCloser* loop = loop_closer_.get();
-    mapper->set_on_processed([this, client, weak, loop](const KeyFramePtr& kf) {
-      loop->insert_keyframe(kf);
-      if (listener_)
-        if (auto m = weak.lock()) listener_(client, m, kf);
-    });
-  }
+  std::unique_ptr<LocalMapper> mapper = attach_workers(map);
   tracker_->resume_lost(map, mapper.get());
   mapper_ = std::move(mapper);
   last_timestamp_ = s.last_timestamp;
