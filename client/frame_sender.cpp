@@ -12,7 +12,7 @@ using detail::to_ms;
 FrameSender::FrameSender(SenderConfig config)
     : config_(std::move(config)), context_(1), rate_(config_.adapt, std::max(config_.depth_every, 1)) {
   config_.codecs.validate();
-  config_.info.camera.validate();
+  config_.info.camera.validate();  // the camera model alone (cslam_camera): no calib3d
   if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");
   if (config_.light_depth_subsample < 0 || config_.light_depth_subsample == 1 ||
       config_.light_depth_subsample > kMaxDepthSubsample)

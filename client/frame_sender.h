@@ -28,7 +28,7 @@
 #include "codec/image_codec.h"
 #include "client/rate_control.h"
 #include "codec/video_codec.h"
-#include "proto/adapter.h"
+#include "proto/wire.h"
 #include "proto/pose_feedback.h"
 #include "frame/rgbd_frame.h"
 

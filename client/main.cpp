@@ -15,7 +15,7 @@
 #include "core/log.h"
 #include "core/progress.h"
 #include "core/stopwatch.h"
-#include "server/auth/curve_keys.h"
+#include "proto/keys/curve_keys.h"
 #include "geometry/camera_io.h"
 #include "io/dataset_camera.h"
 #include "io/tum_dataset.h"

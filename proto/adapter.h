@@ -1,12 +1,12 @@
 #pragma once
-// The one place that knows both the wire schema (cslam.proto) and the SLAM library's types.
-// Server and client both convert through here; src/ never sees protobuf.
+// The server's side of the wire: what a client sent, checked and turned into the SLAM library's
+// types (a hello into a ClientInfo with a validated camera, a frame message into a decoded
+// RgbdFrame). Together with proto/wire.h (both ends) and proto/pose_feedback.h (acks) it is the
+// one place that knows both the wire schema and the SLAM types; src/ never sees protobuf.
+#include <cstdint>
 #include <string>
 
-#include "cslam.pb.h"
-#include "codec/image_codec.h"
-#include "core/error.h"
-#include "frame/rgbd_frame.h"
+#include "proto/wire.h"
 
 namespace cslam::video {
 class H264Decoder;
@@ -14,40 +14,10 @@ class H264Decoder;
 
 namespace cslam::wire {
 
-constexpr ProtocolVersion kProtocolVersion = PROTOCOL_VERSION_2;
-// The one-line explanation an old (or newer) peer gets with ERROR_BAD_VERSION.
-std::string version_mismatch_text(int peer_version);
-
-// A bad packet: one-line message naming its source, plus the code the server replies with.
-class WireError : public InputError {
- public:
-  WireError(ErrorCode code, const std::string& source, const std::string& message)
-      : InputError(source, message), code_(code) {}
-  ErrorCode code() const { return code_; }
-
- private:
-  ErrorCode code_;
-};
-
-Encoding to_wire(RgbCodec codec);
-Encoding to_wire(DepthCodec codec);
-
-// Largest camera (width x height) a hello may announce unless the server says otherwise
-// (cslam-server --max-pixels): bounds the memory one frame can decode to.
-constexpr std::uint64_t kDefaultMaxPixels = 1920ull * 1080ull;
-
-// Hello <-> ClientInfo. from_hello throws WireError (ERROR_BAD_VERSION / ERROR_BAD_HELLO, also
-// for a camera of more than max_pixels pixels).
-Hello to_hello(const ClientInfo& info);
+// Hello -> ClientInfo. Throws WireError (ERROR_BAD_VERSION / ERROR_BAD_HELLO, also for a camera
+// of more than max_pixels pixels).
 ClientInfo from_hello(const Hello& hello, const std::string& source, std::uint64_t max_pixels = kDefaultMaxPixels);
 
-// Encodes a frame's images with the given codecs into `out` (reused to avoid reallocations).
-void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, RgbdFrame* out);
-// A light frame: `colour_packet` is the next packet of the robot's colour stream
-// (video::H264Encoder), sent as RGB_H264; with depth_subsample >= 2 the frame's depth goes
-// along at every S-th pixel of every S-th row (options.depth, lossless), else no depth.
-void to_wire_light_frame(const cslam::RgbdFrame& frame, const Bytes& colour_packet, int depth_subsample,
-                         const CodecOptions& options, RgbdFrame* out);
 // Whether a frame (accepted by check_frame) may become a keyframe: full depth and colour that
 // decodes on its own. Only such frames are kept for the dense map.
 bool keyframe_eligible(const RgbdFrame& frame);
@@ -70,13 +40,5 @@ cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& ca
 // Moves a frame's image bytes out of the message (after from_wire_frame accepted it) into the
 // form the keyframe store keeps: the received payload, never re-encoded.
 EncodedRgbd take_encoded(RgbdFrame& frame);
-
-// Parses one ZeroMQ message body; throws WireError(ERROR_MALFORMED) on bytes that are not a
-// ClientMessage with a body.
-ClientMessage parse_client_message(const void* data, std::size_t size, const std::string& source);
-// Parses a server reply; throws WireError(ERROR_MALFORMED).
-ServerMessage parse_server_message(const void* data, std::size_t size, const std::string& source);
-
-const char* body_name(const ClientMessage& message);
 
 }  // namespace cslam::wire

@@ -13,6 +13,10 @@
 
 namespace cslam::snapshot {
 
+// The messages snapshot.proto shares with the wire protocol (common.proto, package cslam.wire).
+using Pose = wire::Pose;
+using Camera = wire::CameraIntrinsics;
+
 namespace {
 
 constexpr char kMagic[8] = {'C', 'S', 'L', 'A', 'M', 'S', 'N', 'P'};

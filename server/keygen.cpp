@@ -8,7 +8,7 @@
 
 #include "core/cli.h"
 #include "core/error.h"
-#include "server/auth/curve_keys.h"
+#include "proto/keys/curve_keys.h"
 
 namespace {
 

@@ -16,7 +16,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "slam/features/opencv_threads.h"
-#include "server/auth/curve_keys.h"
+#include "proto/keys/curve_keys.h"
 #include "server/http/http_server.h"
 #include "server/receiver.h"
 #include "server/state_store.h"

@@ -12,7 +12,7 @@
 
 #include <zmq.hpp>
 
-#include "server/auth/curve_keys.h"
+#include "proto/keys/curve_keys.h"
 
 namespace cslam::auth {
 

@@ -32,7 +32,7 @@
 #include "core/error.h"
 #include "core/stopwatch.h"
 #include "core/stats.h"
-#include "../../tests/network/hostile_payloads.h"
+#include "server/bench/hostile_payloads.h"
 
 namespace {
 
@@ -147,7 +147,7 @@ void hostile(const std::string& endpoint, std::atomic<bool>& stop, long* threads
   std::this_thread::sleep_for(std::chrono::seconds(3));
   drain(flood);
   *threads_after_hellos = status_number(server_pid, "Threads");
-  const std::string bomb = cslam::test::png_bomb(640, 480, 256u << 20);
+  const std::string bomb = cslam::hostile::png_bomb(640, 480, 256u << 20);
   cslam::PinholeCamera huge = cam;
   huge.width = huge.height = 8192;
   huge.cx = huge.cy = 4096;

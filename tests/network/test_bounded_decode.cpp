@@ -10,7 +10,7 @@
 #include "codec/image_codec.h"
 #include "codec/png_guard.h"
 #include "core/error.h"
-#include "hostile_payloads.h"
+#include "server/bench/hostile_payloads.h"
 #include "net_test_util.h"
 #include "server/decode_pool.h"
 
@@ -20,11 +20,11 @@ namespace {
 const std::uint8_t* bytes(const std::string& s) { return reinterpret_cast<const std::uint8_t*>(s.data()); }
 
 TEST(BoundedDecode, PngWhoseStreamInflatesPastItsHeaderIsCorrupt) {
-  const std::string good = test::png_bomb(320, 240, 0);
+  const std::string good = hostile::png_bomb(320, 240, 0);
   const cv::Mat ok = decode_rgb(RgbCodec::kPng, bytes(good), good.size(), 320, 240, "good");
   EXPECT_EQ(ok.cols, 320);
   // 64 MB of extra zeros behind a 320x240 header: about 64 kB on the wire.
-  const std::string bomb = test::png_bomb(320, 240, 64u << 20);
+  const std::string bomb = hostile::png_bomb(320, 240, 64u << 20);
   EXPECT_LT(bomb.size(), 200000u);
   try {
     decode_rgb(RgbCodec::kPng, bytes(bomb), bomb.size(), 320, 240, "bomb");
@@ -33,20 +33,20 @@ TEST(BoundedDecode, PngWhoseStreamInflatesPastItsHeaderIsCorrupt) {
     EXPECT_NE(std::string(e.what()).find("inflates past"), std::string::npos) << e.what();
   }
   // The same for 16-bit depth PNGs.
-  const std::string depth_bomb = test::png_bomb(64, 48, 8u << 20, true);
+  const std::string depth_bomb = hostile::png_bomb(64, 48, 8u << 20, true);
   EXPECT_THROW(decode_depth(DepthCodec::kPng, bytes(depth_bomb), depth_bomb.size(), 64, 48, "depth"), InputError);
-  const std::string depth_ok = test::png_bomb(64, 48, 0, true);
+  const std::string depth_ok = hostile::png_bomb(64, 48, 0, true);
   EXPECT_EQ(decode_depth(DepthCodec::kPng, bytes(depth_ok), depth_ok.size(), 64, 48, "depth").rows, 48);
 }
 
 TEST(BoundedDecode, PngStreamsThatStopShortOrCarryCompressedChunksAreRefused) {
-  std::string png = test::png_bomb(32, 16, 0);
+  std::string png = hostile::png_bomb(32, 16, 0);
   // Truncate the image stream: fewer bytes than the header implies.
   EXPECT_THROW(check_png_stream(bytes(png), png.size() - 20, PngLimits{32, 16, false}, "cut"), InputError);
   // A zTXt chunk (compressed text, another bomb vector) before IEND.
   std::string with_ztxt = png.substr(0, png.size() - 12);
-  test::put_chunk(with_ztxt, "zTXt", std::string("k\0\0xx", 5));
-  test::put_chunk(with_ztxt, "IEND", "");
+  hostile::put_chunk(with_ztxt, "zTXt", std::string("k\0\0xx", 5));
+  hostile::put_chunk(with_ztxt, "IEND", "");
   EXPECT_THROW(check_png_stream(bytes(with_ztxt), with_ztxt.size(), PngLimits{32, 16, false}, "ztxt"), InputError);
   EXPECT_NO_THROW(check_png_stream(bytes(png), png.size(), PngLimits{32, 16, false}, "ok"));
   EXPECT_EQ(png_inflated_size(32, 16, 8, 2, false), 16u * (1 + 96));
@@ -135,7 +135,7 @@ TEST(DecodePool, CorruptFrameIsARejectedResultAndTheQueueIsBounded) {
   j.camera = cam;
   j.source = "client 3 frame 1";
   j.frame = std::make_unique<wire::RgbdFrame>(wire_frame(3, 1, cam));
-  const std::string bomb = test::png_bomb(64, 48, 4u << 20);
+  const std::string bomb = hostile::png_bomb(64, 48, 4u << 20);
   j.frame->mutable_rgb()->set_encoding(wire::RGB_PNG);
   j.frame->mutable_rgb()->set_data(bomb);
   ASSERT_TRUE(pool.post(std::move(j)));
@@ -168,7 +168,7 @@ TEST(BoundedDecode, ServerRefusesABombAndKeepsServing) {
   ASSERT_TRUE(good.receive(10000));
   wire::ClientMessage m = test::make_frame(1, 1, 0.0, cam);
   m.mutable_frame()->mutable_rgb()->set_encoding(wire::RGB_PNG);
-  m.mutable_frame()->mutable_rgb()->set_data(test::png_bomb(320, 240, 256u << 20));
+  m.mutable_frame()->mutable_rgb()->set_data(hostile::png_bomb(320, 240, 256u << 20));
   hostile.send(m);
   good.send(test::make_frame(2, 1, 0.0, cam));
   const auto ack = good.receive(20000);

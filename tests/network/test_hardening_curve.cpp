@@ -9,7 +9,7 @@
 #include "client/frame_sender.h"
 #include "core/error.h"
 #include "net_test_util.h"
-#include "server/auth/curve_keys.h"
+#include "proto/keys/curve_keys.h"
 #include "server/http/status_cache.h"
 
 namespace cslam {

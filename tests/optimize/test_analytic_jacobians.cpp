@@ -3,7 +3,7 @@
 #include <ceres/loss_function.h>
 #include <gtest/gtest.h>
 
-#include "fixtures.h"
+#include "support/problems/optimize_problems.h"
 #include "optimize/pose_param.h"
 #include "optimize/se3_projection.h"
 
@@ -22,14 +22,14 @@ Eigen::Vector3d reference_uvr(const StereoIntrinsics& k, const double* pose, con
 }  // namespace
 
 TEST(AnalyticJacobians, PoseAndPointJacobiansMatchNumericDifferences) {
-  const auto k = test::tum_like_intrinsics();
+  const auto k = problems::tum_like_intrinsics();
   std::mt19937 rng(21);
   std::uniform_real_distribution<double> U(-1, 1);
   int checked = 0;
   for (int trial = 0; trial < 40; ++trial) {
     // Rotations from tiny (the small-angle branch of Jr) to large ones.
     const double angle = trial < 5 ? 1e-6 * trial : 2.5 * U(rng);
-    const SE3 T = test::small_motion(angle, {U(rng), U(rng), 1 + U(rng)}, {0.3 * U(rng), 0.3 * U(rng), 0.3 * U(rng)});
+    const SE3 T = problems::small_motion(angle, {U(rng), U(rng), 1 + U(rng)}, {0.3 * U(rng), 0.3 * U(rng), 0.3 * U(rng)});
     const Eigen::Vector3d pw = T.inverse() * Eigen::Vector3d(1.5 * U(rng), 1.2 * U(rng), 2.5 + 1.5 * U(rng));
     std::array<double, 6> x = to_param(T);
     PoseLinearizationPoint lp;

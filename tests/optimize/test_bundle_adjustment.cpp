@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "fixtures.h"
+#include "support/problems/optimize_problems.h"
 #include "optimize/bundle_adjustment.h"
 
 using namespace cslam;
@@ -20,18 +20,18 @@ double total_chi2(const BaProblem& p, const std::vector<SE3>& poses, const std::
 }
 
 BaProblem make_problem(std::mt19937& rng, std::vector<SE3>& true_poses, std::vector<Eigen::Vector3d>& true_points) {
-  const auto k = test::tum_like_intrinsics();
+  const auto k = problems::tum_like_intrinsics();
   BaProblem p;
-  true_points = test::random_points_in_front(200, rng);
+  true_points = problems::random_points_in_front(200, rng);
   for (int c = 0; c < 5; ++c) {
-    true_poses.push_back(test::small_motion(0.03 * c, {0, 1, 0}, {0.1 * c, 0.0, 0.02 * c}));
+    true_poses.push_back(problems::small_motion(0.03 * c, {0, 1, 0}, {0.1 * c, 0.0, 0.02 * c}));
     p.cameras.push_back({true_poses.back(), k, c < 2});  // gauge: two cameras fixed
   }
   std::normal_distribution<double> pix(0, 0.3), perturb(0, 0.02);
   for (size_t i = 0; i < true_points.size(); ++i) {
     p.points.push_back(true_points[i] + Eigen::Vector3d(perturb(rng), perturb(rng), perturb(rng)));
     for (int c = 0; c < 5; ++c) {
-      const Eigen::Vector3d uvr = test::project(k, true_poses[c], true_points[i]);
+      const Eigen::Vector3d uvr = problems::project(k, true_poses[c], true_points[i]);
       BaObservation o;
       o.camera = c;
       o.point = int(i);
@@ -41,7 +41,7 @@ BaProblem make_problem(std::mt19937& rng, std::vector<SE3>& true_poses, std::vec
     }
   }
   for (int c = 2; c < 5; ++c)
-    p.cameras[c].T_cam_world = test::small_motion(0.01, {1, 0, 0}, {0.01, -0.01, 0.01}) * p.cameras[c].T_cam_world;
+    p.cameras[c].T_cam_world = problems::small_motion(0.01, {1, 0, 0}, {0.01, -0.01, 0.01}) * p.cameras[c].T_cam_world;
   return p;
 }
 

@@ -4,7 +4,7 @@
 // iteration counts; bit-identical output on repeated calls.
 #include <gtest/gtest.h>
 
-#include "fixtures.h"
+#include "support/problems/optimize_problems.h"
 #include "optimize/bundle_adjustment.h"
 #include "optimize/ceres_reference.h"
 #include "optimize/pose_param.h"
@@ -62,7 +62,7 @@ void compare_with_reference(Solver solver) {
   int borderline_count = 0;
   for (const Case& c : cases) {
     for (int rep = 0; rep < 3; ++rep) {
-      const test::BaSynthetic s = test::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
+      const problems::BaSynthetic s = problems::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
       const BaProblem& p = s.problem;
       const BaResult fast = solver(p, cfg, nullptr);
       const BaResult ref = bundle_adjust_ceres(p, cfg);
@@ -116,7 +116,7 @@ TEST(BundleAdjustmentVsCeres, SparseSolverMatchesReference) { compare_with_refer
 
 TEST(BundleAdjustmentVsCeres, RepeatedCallsAreBitIdentical) {
   std::mt19937 rng(8);
-  const test::BaSynthetic s = test::random_ba_problem(rng, 10, 4, 500, 0.1, 0.7);
+  const problems::BaSynthetic s = problems::random_ba_problem(rng, 10, 4, 500, 0.1, 0.7);
   const BaResult a = bundle_adjust(s.problem), b = bundle_adjust(s.problem);
   ASSERT_EQ(a.points.size(), b.points.size());
   for (size_t k = 0; k < a.T_cam_world.size(); ++k) {
@@ -130,7 +130,7 @@ TEST(BundleAdjustmentVsCeres, RepeatedCallsAreBitIdentical) {
 
 TEST(BundleAdjustmentVsCeres, AbortBeforeTheFirstStepLeavesTheProblemUnchanged) {
   std::mt19937 rng(9);
-  const test::BaSynthetic s = test::random_ba_problem(rng, 5, 2, 200, 0.05, 0.7);
+  const problems::BaSynthetic s = problems::random_ba_problem(rng, 5, 2, 200, 0.05, 0.7);
   std::atomic<bool> abort{true};
   const BaResult a = bundle_adjust(s.problem, {}, &abort);
   const BaResult r = bundle_adjust_ceres(s.problem, {}, &abort);
@@ -144,7 +144,7 @@ TEST(BundleAdjustmentVsCeres, AbortBeforeTheFirstStepLeavesTheProblemUnchanged) 
 TEST(BundleAdjustmentVsCeres, AllKeyframesFixedAndUnobservedPoints) {
   // Only points move (an empty reduced camera system); a point without observations stays put.
   std::mt19937 rng(12);
-  test::BaSynthetic s = test::random_ba_problem(rng, 4, 2, 150, 0.05, 0.8);
+  problems::BaSynthetic s = problems::random_ba_problem(rng, 4, 2, 150, 0.05, 0.8);
   for (auto& c : s.problem.cameras) c.fixed = true;
   s.problem.points.push_back({0.5, -0.5, 3.0});
   const BaResult fast = bundle_adjust(s.problem), ref = bundle_adjust_ceres(s.problem);
@@ -173,7 +173,7 @@ TEST(BundleAdjustmentVsCeres, EarlyEndAfterATinyStepStaysAtTheFullSolution) {
   int iterations_full = 0, iterations_early = 0;
   for (const Case& c : cases)
     for (int rep = 0; rep < 3; ++rep) {
-      const test::BaSynthetic s = test::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
+      const problems::BaSynthetic s = problems::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
       const BaResult a = bundle_adjust(s.problem, early), b = bundle_adjust(s.problem, full);
       iterations_early += a.iterations;
       iterations_full += b.iterations;

@@ -3,7 +3,7 @@
 
 #include <ceres/ceres.h>
 
-#include "fixtures.h"
+#include "support/problems/optimize_problems.h"
 #include "optimize/pose_param.h"
 
 using namespace cslam;
@@ -36,8 +36,8 @@ void compare_jacobians(const Functor& f, std::vector<double*> params) {
 }  // namespace
 
 TEST(CostFunctions, ReprojectionJacobiansMatchNumeric) {
-  const auto k = test::tum_like_intrinsics();
-  const SE3 T = test::small_motion(0.3, {0.2, 1, 0.1}, {0.1, -0.2, 0.3});
+  const auto k = problems::tum_like_intrinsics();
+  const SE3 T = problems::small_motion(0.3, {0.2, 1, 0.1}, {0.1, -0.2, 0.3});
   auto pose = to_param(T);
   double point[3] = {0.4, -0.3, 2.5};
   const ReprojectionCost<3> stereo(k, 300.0, 200.0, 290.0, 1.0 / 1.2);
@@ -47,8 +47,8 @@ TEST(CostFunctions, ReprojectionJacobiansMatchNumeric) {
 }
 
 TEST(CostFunctions, PoseOnlyJacobiansMatchNumeric) {
-  const auto k = test::tum_like_intrinsics();
-  auto pose = to_param(test::small_motion(-0.5, {1, 0.3, 0}, {0.5, 0.1, -0.2}));
+  const auto k = problems::tum_like_intrinsics();
+  auto pose = to_param(problems::small_motion(-0.5, {1, 0.3, 0}, {0.5, 0.1, -0.2}));
   const PoseOnlyReprojectionCost<3> stereo(k, Eigen::Vector3d(-0.2, 0.5, 3.0), 250.0, 220.0, 240.0, 1.0);
   compare_jacobians<PoseOnlyReprojectionCost<3>, 3, 6>(stereo, {pose.data()});
   const PoseOnlyReprojectionCost<2> mono(k, Eigen::Vector3d(-0.2, 0.5, 3.0), 250.0, 220.0, -1, 1.0);
@@ -56,7 +56,7 @@ TEST(CostFunctions, PoseOnlyJacobiansMatchNumeric) {
 }
 
 TEST(PoseParam, RoundTrip) {
-  const SE3 T = test::small_motion(2.5, {0.3, -0.4, 0.8}, {1, 2, 3});
+  const SE3 T = problems::small_motion(2.5, {0.3, -0.4, 0.8}, {1, 2, 3});
   const auto p = to_param(T);
   const SE3 back = from_param(p.data());
   EXPECT_LT(back.rotation().angularDistance(T.rotation()), 1e-12);

@@ -1,15 +1,15 @@
 #include <gtest/gtest.h>
 
-#include "fixtures.h"
+#include "support/problems/optimize_problems.h"
 #include "optimize/pose_optimizer.h"
 
 using namespace cslam;
 
 TEST(PoseOptimizer, RecoversPerturbedPoseWithOutliers) {
   std::mt19937 rng(7);
-  const auto k = test::tum_like_intrinsics();
-  const SE3 truth = test::small_motion(0.2, {0.1, 1, 0.2}, {0.05, -0.1, 0.2});
-  const auto pts = test::random_points_in_front(300, rng);
+  const auto k = problems::tum_like_intrinsics();
+  const SE3 truth = problems::small_motion(0.2, {0.1, 1, 0.2}, {0.05, -0.1, 0.2});
+  const auto pts = problems::random_points_in_front(300, rng);
   std::normal_distribution<double> noise(0, 0.5);
   std::uniform_real_distribution<double> wild(0, 640);
   std::vector<PoseObservation> obs;
@@ -17,7 +17,7 @@ TEST(PoseOptimizer, RecoversPerturbedPoseWithOutliers) {
   for (size_t i = 0; i < pts.size(); ++i) {
     // Points are given in the world frame: map them so they are in front of the true camera.
     const Eigen::Vector3d pw = truth.inverse() * pts[i];
-    Eigen::Vector3d uvr = test::project(k, truth, pw);
+    Eigen::Vector3d uvr = problems::project(k, truth, pw);
     const bool outlier = i % 5 == 0;  // 20% gross outliers
     if (outlier) uvr = {wild(rng), wild(rng) * 0.75, -1};
     else uvr += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
@@ -28,7 +28,7 @@ TEST(PoseOptimizer, RecoversPerturbedPoseWithOutliers) {
     obs.push_back(o);
     is_outlier.push_back(outlier);
   }
-  const SE3 start = test::small_motion(0.05, {1, 0, 0}, Eigen::Vector3d(0.03, 0.02, -0.04)) * truth;
+  const SE3 start = problems::small_motion(0.05, {1, 0, 0}, Eigen::Vector3d(0.03, 0.02, -0.04)) * truth;
   const auto r = optimize_pose(start, obs, k);
   EXPECT_LT(r.T_cam_world.rotation().angularDistance(truth.rotation()), 0.2 * M_PI / 180);
   EXPECT_LT((r.T_cam_world.translation() - truth.translation()).norm(), 0.005);
@@ -43,6 +43,6 @@ TEST(PoseOptimizer, RecoversPerturbedPoseWithOutliers) {
 }
 
 TEST(PoseOptimizer, TooFewObservations) {
-  const auto r = optimize_pose(SE3(), {}, test::tum_like_intrinsics());
+  const auto r = optimize_pose(SE3(), {}, problems::tum_like_intrinsics());
   EXPECT_EQ(r.num_inliers, 0);
 }

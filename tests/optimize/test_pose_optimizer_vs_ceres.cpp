@@ -3,7 +3,7 @@
 // solvers' convergence tolerance, and bit-identical output on repeated calls.
 #include <gtest/gtest.h>
 
-#include "fixtures.h"
+#include "support/problems/optimize_problems.h"
 #include "optimize/ceres_reference.h"
 #include "optimize/pose_optimizer.h"
 
@@ -26,7 +26,7 @@ struct Case {
 }  // namespace
 
 TEST(PoseOptimizerVsCeres, SameInliersAndPosesOnRandomProblems) {
-  const auto k = test::tum_like_intrinsics();
+  const auto k = problems::tum_like_intrinsics();
   PoseOptimizationConfig cfg;
   cfg.min_step_decrease = 0;  // step for step with Ceres: its termination rules alone
   const Case cases[] = {{30, 0.0, 1.0}, {80, 0.1, 0.8}, {150, 0.2, 0.5}, {300, 0.3, 0.9}, {500, 0.15, 0.0}, {250, 0.05, 1.0}};
@@ -35,7 +35,7 @@ TEST(PoseOptimizerVsCeres, SameInliersAndPosesOnRandomProblems) {
   double worst_rot = 0, worst_trans = 0;
   for (const Case& c : cases) {
     for (int rep = 0; rep < 10; ++rep, ++problems) {
-      const test::PoseProblem p = test::random_pose_problem(rng, c.n, c.outliers, c.stereo);
+      const problems::PoseProblem p = problems::random_pose_problem(rng, c.n, c.outliers, c.stereo);
       const auto fast = optimize_pose(p.start, p.obs, k, cfg);
       const auto ref = optimize_pose_ceres(p.start, p.obs, k, cfg);
       const double rot = fast.T_cam_world.rotation().angularDistance(ref.T_cam_world.rotation());
@@ -66,9 +66,9 @@ TEST(PoseOptimizerVsCeres, SameInliersAndPosesOnRandomProblems) {
 }
 
 TEST(PoseOptimizerVsCeres, RepeatedCallsAreBitIdentical) {
-  const auto k = test::tum_like_intrinsics();
+  const auto k = problems::tum_like_intrinsics();
   std::mt19937 rng(99);
-  const test::PoseProblem p = test::random_pose_problem(rng, 200, 0.2, 0.7);
+  const problems::PoseProblem p = problems::random_pose_problem(rng, 200, 0.2, 0.7);
   const auto a = optimize_pose(p.start, p.obs, k);
   const auto b = optimize_pose(p.start, p.obs, k);
   EXPECT_EQ(a.T_cam_world.rotation().coeffs(), b.T_cam_world.rotation().coeffs());
@@ -78,9 +78,9 @@ TEST(PoseOptimizerVsCeres, RepeatedCallsAreBitIdentical) {
 }
 
 TEST(PoseOptimizerVsCeres, RejectsEveryGrossOutlier) {
-  const auto k = test::tum_like_intrinsics();
+  const auto k = problems::tum_like_intrinsics();
   std::mt19937 rng(5);
-  const test::PoseProblem p = test::random_pose_problem(rng, 300, 0.25, 0.8);
+  const problems::PoseProblem p = problems::random_pose_problem(rng, 300, 0.25, 0.8);
   const auto r = optimize_pose(p.start, p.obs, k);
   int kept_outliers = 0, lost_inliers = 0, outliers = 0;
   for (size_t i = 0; i < p.obs.size(); ++i) {
@@ -98,14 +98,14 @@ TEST(PoseOptimizerVsCeres, RejectsEveryGrossOutlier) {
 // The default early end (a round stops after a step that lowered its cost by <= 1e-4 of it): the
 // same inliers and, up to a sliver of the cost, the same pose.
 TEST(PoseOptimizerVsCeres, EarlyEndAfterATinyStepStaysAtTheFullSolution) {
-  const auto k = test::tum_like_intrinsics();
+  const auto k = problems::tum_like_intrinsics();
   PoseOptimizationConfig full;
   full.min_step_decrease = 0;
   const PoseOptimizationConfig early;
   ASSERT_GT(early.min_step_decrease, 0.0);
   std::mt19937 rng(515);
   for (int rep = 0; rep < 40; ++rep) {
-    const test::PoseProblem p = test::random_pose_problem(rng, 50 + 10 * rep, 0.1 + 0.005 * rep, rep % 2 ? 0.8 : 0.2);
+    const problems::PoseProblem p = problems::random_pose_problem(rng, 50 + 10 * rep, 0.1 + 0.005 * rep, rep % 2 ? 0.8 : 0.2);
     const auto a = optimize_pose(p.start, p.obs, k, early), b = optimize_pose(p.start, p.obs, k, full);
     EXPECT_NEAR(a.final_cost, b.final_cost, 1e-4 * std::max(1.0, b.final_cost)) << "rep " << rep;
     EXPECT_LT((a.T_cam_world.translation() - b.T_cam_world.translation()).norm(), 1e-4) << "rep " << rep;

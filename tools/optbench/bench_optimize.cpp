@@ -18,7 +18,7 @@
 #include "core/stopwatch.h"
 #include "core/stats.h"
 #include "optimize/ceres_reference.h"
-#include "optimize/fixtures.h"
+#include "support/problems/optimize_problems.h"
 #include "optimize/schur_ba.h"
 #include "optimize/sparse_ba.h"
 
@@ -51,11 +51,11 @@ void print(const std::string& what, const Timing& t) {
 }
 
 void bench_pose(int n, int runs, double outliers, double stereo, bool with_reference) {
-  const auto k = test::tum_like_intrinsics();
+  const auto k = problems::tum_like_intrinsics();
   std::mt19937 rng(1000 + n);
   // Several different problems, cycled, so the figures are not those of one lucky instance.
-  std::vector<test::PoseProblem> problems;
-  for (int i = 0; i < 8; ++i) problems.push_back(test::random_pose_problem(rng, n, outliers, stereo));
+  std::vector<problems::PoseProblem> problems;
+  for (int i = 0; i < 8; ++i) problems.push_back(problems::random_pose_problem(rng, n, outliers, stereo));
   Timing fast, ref;
   double worst = 0;
   int inlier_diff = 0;
@@ -92,7 +92,7 @@ const BaSolver kBaSolvers[] = {
 
 void bench_ba(int free_cams, int fixed_cams, int points, double visibility, int runs, const std::vector<std::string>& solvers) {
   std::mt19937 rng(7 + free_cams);
-  const test::BaSynthetic s = test::random_ba_problem(rng, free_cams, fixed_cams, points, 0.05, 0.85, visibility);
+  const problems::BaSynthetic s = problems::random_ba_problem(rng, free_cams, fixed_cams, points, 0.05, 0.85, visibility);
   const BaProblem& p = s.problem;
   std::printf("bundle adjustment, %d free + %d fixed keyframes, %zu points, %zu observations (%.1f per point):\n", free_cams,
               fixed_cams, p.points.size(), p.observations.size(), double(p.observations.size()) / p.points.size());

@@ -1,4 +1,4 @@
-#include "server/auth/curve_keys.h"
+#include "proto/keys/curve_keys.h"
 
 #include <sys/stat.h>
 

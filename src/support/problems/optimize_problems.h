@@ -1,5 +1,6 @@
 #pragma once
-// Synthetic correspondences for optimisation tests: points in front of cameras, exact projections.
+// Synthetic optimisation problems (points in front of cameras, exact projections, outliers) for the
+// optimisers' unit tests and cslam-bench-optimize.
 #include <random>
 #include <vector>
 
@@ -8,7 +9,7 @@
 #include "optimize/pose_optimizer.h"
 #include "optimize/reprojection_cost.h"
 
-namespace cslam::test {
+namespace cslam::problems {
 
 inline StereoIntrinsics tum_like_intrinsics() { return {517.3, 516.5, 318.6, 255.3, 40.0}; }
 
@@ -149,4 +150,4 @@ inline BaSynthetic random_ba_problem(std::mt19937& rng, int free_cams, int fixed
   return b;
 }
 
-}  // namespace cslam::test
+}  // namespace cslam::problems

@@ -1,7 +1,7 @@
 #pragma once
-// Hostile payloads for the adversarial tests and the hardening benchmark: a PNG whose header
-// announces a small image but whose image stream inflates far past it (a decompression bomb),
-// and a progressive-looking JPEG with thousands of scans.
+// Hostile payloads for the hardening benchmark (cslam-bench-hostile) and the adversarial tests:
+// a PNG whose header announces a small image but whose image stream inflates far past it (a
+// decompression bomb). Bench code never includes tests/: the payloads live here.
 #include <zlib.h>
 
 #include <cstdint>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-namespace cslam::test {
+namespace cslam::hostile {
 
 inline void put_be32(std::string& out, std::uint32_t v) {
   out += char(v >> 24);
@@ -69,4 +69,4 @@ inline std::string png_bomb(int width, int height, std::size_t extra_bytes, bool
   return png;
 }
 
-}  // namespace cslam::test
+}  // namespace cslam::hostile
