@@ -125,98 +125,123 @@ bool not_modified(const httplib::Request& req, httplib::Response& res, const std
   return true;
 }
 
-void status_route(httplib::Server& s, const DenseService* dense) {
-  s.Get("/api/dense/status", [dense](const httplib::Request&, httplib::Response& res) {
-    json_reply(res, dense_status_json(dense));
-  });
+using Req = httplib::Request;
+using Res = httplib::Response;
+
+// What the dense handlers read: the service (null: the dense map is off) and the products built
+// from its views (meshes and PLY files in one cache, navigation maps in another).
+struct DenseContext {
+  const DenseService* dense;
+  std::shared_ptr<ProductCache<std::string>> products;
+  std::shared_ptr<ProductCache<NavMaps>> nav;
+};
+
+using DenseHandler = void (*)(const DenseContext&, const Req&, Res&);
+
+// false after replying 503 (the dense map is off).
+bool dense_on(const DenseContext& ctx, Res& res) {
+  if (!ctx.dense) json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
+  return ctx.dense != nullptr;
 }
 
-void index_route(httplib::Server& s, const DenseService* dense) {
-  s.Get("/api/dense/submaps", [dense](const httplib::Request& req, httplib::Response& res) {
-    if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
-    const auto view = dense->view();
-    std::optional<long> only;
-    if (req.has_param("group")) {
-      only = strict_long(req.get_param_value("group"));
-      if (!only) return json_error(res, 400, "parameter group must be an integer, got '" + req.get_param_value("group") + "'");
-    }
-    const std::string etag = "\"" + std::to_string(view->version) + (only ? "-" + std::to_string(*only) : "") + "\"";
-    if (not_modified(req, res, etag)) return;
-    nlohmann::json groups = nlohmann::json::array();
-    for (const auto& [group, submaps] : submaps_by_group(*view)) {
-      if (only && group != *only) continue;
-      nlohmann::json list = nlohmann::json::array();
-      std::vector<int> clients;
-      for (const DenseSubmapView* sm : submaps) {
-        if (std::find(clients.begin(), clients.end(), int(sm->client)) == clients.end()) clients.push_back(sm->client);
-        list.push_back({{"id", sm->id}, {"client", sm->client}, {"version", sm->version},
-                        {"pose_version", sm->pose_version}, {"T_world_submap", pose_json(sm->T_world_submap)},
-                        {"keyframes", sm->keyframes.size()},
-                        {"vertices", sm->mesh ? sm->mesh->vertices.size() : std::size_t(0)},
-                        {"triangles", sm->mesh ? sm->mesh->triangles.size() : std::size_t(0)},
-                        {"mesh_url", "/api/dense/submaps/" + std::to_string(sm->id) + "/mesh.bin"}});
-      }
-      groups.push_back({{"group", group}, {"clients", clients}, {"submaps", std::move(list)}});
-    }
-    const nlohmann::json body = {{"version", view->version}, {"groups", std::move(groups)}};
-    res.set_content(body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace), "application/json");
-  });
+void get_status(const DenseContext& ctx, const Req&, Res& res) { json_reply(res, dense_status_json(ctx.dense)); }
+
+nlohmann::json submap_json(const DenseSubmapView& sm) {
+  return {{"id", sm.id}, {"client", sm.client}, {"version", sm.version},
+          {"pose_version", sm.pose_version}, {"T_world_submap", pose_json(sm.T_world_submap)},
+          {"keyframes", sm.keyframes.size()},
+          {"vertices", sm.mesh ? sm.mesh->vertices.size() : std::size_t(0)},
+          {"triangles", sm.mesh ? sm.mesh->triangles.size() : std::size_t(0)},
+          {"mesh_url", "/api/dense/submaps/" + std::to_string(sm.id) + "/mesh.bin"}};
 }
 
-void mesh_route(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache<std::string>> cache) {
-  s.Get(R"(/api/dense/submaps/(\d+)/mesh\.bin)", [dense, cache](const httplib::Request& req, httplib::Response& res) {
-    if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
-    const auto id = strict_long(req.matches[1]);
-    long lod = 0;
-    if (req.has_param("lod")) {
-      const auto l = strict_long(req.get_param_value("lod"));
-      if (!l || *l < 0 || *l > 2) return json_error(res, 400, "parameter lod must be 0, 1 or 2");
-      lod = *l;
-    }
-    const auto view = dense->view();
-    const DenseSubmapView* sm = nullptr;
-    for (const auto& v : view->submaps)
-      if (id && long(v.id) == *id) sm = &v;
-    if (!sm) return json_error(res, 404, "no submap " + std::string(req.matches[1]) + " (removed, or not yet)");
-    if (!sm->mesh) return json_error(res, 404, "submap " + std::string(req.matches[1]) + " has no mesh yet");
-    const std::string etag = "\"" + std::to_string(sm->version) + "-" + std::to_string(lod) + "\"";
-    if (not_modified(req, res, etag)) return;
-    const std::string key = "csm-" + std::to_string(sm->id) + "-" + std::to_string(lod);
-    const auto bytes = cache->get(key, sm->version, [&] {
-      if (lod == 0) return encode_csm1(*sm->mesh, std::uint32_t(sm->version));
-      return encode_csm1(simplify_by_clustering(*sm->mesh, sm->voxel_size * float(1 << lod)), std::uint32_t(sm->version));
-    });
-    res.set_content(*bytes, "application/octet-stream");
-  });
+nlohmann::json group_index_json(int group, const std::vector<const DenseSubmapView*>& submaps) {
+  nlohmann::json list = nlohmann::json::array();
+  std::vector<int> clients;
+  for (const DenseSubmapView* sm : submaps) {
+    if (std::find(clients.begin(), clients.end(), int(sm->client)) == clients.end()) clients.push_back(sm->client);
+    list.push_back(submap_json(*sm));
+  }
+  return {{"group", group}, {"clients", clients}, {"submaps", std::move(list)}};
 }
 
-void group_routes(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache<std::string>> cache) {
-  auto download = [dense, cache](bool mesh) {
-    return [dense, cache, mesh](const httplib::Request& req, httplib::Response& res) {
-      if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
-      const auto view = dense->view();
-      const auto group = requested_group(req, res, *view);
-      if (!group) return;
-      const auto submaps = submaps_by_group(*view).at(*group);
-      const std::string key = std::string(mesh ? "mesh-" : "cloud-") + std::to_string(*group);
-      std::string error;
-      const auto bytes = cache->get(key, view->version, [&]() -> std::string {
-        try {
-          return mesh ? ply_mesh_bytes(server::group_mesh(submaps)) : ply_bytes(server::group_cloud(submaps));
-        } catch (const std::invalid_argument&) {
-          return {};
-        }
-      });
-      if (bytes->empty()) return json_error(res, 404, "group " + std::to_string(*group) + " has no dense surface yet");
-      const std::string name = std::string(mesh ? "dense_mesh_" : "dense_cloud_") + std::to_string(*group) + ".ply";
-      res.set_header("Content-Disposition", "attachment; filename=\"" + name + "\"");
-      res.set_header("Cache-Control", "no-store");
-      res.set_content(*bytes, "application/octet-stream");
-    };
-  };
-  s.Get("/api/dense/cloud.ply", download(false));
-  s.Get("/api/dense/mesh.ply", download(true));
+void get_submap_index(const DenseContext& ctx, const Req& req, Res& res) {
+  if (!dense_on(ctx, res)) return;
+  const auto view = ctx.dense->view();
+  std::optional<long> only;
+  if (req.has_param("group")) {
+    only = strict_long(req.get_param_value("group"));
+    if (!only) return json_error(res, 400, "parameter group must be an integer, got '" + req.get_param_value("group") + "'");
+  }
+  const std::string etag = "\"" + std::to_string(view->version) + (only ? "-" + std::to_string(*only) : "") + "\"";
+  if (not_modified(req, res, etag)) return;
+  nlohmann::json groups = nlohmann::json::array();
+  for (const auto& [group, submaps] : submaps_by_group(*view))
+    if (!only || group == *only) groups.push_back(group_index_json(group, submaps));
+  const nlohmann::json body = {{"version", view->version}, {"groups", std::move(groups)}};
+  res.set_content(body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace), "application/json");
 }
+
+// ?lod=0|1|2 (0 when absent); nullopt after a 400.
+std::optional<long> requested_lod(const Req& req, Res& res) {
+  if (!req.has_param("lod")) return 0;
+  const auto l = strict_long(req.get_param_value("lod"));
+  if (!l || *l < 0 || *l > 2) {
+    json_error(res, 400, "parameter lod must be 0, 1 or 2");
+    return std::nullopt;
+  }
+  return l;
+}
+
+void get_submap_mesh(const DenseContext& ctx, const Req& req, Res& res) {
+  if (!dense_on(ctx, res)) return;
+  const auto id = strict_long(req.matches[1]);
+  const auto lod = requested_lod(req, res);
+  if (!lod) return;
+  const auto view = ctx.dense->view();
+  const DenseSubmapView* sm = nullptr;
+  for (const auto& v : view->submaps)
+    if (id && long(v.id) == *id) sm = &v;
+  if (!sm) return json_error(res, 404, "no submap " + std::string(req.matches[1]) + " (removed, or not yet)");
+  if (!sm->mesh) return json_error(res, 404, "submap " + std::string(req.matches[1]) + " has no mesh yet");
+  const std::string etag = "\"" + std::to_string(sm->version) + "-" + std::to_string(*lod) + "\"";
+  if (not_modified(req, res, etag)) return;
+  const std::string key = "csm-" + std::to_string(sm->id) + "-" + std::to_string(*lod);
+  const auto bytes = ctx.products->get(key, sm->version, [&] {
+    if (*lod == 0) return encode_csm1(*sm->mesh, std::uint32_t(sm->version));
+    return encode_csm1(simplify_by_clustering(*sm->mesh, sm->voxel_size * float(1 << *lod)), std::uint32_t(sm->version));
+  });
+  res.set_content(*bytes, "application/octet-stream");
+}
+
+void send_download(Res& res, const std::string& name, const std::string& bytes, const char* type) {
+  res.set_header("Content-Disposition", "attachment; filename=\"" + name + "\"");
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(bytes, type);
+}
+
+// A group's fused cloud or mesh as PLY, built once per view version.
+void send_group_ply(const DenseContext& ctx, const Req& req, Res& res, bool mesh) {
+  if (!dense_on(ctx, res)) return;
+  const auto view = ctx.dense->view();
+  const auto group = requested_group(req, res, *view);
+  if (!group) return;
+  const auto submaps = submaps_by_group(*view).at(*group);
+  const std::string key = std::string(mesh ? "mesh-" : "cloud-") + std::to_string(*group);
+  const auto bytes = ctx.products->get(key, view->version, [&]() -> std::string {
+    try {
+      return mesh ? ply_mesh_bytes(server::group_mesh(submaps)) : ply_bytes(server::group_cloud(submaps));
+    } catch (const std::invalid_argument&) {
+      return {};
+    }
+  });
+  if (bytes->empty()) return json_error(res, 404, "group " + std::to_string(*group) + " has no dense surface yet");
+  const std::string name = std::string(mesh ? "dense_mesh_" : "dense_cloud_") + std::to_string(*group) + ".ply";
+  send_download(res, name, *bytes, "application/octet-stream");
+}
+
+void get_cloud_ply(const DenseContext& ctx, const Req& req, Res& res) { send_group_ply(ctx, req, res, false); }
+void get_mesh_ply(const DenseContext& ctx, const Req& req, Res& res) { send_group_ply(ctx, req, res, true); }
 
 std::string base64(const std::int8_t* data, std::size_t n) {
   static const char* k = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -233,52 +258,48 @@ std::string base64(const std::int8_t* data, std::size_t n) {
   return out;
 }
 
-void nav_routes(httplib::Server& s, const DenseService* dense, std::shared_ptr<ProductCache<NavMaps>> cache) {
-  // Replies with the group's navigation maps, or an error; the maps are built once per version.
-  auto with_maps = [dense, cache](const httplib::Request& req, httplib::Response& res,
-                                  const std::function<void(int, const NavMaps&)>& reply) {
-    if (!dense) return json_error(res, 503, "the dense map is off (cslam-server --no-dense)");
-    const auto view = dense->view();
-    const auto group = requested_group(req, res, *view);
-    if (!group) return;
-    const auto maps = cache->get("nav-" + std::to_string(*group), view->version,
+// Replies with the group's navigation maps, or an error; the maps are built once per version.
+void with_nav_maps(const DenseContext& ctx, const Req& req, Res& res, const std::function<void(int, const NavMaps&)>& reply) {
+  if (!dense_on(ctx, res)) return;
+  const auto view = ctx.dense->view();
+  const auto group = requested_group(req, res, *view);
+  if (!group) return;
+  const auto maps = ctx.nav->get("nav-" + std::to_string(*group), view->version,
                                  [&] { return server::group_nav_maps(submaps_by_group(*view).at(*group)); });
-    reply(*group, *maps);
-  };
-  auto download = [](httplib::Response& res, const std::string& name, const std::string& bytes, const char* type) {
-    res.set_header("Content-Disposition", "attachment; filename=\"" + name + "\"");
-    res.set_header("Cache-Control", "no-store");
-    res.set_content(bytes, type);
-  };
-  s.Get("/api/dense/occupancy.json", [with_maps](const httplib::Request& req, httplib::Response& res) {
-    with_maps(req, res, [&](int group, const NavMaps& m) {
-      if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
-      json_reply(res, {{"group", group}, {"resolution", m.grid.resolution}, {"width", m.grid.width},
-                       {"height", m.grid.height}, {"T_world_grid", pose_json(m.grid.T_world_grid)},
-                       {"up", {m.up.x(), m.up.y(), m.up.z()}}, {"floor", m.floor},
-                       {"cells", {{"occupied", m.stats.cells_occupied}, {"free", m.stats.cells_free},
-                                  {"unknown", m.stats.cells_unknown}}},
-                       {"data", base64(m.grid.cells.data(), m.grid.cells.size())}});
-    });
+  reply(*group, *maps);
+}
+
+void get_occupancy_json(const DenseContext& ctx, const Req& req, Res& res) {
+  with_nav_maps(ctx, req, res, [&](int group, const NavMaps& m) {
+    if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
+    json_reply(res, {{"group", group}, {"resolution", m.grid.resolution}, {"width", m.grid.width},
+                     {"height", m.grid.height}, {"T_world_grid", pose_json(m.grid.T_world_grid)},
+                     {"up", {m.up.x(), m.up.y(), m.up.z()}}, {"floor", m.floor},
+                     {"cells", {{"occupied", m.stats.cells_occupied}, {"free", m.stats.cells_free},
+                                {"unknown", m.stats.cells_unknown}}},
+                     {"data", base64(m.grid.cells.data(), m.grid.cells.size())}});
   });
-  s.Get("/api/dense/occupancy.pgm", [with_maps, download](const httplib::Request& req, httplib::Response& res) {
-    with_maps(req, res, [&](int group, const NavMaps& m) {
-      if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
-      download(res, "occupancy_" + std::to_string(group) + ".pgm", to_pgm(m.grid), "image/x-portable-graymap");
-    });
+}
+
+void get_occupancy_pgm(const DenseContext& ctx, const Req& req, Res& res) {
+  with_nav_maps(ctx, req, res, [&](int group, const NavMaps& m) {
+    if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
+    send_download(res, "occupancy_" + std::to_string(group) + ".pgm", to_pgm(m.grid), "image/x-portable-graymap");
   });
-  s.Get("/api/dense/occupancy.yaml", [with_maps, download](const httplib::Request& req, httplib::Response& res) {
-    with_maps(req, res, [&](int group, const NavMaps& m) {
-      if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
-      const std::string g = std::to_string(group);
-      download(res, "occupancy_" + g + ".yaml", to_map_yaml(m.grid, "occupancy_" + g + ".pgm"), "text/yaml");
-    });
+}
+
+void get_occupancy_yaml(const DenseContext& ctx, const Req& req, Res& res) {
+  with_nav_maps(ctx, req, res, [&](int group, const NavMaps& m) {
+    if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
+    const std::string g = std::to_string(group);
+    send_download(res, "occupancy_" + g + ".yaml", to_map_yaml(m.grid, "occupancy_" + g + ".pgm"), "text/yaml");
   });
-  s.Get("/api/dense/octomap.bt", [with_maps, download](const httplib::Request& req, httplib::Response& res) {
-    with_maps(req, res, [&](int group, const NavMaps& m) {
-      if (m.octomap_bt.empty()) return json_error(res, 404, "no OctoMap yet: " + m.octomap_error);
-      download(res, "octomap_" + std::to_string(group) + ".bt", m.octomap_bt, "application/octet-stream");
-    });
+}
+
+void get_octomap(const DenseContext& ctx, const Req& req, Res& res) {
+  with_nav_maps(ctx, req, res, [&](int group, const NavMaps& m) {
+    if (m.octomap_bt.empty()) return json_error(res, 404, "no OctoMap yet: " + m.octomap_error);
+    send_download(res, "octomap_" + std::to_string(group) + ".bt", m.octomap_bt, "application/octet-stream");
   });
 }
 
@@ -338,12 +359,20 @@ HttpServer::HeldFramesSource held_frames_source(const DenseService* dense) {
 }
 
 void add_dense_routes(httplib::Server& server, const DenseService* dense) {
-  auto cache = std::make_shared<ProductCache<std::string>>();
-  status_route(server, dense);
-  index_route(server, dense);
-  mesh_route(server, dense, cache);
-  group_routes(server, dense, cache);
-  nav_routes(server, dense, std::make_shared<ProductCache<NavMaps>>());
+  const DenseContext context{dense, std::make_shared<ProductCache<std::string>>(), std::make_shared<ProductCache<NavMaps>>()};
+  const std::pair<const char*, DenseHandler> routes[] = {
+      {"/api/dense/status", get_status},
+      {"/api/dense/submaps", get_submap_index},
+      {R"(/api/dense/submaps/(\d+)/mesh\.bin)", get_submap_mesh},
+      {"/api/dense/cloud.ply", get_cloud_ply},
+      {"/api/dense/mesh.ply", get_mesh_ply},
+      {"/api/dense/occupancy.json", get_occupancy_json},
+      {"/api/dense/occupancy.pgm", get_occupancy_pgm},
+      {"/api/dense/occupancy.yaml", get_occupancy_yaml},
+      {"/api/dense/octomap.bt", get_octomap},
+  };
+  for (const auto& [pattern, handler] : routes)
+    server.Get(pattern, [context, f = handler](const Req& req, Res& res) { f(context, req, res); });
 }
 
 }  // namespace cslam::http

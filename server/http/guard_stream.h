@@ -1,7 +1,8 @@
 #pragma once
-// The stream a guard worker hands to httplib's process_request: the request is read from memory
-// (the event loop already read and normalised it), the response is written through the
-// connection's Channel (plain or TLS), each write within the write timeout.
+// The stream a guard worker hands to RequestRouter::route (server/http/request_router.h): the
+// request is read from memory (the event loop already read and normalised it), the response is
+// written through the connection's Channel (plain or TLS), each write within the write timeout.
+// httplib::Stream is cpp-httplib's public interface for this.
 #include <algorithm>
 #include <chrono>
 #include <cstring>

@@ -1,8 +1,5 @@
 #include "server/http/http_guard.h"
 
-#include <arpa/inet.h>
-#include <fcntl.h>
-#include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
@@ -15,8 +12,10 @@
 #include <cstring>
 
 #include "core/log.h"
+#include "server/http/guard_socket.h"
 #include "server/http/guard_stream.h"  // httplib.h (after every Eigen include)
 #include "server/http/http_request_parse.h"
+#include "server/http/request_router.h"
 #include "server/http/tls_context.h"
 
 namespace cslam::http {
@@ -25,20 +24,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// httplib::Server::process_request is protected: reached through a derived class's member pointer.
-struct ProcessAccess : httplib::Server {
-  static bool process(httplib::Server& s, httplib::Stream& strm, bool close, bool& closed,
-                      const std::function<void(httplib::Request&)>& setup) {
-    return (s.*(&ProcessAccess::process_request))(strm, close, closed, setup);
-  }
-};
-
-void set_nonblocking(int fd, bool on) {
-  const int flags = fcntl(fd, F_GETFL, 0);
-  fcntl(fd, F_SETFL, on ? (flags | O_NONBLOCK) : (flags & ~O_NONBLOCK));
-}
-
 std::chrono::milliseconds ms(double seconds) { return std::chrono::milliseconds(long(seconds * 1000)); }
+
+bool expects_continue(const std::string& buffer) {
+  const std::size_t end = buffer.find("\r\n\r\n");
+  return end != std::string::npos && lower(buffer.substr(0, end)).find("expect: 100-continue") != std::string::npos;
+}
 
 std::string error_response(int status, const char* text, const char* message) {
   const std::string body = std::string("{\"error\":\"") + message + "\"}";
@@ -69,8 +60,8 @@ struct HttpGuard::Job {
   bool close = false;
 };
 
-HttpGuard::HttpGuard(httplib::Server& server, GuardConfig config, const TlsContext* tls)
-    : server_(server), config_(std::move(config)), tls_(tls) {
+HttpGuard::HttpGuard(RequestRouter& router, GuardConfig config, const TlsContext* tls)
+    : router_(router), config_(std::move(config)), tls_(tls) {
   if (::pipe(wake_) != 0) throw std::system_error(errno, std::generic_category(), "pipe");
   set_nonblocking(wake_[0], true);
   set_nonblocking(wake_[1], true);
@@ -83,34 +74,7 @@ HttpGuard::~HttpGuard() {
   if (listen_fd_ >= 0) ::close(listen_fd_);
 }
 
-int HttpGuard::bind(const std::string& host, int port) {
-  addrinfo hints{}, *res = nullptr;
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  hints.ai_flags = AI_PASSIVE;
-  const std::string service = std::to_string(port);
-  if (::getaddrinfo(host.empty() ? nullptr : host.c_str(), service.c_str(), &hints, &res) != 0 || !res) return -1;
-  int bound = -1;
-  for (addrinfo* ai = res; ai && bound < 0; ai = ai->ai_next) {
-    const int fd = ::socket(ai->ai_family, ai->ai_socktype | SOCK_CLOEXEC, ai->ai_protocol);
-    if (fd < 0) continue;
-    const int yes = 1;
-    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-    if (::bind(fd, ai->ai_addr, ai->ai_addrlen) != 0 || ::listen(fd, 128) != 0) {
-      ::close(fd);
-      continue;
-    }
-    sockaddr_storage addr{};
-    socklen_t len = sizeof addr;
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
-    bound = addr.ss_family == AF_INET ? ntohs(reinterpret_cast<sockaddr_in*>(&addr)->sin_port)
-                                      : ntohs(reinterpret_cast<sockaddr_in6*>(&addr)->sin6_port);
-    set_nonblocking(fd, true);
-    listen_fd_ = fd;
-  }
-  ::freeaddrinfo(res);
-  return bound;
-}
+int HttpGuard::bind(const std::string& host, int port) { return listen_socket(host, port, &listen_fd_); }
 
 void HttpGuard::start() {
   if (listen_fd_ < 0 || loop_thread_.joinable()) return;
@@ -146,35 +110,32 @@ void HttpGuard::reply_and_close(Connection& c, int status, const char* text) {
 
 void HttpGuard::accept_all() {
   for (;;) {
-    sockaddr_storage addr{};
-    socklen_t len = sizeof addr;
-    const int fd = ::accept4(listen_fd_, reinterpret_cast<sockaddr*>(&addr), &len, SOCK_NONBLOCK | SOCK_CLOEXEC);
+    std::string ip;
+    int port = 0;
+    const int fd = accept_connection(listen_fd_, &ip, &port);
     if (fd < 0) return;
     ++stats_.accepted;
-    auto c = std::make_unique<Connection>();
-    c->channel = std::make_unique<Channel>(fd, tls_ ? tls_->get() : nullptr);
-    char ip[INET6_ADDRSTRLEN] = "";
-    if (addr.ss_family == AF_INET) {
-      inet_ntop(AF_INET, &reinterpret_cast<sockaddr_in*>(&addr)->sin_addr, ip, sizeof ip);
-      c->port = ntohs(reinterpret_cast<sockaddr_in*>(&addr)->sin_port);
-    } else if (addr.ss_family == AF_INET6) {
-      inet_ntop(AF_INET6, &reinterpret_cast<sockaddr_in6*>(&addr)->sin6_addr, ip, sizeof ip);
-      c->port = ntohs(reinterpret_cast<sockaddr_in6*>(&addr)->sin6_port);
-    }
-    c->ip = ip;
-    c->idle_since = Clock::now();
-    if (c->channel->tls()) {  // the handshake counts against the first request's deadline
-      c->in_request = true;
-      c->request_start = c->idle_since;
-    }
-    const int yes = 1;
-    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof yes);
-    Connection& ref = *c;
-    connections_[fd] = std::move(c);
-    if (connections_.size() > config_.max_connections) {
-      ++stats_.connections_refused;
-      reply_and_close(ref, 503, "Service Unavailable");  // under TLS: closed without a word
-    }
+    adopt(fd, ip, port);
+  }
+}
+
+void HttpGuard::adopt(int fd, const std::string& ip, int port) {
+  auto c = std::make_unique<Connection>();
+  c->channel = std::make_unique<Channel>(fd, tls_ ? tls_->get() : nullptr);
+  c->ip = ip;
+  c->port = port;
+  c->idle_since = Clock::now();
+  if (c->channel->tls()) {  // the handshake counts against the first request's deadline
+    c->in_request = true;
+    c->request_start = c->idle_since;
+  }
+  const int yes = 1;
+  ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof yes);
+  Connection& ref = *c;
+  connections_[fd] = std::move(c);
+  if (connections_.size() > config_.max_connections) {
+    ++stats_.connections_refused;
+    reply_and_close(ref, 503, "Service Unavailable");  // under TLS: closed without a word
   }
 }
 
@@ -217,28 +178,38 @@ bool HttpGuard::on_readable(Connection& c) {
 bool HttpGuard::try_dispatch(Connection& c) {
   if (c.buffer.empty()) return true;
   Parsed parsed;
-  switch (parse_request(c.buffer, config_, &parsed)) {
-    case Parse::kIncomplete:
-      if (!c.continue_sent && c.buffer.find("\r\n\r\n") != std::string::npos &&
-          lower(c.buffer.substr(0, c.buffer.find("\r\n\r\n"))).find("expect: 100-continue") != std::string::npos) {
-        c.continue_sent = true;
-        c.channel->send_once("HTTP/1.1 100 Continue\r\n\r\n");
-      }
-      return true;
+  const Parse verdict = parse_request(c.buffer, config_, &parsed);
+  if (verdict == Parse::kIncomplete) {
+    send_continue_if_expected(c);
+  } else if (verdict == Parse::kComplete) {
+    enqueue(c, parsed);
+  } else {
+    refuse(c, verdict);  // closes c
+  }
+  return true;
+}
+
+void HttpGuard::send_continue_if_expected(Connection& c) {
+  if (c.continue_sent || !expects_continue(c.buffer)) return;
+  c.continue_sent = true;
+  c.channel->send_once("HTTP/1.1 100 Continue\r\n\r\n");
+}
+
+void HttpGuard::refuse(Connection& c, Parse verdict) {
+  switch (verdict) {
     case Parse::kHeaderTooLarge:
       ++stats_.header_too_large;
-      reply_and_close(c, 431, "Request Header Fields Too Large");
-      return true;  // already closed
+      return reply_and_close(c, 431, "Request Header Fields Too Large");
     case Parse::kBodyTooLarge:
       ++stats_.body_too_large;
-      reply_and_close(c, 413, "Payload Too Large");
-      return true;
-    case Parse::kBad:
+      return reply_and_close(c, 413, "Payload Too Large");
+    default:
       ++stats_.bad_request;
-      reply_and_close(c, 400, "Bad Request");
-      return true;
-    case Parse::kComplete: break;
+      return reply_and_close(c, 400, "Bad Request");
   }
+}
+
+void HttpGuard::enqueue(Connection& c, Parsed& parsed) {
   auto job = std::make_unique<Job>();
   job->request = std::move(parsed.request);
   c.buffer.erase(0, parsed.consumed);
@@ -251,8 +222,7 @@ bool HttpGuard::try_dispatch(Connection& c) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (jobs_.size() >= config_.queue_capacity) {
       ++stats_.overloaded;
-      reply_and_close(c, 503, "Service Unavailable");
-      return true;
+      return reply_and_close(c, 503, "Service Unavailable");
     }
     // From here on one worker owns the connection (its channel included) until it hands it back.
     job->connection = std::move(connections_.at(fd));
@@ -261,7 +231,6 @@ bool HttpGuard::try_dispatch(Connection& c) {
   connections_.erase(fd);
   ++stats_.requests;
   jobs_cv_.notify_one();
-  return true;
 }
 
 bool HttpGuard::adopt_returned() {
@@ -294,35 +263,41 @@ Clock::time_point HttpGuard::deadline(const Connection& c) const {
   return c.in_request ? c.request_start + ms(config_.request_deadline_s) : c.idle_since + ms(config_.keep_alive_idle_s);
 }
 
-bool HttpGuard::poll_once() {
-  std::vector<pollfd> fds;
+int HttpGuard::poll_set(std::vector<pollfd>& fds, std::vector<int>& active) const {
   fds.push_back({wake_[0], POLLIN, 0});
   fds.push_back({listen_fd_, POLLIN, 0});
   const auto now = Clock::now();
   auto next = now + std::chrono::seconds(1);  // wake up at the nearest deadline
-  std::vector<int> active;                    // TLS bytes inside OpenSSL: readable whatever poll says
   for (const auto& [fd, c] : connections_) {
     fds.push_back({fd, short(POLLIN | (c->want_write ? POLLOUT : 0)), 0});
     next = std::min(next, deadline(*c));
     if (c->channel->pending()) active.push_back(fd);
   }
   const long wait_ms = std::chrono::duration_cast<std::chrono::milliseconds>(next - now).count() + 1;
-  const int timeout = active.empty() ? int(std::max<long>(0, wait_ms)) : 0;
+  return active.empty() ? int(std::max<long>(0, wait_ms)) : 0;
+}
+
+void HttpGuard::drain_wake() {
+  char drain[64];
+  while (::read(wake_[0], drain, sizeof drain) > 0) {
+  }
+}
+
+bool HttpGuard::poll_once() {
+  std::vector<pollfd> fds;
+  std::vector<int> active;  // connections with something to read or write
+  const int timeout = poll_set(fds, active);
   if (::poll(fds.data(), fds.size(), timeout) < 0 && errno != EINTR) {
     logger("http")->error("HTTP guard: poll failed: {}", std::strerror(errno));
     return false;
   }
-  if (fds[0].revents & POLLIN) {
-    char drain[64];
-    while (::read(wake_[0], drain, sizeof drain) > 0) {
-    }
-  }
+  if (fds[0].revents & POLLIN) drain_wake();
   if (fds[1].revents & POLLIN) accept_all();
   for (std::size_t i = 2; i < fds.size(); ++i)
     if (fds[i].revents) active.push_back(fds[i].fd);
   std::sort(active.begin(), active.end());
   active.erase(std::unique(active.begin(), active.end()), active.end());
-  for (int fd : active) {  // every connection with something to read or write
+  for (int fd : active) {
     auto it = connections_.find(fd);
     if (it == connections_.end()) continue;
     if (!on_readable(*it->second)) close_connection(fd);
@@ -361,7 +336,7 @@ void HttpGuard::serve(Job& job) {
   const std::string ip = c.ip;
   const int port = c.port;
   try {
-    ProcessAccess::process(server_, stream, job.close, closed, [&](httplib::Request& req) {
+    router_.route(stream, job.close, closed, [&](httplib::Request& req) {
       req.remote_addr = ip;
       req.remote_port = port;
       req.set_header("REMOTE_ADDR", ip);
@@ -374,25 +349,29 @@ void HttpGuard::serve(Job& job) {
   if (job.close || closed || stream.failed()) job.connection.reset();  // closed (TLS: close_notify first)
 }
 
+std::unique_ptr<HttpGuard::Job> HttpGuard::next_job() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  jobs_cv_.wait(lock, [this] { return stop_ || !jobs_.empty(); });
+  if (stop_) return nullptr;
+  std::unique_ptr<Job> job = std::move(jobs_.front());
+  jobs_.pop_front();
+  return job;
+}
+
+void HttpGuard::hand_back(std::unique_ptr<Connection> c) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stop_) return;  // closed here
+    returned_.push_back(std::move(c));  // back to the event loop, with its channel
+  }
+  const char w = 'r';
+  [[maybe_unused]] const ssize_t n = ::write(wake_[1], &w, 1);
+}
+
 void HttpGuard::worker() {
-  for (;;) {
-    std::unique_ptr<Job> job;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      jobs_cv_.wait(lock, [this] { return stop_ || !jobs_.empty(); });
-      if (stop_) return;
-      job = std::move(jobs_.front());
-      jobs_.pop_front();
-    }
+  while (std::unique_ptr<Job> job = next_job()) {
     serve(*job);
-    if (!job->connection) continue;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (stop_) continue;  // closed with the job
-      returned_.push_back(std::move(job->connection));  // back to the event loop, with its channel
-    }
-    const char w = 'r';
-    [[maybe_unused]] const ssize_t n = ::write(wake_[1], &w, 1);
+    if (job->connection) hand_back(std::move(job->connection));
   }
 }
 

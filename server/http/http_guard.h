@@ -7,7 +7,8 @@
 //    a cap on header count and header bytes, a body limit for Content-Length and chunked bodies,
 //    a connection cap and keep-alive limits (requests per connection, idle time);
 //  - only a complete, normalised request (chunked body decoded, Content-Length set) goes to a
-//    fixed pool of worker threads, which let httplib route it and write the response.
+//    fixed pool of worker threads, which let httplib route it and write the response
+//    (RequestRouter, server/http/request_router.h: the one seam into httplib, and why).
 // A slow or hostile client therefore costs a few kilobytes in the event loop, never a worker.
 //
 // With a TlsContext (--http-cert/--http-key) every connection is TLS: the event loop drives the
@@ -27,9 +28,7 @@
 #include <thread>
 #include <vector>
 
-namespace httplib {
-class Server;
-}
+struct pollfd;
 
 namespace cslam::http {
 
@@ -51,12 +50,15 @@ struct GuardStats {
       bad_request{0}, overloaded{0}, connections_refused{0}, tls_handshake_failed{0}, plain_http_on_tls{0};
 };
 
-class TlsContext;  // server/http/tls_context.h
+class TlsContext;     // server/http/tls_context.h
+class RequestRouter;  // server/http/request_router.h
+enum class Parse;     // server/http/http_request_parse.h
+struct Parsed;
 
 class HttpGuard {
  public:
-  // tls: null for plain HTTP; else outlives the guard.
-  HttpGuard(httplib::Server& server, GuardConfig config, const TlsContext* tls = nullptr);
+  // router: routes and answers each complete request; tls: null for plain HTTP. Both outlive the guard.
+  HttpGuard(RequestRouter& router, GuardConfig config, const TlsContext* tls = nullptr);
   ~HttpGuard();  // stop()
   HttpGuard(const HttpGuard&) = delete;
   HttpGuard& operator=(const HttpGuard&) = delete;
@@ -74,21 +76,31 @@ class HttpGuard {
   bool adopt_returned();  // false once stopping
   void dispatch_buffered();
   bool poll_once();       // false if poll failed
+  // Fills the poll set (wake pipe, listening socket, connections); returns the poll timeout (ms).
+  // `active` gets the connections with TLS bytes already decrypted (readable whatever poll says).
+  int poll_set(std::vector<pollfd>& fds, std::vector<int>& active) const;
+  void drain_wake();
   void expire_deadlines();
   std::chrono::steady_clock::time_point deadline(const Connection& c) const;
   void worker();
+  std::unique_ptr<Job> next_job();  // null once stopping
   void serve(Job& job);   // resets job.connection if the connection is to be closed
+  void hand_back(std::unique_ptr<Connection> c);  // a kept-alive connection, to the event loop
   void accept_all();
+  void adopt(int fd, const std::string& ip, int port);  // an accepted socket
   // Reads what is available (after the TLS handshake); returns false if the connection should be
   // closed now.
   bool on_readable(Connection& c);
   bool on_handshake(Connection& c);  // false: the handshake failed
   // Looks for a complete request in c's buffer; answers errors itself. Returns false to close.
   bool try_dispatch(Connection& c);
+  void send_continue_if_expected(Connection& c);
+  void refuse(Connection& c, Parse verdict);  // answers a request that broke a limit, and closes
+  void enqueue(Connection& c, Parsed& parsed);  // hands a complete request to the workers
   void reply_and_close(Connection& c, int status, const char* text);
   void close_connection(int fd);
 
-  httplib::Server& server_;
+  RequestRouter& router_;
   const GuardConfig config_;
   const TlsContext* tls_;
   GuardStats stats_;

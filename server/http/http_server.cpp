@@ -8,6 +8,7 @@
 #include "server/http/tls_context.h"
 // After every Eigen include: <resolv.h> (pulled in by httplib.h) defines a macro _res.
 #include "server/http/json_reply.h"
+#include "server/http/request_router.h"
 
 #ifndef CSLAM_WEB_DIR
 #define CSLAM_WEB_DIR "web"
@@ -67,20 +68,42 @@ void declare_options(CliArgs& cli) {
       .option("recon-camera", "camera preset or file for the reconstruction datasets (default: each DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says, else tum1)", "");
 }
 
-HttpConfig config_from(const CliArgs& cli) {
-  HttpConfig c;
+namespace {
+
+// --http: a port, or "off".
+void read_port(const CliArgs& cli, HttpConfig& c) {
   const std::string port = cli.get("http");
   if (port == "off") {
     c.enabled = false;
-  } else {
-    try {
-      std::size_t used = 0;
-      c.port = std::stoi(port, &used);
-      if (used != port.size() || c.port < 0 || c.port > 65535) throw std::invalid_argument(port);
-    } catch (const std::exception&) {
-      throw ConfigError("cslam-server: --http must be a port 0..65535 or 'off', got '" + port + "'");
-    }
+    return;
   }
+  try {
+    std::size_t used = 0;
+    c.port = std::stoi(port, &used);
+    if (used != port.size() || c.port < 0 || c.port > 65535) throw std::invalid_argument(port);
+  } catch (const std::exception&) {
+    throw ConfigError("cslam-server: --http must be a port 0..65535 or 'off', got '" + port + "'");
+  }
+}
+
+// --recon-max-mb, --recon-keep-jobs, --recon-keep-s, --health-snapshot-failing-s.
+void read_limits(const CliArgs& cli, HttpConfig& c) {
+  c.recon.max_mb = cli.get_double("recon-max-mb");
+  if (!(c.recon.max_mb >= 1)) throw ConfigError("cslam-server: --recon-max-mb must be at least 1");
+  const int keep = cli.get_int("recon-keep-jobs");
+  if (keep < 0) throw ConfigError("cslam-server: --recon-keep-jobs must be >= 0");
+  c.recon.max_finished = std::size_t(keep);
+  c.recon.max_age_s = cli.get_double("recon-keep-s");
+  if (!(c.recon.max_age_s >= 0)) throw ConfigError("cslam-server: --recon-keep-s must be >= 0");
+  c.health_snapshot_failing_s = cli.get_double("health-snapshot-failing-s");
+  if (!(c.health_snapshot_failing_s > 0)) throw ConfigError("cslam-server: --health-snapshot-failing-s must be positive");
+}
+
+}  // namespace
+
+HttpConfig config_from(const CliArgs& cli) {
+  HttpConfig c;
+  read_port(cli, c);
   c.bind = cli.get("http-bind");
   c.token = cli.get("http-token");
   if (const std::string file = cli.get("http-token-file"); !file.empty()) {
@@ -94,15 +117,7 @@ HttpConfig config_from(const CliArgs& cli) {
   c.port_file = cli.get("http-port-file");
   c.datasets_dir = cli.get("datasets-dir");
   c.recon_camera = cli.get("recon-camera");
-  c.recon.max_mb = cli.get_double("recon-max-mb");
-  if (!(c.recon.max_mb >= 1)) throw ConfigError("cslam-server: --recon-max-mb must be at least 1");
-  const int keep = cli.get_int("recon-keep-jobs");
-  if (keep < 0) throw ConfigError("cslam-server: --recon-keep-jobs must be >= 0");
-  c.recon.max_finished = std::size_t(keep);
-  c.recon.max_age_s = cli.get_double("recon-keep-s");
-  if (!(c.recon.max_age_s >= 0)) throw ConfigError("cslam-server: --recon-keep-s must be >= 0");
-  c.health_snapshot_failing_s = cli.get_double("health-snapshot-failing-s");
-  if (!(c.health_snapshot_failing_s > 0)) throw ConfigError("cslam-server: --health-snapshot-failing-s must be positive");
+  read_limits(cli, c);
   c.validate();
   // Loaded now, so that a bad file stops the program before anything else starts.
   if (c.enabled && !c.tls_cert.empty()) c.tls = std::make_shared<const TlsContext>(c.tls_cert, c.tls_key);
@@ -115,7 +130,7 @@ HttpServer::HttpServer(const CollaborativeSystem& system, HttpConfig config)
       cache_(system, config_.cache),
       auth_(config_.token, config_.auth),
       jobs_(config_.recon),
-      server_(std::make_unique<httplib::Server>()) {
+      server_(std::make_unique<RequestRouter>()) {
   config_.validate();
   if (config_.enabled && !config_.tls_cert.empty() && !config_.tls)
     config_.tls = std::make_shared<const TlsContext>(config_.tls_cert, config_.tls_key);
@@ -125,6 +140,8 @@ HttpServer::HttpServer(const CollaborativeSystem& system, HttpConfig config)
 }
 
 HttpServer::~HttpServer() { stop(); }
+
+httplib::Server& HttpServer::routes_server() { return *server_; }
 
 bool HttpServer::start() {
   auto log = logger("http");
@@ -158,6 +175,13 @@ void HttpServer::stop() {
 }
 
 void HttpServer::routes() {
+  server_limits();
+  request_handlers();
+  api_routes();
+  static_routes();
+}
+
+void HttpServer::server_limits() {
   httplib::Server& s = *server_;
   // Limits are enforced by HttpGuard before a request reaches httplib (see http_guard.h).
   s.set_read_timeout(5, 0);
@@ -168,6 +192,10 @@ void HttpServer::routes() {
   // ~40 ms to every keep-alive response.
   s.set_tcp_nodelay(true);
   s.set_payload_max_length(config_.guard.max_body_bytes);
+}
+
+void HttpServer::request_handlers() {
+  httplib::Server& s = *server_;
   s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     if (refuse_unauthorised(req, res)) return httplib::Server::HandlerResponse::Handled;
     // Every route: a path or parameter that is not clean UTF-8 text is a 400 before any handler.
@@ -190,8 +218,6 @@ void HttpServer::routes() {
     }
     json_error(res, 500, what);
   });
-  api_routes();
-  static_routes();
 }
 
 // Every /api/* and /metrics request needs the token; the viewer's files (no data) do not. An

@@ -24,7 +24,8 @@ struct Response;
 
 namespace cslam::http {
 
-class TlsContext;  // server/http/tls_context.h
+class TlsContext;     // server/http/tls_context.h
+class RequestRouter;  // server/http/request_router.h
 
 struct HttpConfig {
   bool enabled = true;
@@ -87,12 +88,13 @@ class HttpServer {
   const GuardStats* guard_stats() const { return guard_ ? &guard_->stats() : nullptr; }
   const AuthGate& auth() const { return auth_; }
   // Registers more routes (e.g. add_map_routes) before start().
-  httplib::Server& routes_server() { return *server_; }
+  httplib::Server& routes_server();
 
  private:
   void routes();
-  void api_routes();
-  void reply_started(httplib::Response& res, int group, const ReconStart& started) const;
+  void server_limits();
+  void request_handlers();  // pre-routing (token, clean input), errors, exceptions
+  void api_routes();        // api_routes.cpp
   void static_routes();
   bool refuse_unauthorised(const httplib::Request& req, httplib::Response& res);
 
@@ -102,7 +104,7 @@ class HttpServer {
   AuthGate auth_;
   ReconJobs jobs_;
   HeldFramesSource held_frames_;
-  std::unique_ptr<httplib::Server> server_;  // routes only: never listens itself
+  std::unique_ptr<RequestRouter> server_;    // routes only: never listens itself
   std::unique_ptr<HttpGuard> guard_;         // owns the socket, hands complete requests to httplib
   int port_ = -1;
 };

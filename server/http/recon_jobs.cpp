@@ -1,23 +1,16 @@
 #include "server/http/recon_jobs.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <unordered_set>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include <unistd.h>
 
 #include "cloud/ply_io.h"
 #include "core/log.h"
-#include "dense/tsdf_volume.h"
-#include "io/tum_dataset.h"
 #include "server/heap.h"
-
 
 namespace cslam::http {
 
@@ -62,7 +55,6 @@ std::shared_ptr<const std::string> ply_bytes(const std::string& tag, Writer writ
   return std::make_shared<const std::string>(bytes.str());
 }
 
-
 std::string mb(double bytes) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.0f MB", bytes / kMB);
@@ -74,100 +66,6 @@ std::string mb(double bytes) {
 std::string ReconEstimate::summary() const {
   return "images " + mb(images) + ", point chunks " + mb(chunk_points) + ", cloud " + mb(cloud) + ", TSDF " + mb(tsdf) +
          ", mesh " + mb(mesh) + ", PLY " + mb(ply);
-}
-
-namespace {
-
-// The surface the request's frames see, measured on a sample of them: up to max_frames depth
-// images (evenly spread over the poses) back-projected at about 80 columns into 10 cm cells;
-// area = cells x cell^2 (a surface crossing cells obliquely counts a little high, as an estimate
-// of memory should). nullopt if no depth image could be read.
-std::optional<double> sampled_surface_m2(const std::vector<DatasetPoses>& sources, const DenseConfig& config,
-                                         std::size_t max_frames) {
-  constexpr double kCell = 0.10;
-  std::size_t poses = 0;
-  for (const DatasetPoses& s : sources) poses += s.poses.size();
-  if (poses == 0) return std::nullopt;
-  const std::size_t step = std::max<std::size_t>(1, poses / max_frames);
-  std::unordered_set<std::uint64_t> cells;
-  std::size_t read = 0, k = 0;
-  for (const DatasetPoses& s : sources) {
-    std::vector<TimedFile> depth;
-    try {
-      depth = open_tum_dataset(s.dataset_dir).depth;
-    } catch (const std::exception&) {
-      continue;
-    }
-    if (depth.empty()) continue;
-    const PinholeCamera& cam = s.camera;
-    const int px = std::max(1, cam.width / 80);
-    for (const StampedPose& p : s.poses) {
-      if (k++ % step != 0 || !p.T_world_cam.is_finite()) continue;
-      auto it = std::lower_bound(depth.begin(), depth.end(), p.timestamp,
-                                 [](const TimedFile& f, double t) { return f.timestamp < t; });
-      if (it == depth.end()) it = std::prev(it);
-      else if (it != depth.begin() && p.timestamp - std::prev(it)->timestamp < it->timestamp - p.timestamp) it = std::prev(it);
-      if (std::abs(it->timestamp - p.timestamp) > 0.1) continue;
-      const cv::Mat d = cv::imread(it->path, cv::IMREAD_UNCHANGED);
-      if (d.type() != CV_16UC1 || d.cols != cam.width || d.rows != cam.height) continue;
-      ++read;
-      for (int v = px / 2; v < d.rows; v += px)
-        for (int u = px / 2; u < d.cols; u += px) {
-          const double z = cam.depth_from_raw(d.at<std::uint16_t>(v, u));
-          if (z < config.min_depth || z > config.max_depth) continue;
-          const Eigen::Vector3d w = p.T_world_cam * cam.unproject(u, v, z);
-          const auto cell = [](double x) { return std::uint64_t(std::int64_t(std::floor(x / kCell)) & 0x1FFFFF); };
-          cells.insert(cell(w.x()) << 42 | cell(w.y()) << 21 | cell(w.z()));
-        }
-    }
-  }
-  if (read == 0) return std::nullopt;
-  return double(cells.size()) * kCell * kCell;
-}
-
-}  // namespace
-
-// The parts of a request's memory. Constants measured with cslam-recon (--threads 1, as the
-// server runs) on the synthetic 2 x 60-frame 320x240 scene (docs/security.md, "Reconstruction
-// jobs"): about 100 bytes per back-projected point held in a chunk, 120 per filtered cloud point,
-// 48 per mesh triangle, a TSDF block (8^3 voxels) over every block_side^2 of surface. The
-// estimate came out 1.5-2x above the measured growth at every setting tried.
-ReconEstimate estimate_recon_memory(const std::vector<DatasetPoses>& sources, const DenseConfig& config) {
-  constexpr double kChunkPointBytes = 100, kCloudPointBytes = 120, kTriangleBytes = 48;
-  constexpr std::size_t kSampleFrames = 24;
-  // Without readable depth images: each frame's footprint at mid-depth, frames overlapping
-  // about this much (the measured scene: 639 m^2 of footprints over 25 m^2 seen).
-  constexpr double kFallbackOverlap = 10.0;
-  ReconEstimate e;
-  const double stride = std::max(1, config.stride);
-  const double depth = 0.5 * (config.min_depth + config.max_depth);
-  double footprint_sum = 0, largest_image = 0;
-  for (const DatasetPoses& s : sources) {
-    const PinholeCamera& c = s.camera;
-    e.points_per_frame = std::max(e.points_per_frame, std::ceil(c.width / stride) * std::ceil(c.height / stride));
-    largest_image = std::max(largest_image, double(c.width) * c.height);
-    const double footprint = (c.width / c.fx * depth) * (c.height / c.fy * depth);
-    for (const StampedPose& p : s.poses)
-      if (p.T_world_cam.is_finite()) ++e.frames, footprint_sum += footprint;
-  }
-  if (e.frames == 0) return e;
-  const auto sampled = sampled_surface_m2(sources, config, kSampleFrames);
-  e.surface_m2 = sampled ? *sampled : footprint_sum / kFallbackOverlap;
-  const double leaf = config.voxel_size;
-  const double cloud_points = std::min(e.surface_m2 / (leaf * leaf), double(e.frames) * e.points_per_frame);
-  e.images = 4 * largest_image * 5;  // BGR + 16-bit depth: a decoded pair and the one loading
-  e.chunk_points = std::min<double>(std::max(1, config.chunk_frames), double(e.frames)) * e.points_per_frame * kChunkPointBytes;
-  e.cloud = cloud_points * kCloudPointBytes;
-  e.ply = cloud_points * 15;  // binary: xyz float, rgb
-  if (config.build_mesh) {
-    const double vs = config.tsdf.voxel_size, block = TsdfVolume::kBlockSide * vs;
-    const double band = 1 + 2 * config.tsdf.truncation / block;
-    e.tsdf = e.surface_m2 / (block * block) * band * (double(sizeof(TsdfVolume::Block)) + 64);
-    const double triangles = 2 * e.surface_m2 / (vs * vs);
-    e.mesh = triangles * kTriangleBytes;
-    e.ply += triangles * (13 + 0.5 * 15);
-  }
-  return e;
 }
 
 ReconJobs::ReconJobs(ReconJobsConfig config) : config_(config) {}
@@ -193,30 +91,33 @@ ReconStart ReconJobs::start(int group, std::vector<DatasetPoses> sources, DenseC
   return start(group, std::move(reconstruct), estimate, std::move(config));
 }
 
-ReconStart ReconJobs::start(int group, ReconFunction reconstruct, ReconEstimate estimate, DenseConfig config) {
-  config.validate();  // throws ConfigError (a 400 for the caller)
-  ReconStart out;
-  out.estimate = estimate;
-  expire();
-  std::lock_guard<std::mutex> lock(mutex_);
+bool ReconJobs::refused_locked(ReconStart& out) {
   for (const auto& [id, job] : jobs_) {
     std::lock_guard<std::mutex> job_lock(job->mutex);
     if (!job->finished()) {
       ++refused_busy_;
       out.outcome = ReconStart::Outcome::kBusy;
       out.message = "a reconstruction is already running (" + id + ")";
-      return out;
+      return true;
     }
   }
-  if (out.estimate.total_mb() > config_.max_mb) {
-    ++refused_over_budget_;
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "this request would take about %.0f MB, over the %.0f MB budget (--recon-max-mb)",
-                  out.estimate.total_mb(), config_.max_mb);
-    out.outcome = ReconStart::Outcome::kOverBudget;
-    out.message = std::string(buf) + ": " + out.estimate.summary() + "; use a larger voxel or stride, or mesh=0";
-    return out;
-  }
+  if (!(out.estimate.total_mb() > config_.max_mb)) return false;
+  ++refused_over_budget_;
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "this request would take about %.0f MB, over the %.0f MB budget (--recon-max-mb)",
+                out.estimate.total_mb(), config_.max_mb);
+  out.outcome = ReconStart::Outcome::kOverBudget;
+  out.message = std::string(buf) + ": " + out.estimate.summary() + "; use a larger voxel or stride, or mesh=0";
+  return true;
+}
+
+ReconStart ReconJobs::start(int group, ReconFunction reconstruct, ReconEstimate estimate, DenseConfig config) {
+  config.validate();  // throws ConfigError (a 400 for the caller)
+  ReconStart out;
+  out.estimate = estimate;
+  expire();
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (refused_locked(out)) return out;
   auto job = std::make_shared<Job>();
   job->id = "r" + std::to_string(next_id_++);
   job->group = group;
@@ -231,70 +132,99 @@ ReconStart ReconJobs::start(int group, ReconFunction reconstruct, ReconEstimate 
   return out;
 }
 
-void ReconJobs::run(Job& job, ReconFunction reconstruct, DenseConfig config) {
-  auto log = logger("http");
-  {
-    std::lock_guard<std::mutex> lock(job.mutex);
-    job.state = "running";
-  }
-  const std::function<std::size_t()> probe = config_.memory_probe ? config_.memory_probe : std::function<std::size_t()>(server::resident_bytes);
-  const double rss_start = double(probe());
-  auto check_memory = [&] {
-    const double rss = double(probe());
-    if (rss <= 0 || rss_start <= 0) return;
-    const double growth_mb = (rss - rss_start) / kMB;
-    if (growth_mb > job.peak_growth_mb) job.peak_growth_mb = growth_mb;
-    if (growth_mb > config_.max_mb)
-      throw OverBudget{"stopped: the server grew " + mb(rss - rss_start) + " during this job, over the " +
-                       mb(config_.max_mb * kMB) + " budget (--recon-max-mb); use a larger voxel or stride"};
-  };
+struct ReconJobs::Outcome {
   std::string state = "done", message;
   std::shared_ptr<const std::string> cloud, mesh;
   std::size_t points = 0, triangles = 0;
+};
+
+namespace {
+
+// Watches the process's growth since construction: records the peak, throws OverBudget past max_mb.
+class MemoryWatch {
+ public:
+  MemoryWatch(std::function<std::size_t()> probe, double max_mb, std::atomic<double>& peak_growth_mb)
+      : probe_(std::move(probe)), start_(double(probe_())), max_mb_(max_mb), peak_growth_mb_(peak_growth_mb) {}
+  void check() const {
+    const double rss = double(probe_());
+    if (rss <= 0 || start_ <= 0) return;
+    const double growth_mb = (rss - start_) / kMB;
+    if (growth_mb > peak_growth_mb_) peak_growth_mb_ = growth_mb;
+    if (growth_mb > max_mb_)
+      throw OverBudget{"stopped: the server grew " + mb(rss - start_) + " during this job, over the " +
+                       mb(max_mb_ * kMB) + " budget (--recon-max-mb); use a larger voxel or stride"};
+  }
+
+ private:
+  std::function<std::size_t()> probe_;
+  double start_;
+  double max_mb_;
+  std::atomic<double>& peak_growth_mb_;
+};
+
+}  // namespace
+
+void ReconJobs::keep_products(const Job& job, const DenseResult& result, Outcome& out) {
+  out.points = result.cloud.size();
+  out.triangles = result.mesh.triangles.size();
+  if (out.points == 0) {
+    out.state = "failed";
+    out.message = "no frame could be used (" + std::to_string(result.counts.skipped()) + " skipped)";
+    return;
+  }
+  out.cloud = ply_bytes(job.id + "-cloud", [&](const std::string& p) { write_ply(p, result.cloud); });
+  if (out.triangles > 0) out.mesh = ply_bytes(job.id + "-mesh", [&](const std::string& p) { write_ply_mesh(p, result.mesh); });
+  out.message = std::to_string(result.counts.used) + " frames used, " + std::to_string(out.points) + " points";
+}
+
+ReconJobs::Outcome ReconJobs::execute(Job& job, const ReconFunction& reconstruct, const DenseConfig& config) {
+  const MemoryWatch memory(config_.memory_probe ? config_.memory_probe : std::function<std::size_t()>(server::resident_bytes),
+                           config_.max_mb, job.peak_growth_mb);
+  Outcome out;
   try {
     DenseResult result = reconstruct(config, [&](const DenseProgress& p) {
       job.done = p.done;
       job.total = p.total;
       job.used = p.used;
       if (cancel_) throw Cancelled{};
-      check_memory();
+      memory.check();
     });
-    check_memory();  // after the filtering, TSDF and meshing of finish()
-    points = result.cloud.size();
-    triangles = result.mesh.triangles.size();
-    if (points == 0) {
-      state = "failed";
-      message = "no frame could be used (" + std::to_string(result.counts.skipped()) + " skipped)";
-    } else {
-      cloud = ply_bytes(job.id + "-cloud", [&](const std::string& p) { write_ply(p, result.cloud); });
-      if (triangles > 0) mesh = ply_bytes(job.id + "-mesh", [&](const std::string& p) { write_ply_mesh(p, result.mesh); });
-      message = std::to_string(result.counts.used) + " frames used, " + std::to_string(points) + " points";
-    }
+    memory.check();  // after the filtering, TSDF and meshing of finish()
+    keep_products(job, result, out);
   } catch (const Cancelled&) {
-    state = "cancelled";
+    out.state = "cancelled";
   } catch (const OverBudget& e) {
-    state = "failed";
-    message = e.what;
+    out.state = "failed";
+    out.message = e.what;
     ++stopped_over_budget_;
   } catch (const std::exception& e) {
-    state = "failed";
-    message = e.what();
+    out.state = "failed";
+    out.message = e.what();
   }
+  return out;
+}
+
+void ReconJobs::run(Job& job, ReconFunction reconstruct, DenseConfig config) {
+  {
+    std::lock_guard<std::mutex> lock(job.mutex);
+    job.state = "running";
+  }
+  const Outcome out = execute(job, reconstruct, config);
   reconstruct = nullptr;  // frees what the frames' source holds
   {
     std::lock_guard<std::mutex> lock(job.mutex);
-    job.state = state;
-    job.message = message;
-    job.cloud = cloud;
-    job.mesh = mesh;
-    job.points = points;
-    job.triangles = triangles;
+    job.state = out.state;
+    job.message = out.message;
+    job.cloud = out.cloud;
+    job.mesh = out.mesh;
+    job.points = out.points;
+    job.triangles = out.triangles;
     job.finished_at = SteadyClock::now();
     job.elapsed_s = std::chrono::duration<double>(job.finished_at - job.start).count();
   }
   server::release_free_memory();  // a finished job's memory shows as released (tcmalloc keeps freed spans)
-  log->info("reconstruction {} of group {}: {} {} (estimate {:.0f} MB, grew {:.0f} MB)", job.id, job.group, state, message,
-            job.estimate_mb, job.peak_growth_mb.load());
+  logger("http")->info("reconstruction {} of group {}: {} {} (estimate {:.0f} MB, grew {:.0f} MB)", job.id, job.group,
+                       out.state, out.message, job.estimate_mb, job.peak_growth_mb.load());
 }
 
 std::vector<std::shared_ptr<ReconJobs::Job>> ReconJobs::expire_locked(SteadyClock::time_point now) {

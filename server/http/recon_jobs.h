@@ -106,7 +106,11 @@ class ReconJobs {
 
  private:
   struct Job;
-  void run(Job& job, ReconFunction reconstruct, DenseConfig config);
+  struct Outcome;  // what a job ends with: state, message, products
+  void run(Job& job, ReconFunction reconstruct, DenseConfig config);  // the job's thread
+  Outcome execute(Job& job, const ReconFunction& reconstruct, const DenseConfig& config);
+  static void keep_products(const Job& job, const DenseResult& result, Outcome& out);
+  bool refused_locked(ReconStart& out);  // busy, or out.estimate over the budget: out says why
   std::shared_ptr<Job> find(const std::string& id) const;
   std::vector<std::shared_ptr<Job>> expire_locked(std::chrono::steady_clock::time_point now);
 

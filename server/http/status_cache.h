@@ -69,6 +69,8 @@ std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, doubl
 // The network counters: JSON for /api/status "network", Prometheus text (cslam_net_*) for /metrics.
 nlohmann::json network_json(const NetStatus& n);
 std::string network_metrics_text(const NetStatus& n);
+// A client's network counter by name (0 if absent).
+std::uint64_t net_counter(const NetClientStatus& net, const char* key);
 // The HTTP guard's counters (cslam_http_*) for /metrics.
 std::string guard_metrics_text(const GuardStats& g);
 // Snapshot writes (cslam_snapshot_*) from a MapStore's stats JSON, and reconstruction jobs (cslam_recon_*).
@@ -130,9 +132,18 @@ class StatusCache {
   std::uint64_t generation_ = 0;
   std::uint64_t extra_errors_ = 0;
   std::string last_extra_error_;
+  // One refresh, step by step (refresh-thread only).
+  nlohmann::json add_clients(CachedState& next, const SystemSnapshot& snap, const NetStatus* net, double now,
+                             std::map<ClientId, double>& fps_of);  // the status's client list
+  nlohmann::json client_entry(const ClientSnapshot& c, const NetStatus* net, double now, double* fps);
+  std::string connection_of(const ClientSnapshot& c, const NetStatus* net, double now,
+                            const std::deque<RateSample>& samples);
+  void compose(CachedState& next, const SystemSnapshot& snap, const NetStatus* net, nlohmann::json clients,
+               const std::map<ClientId, double>& fps_of);  // status, events, metrics
   void apply_extra(CachedState& next);
   void add_snapshots(CachedState& next);
   void add_recon(CachedState& next);
+  void add_points(CachedState& next, double now);  // refreshed every points_refresh_s, else shared
 };
 
 }  // namespace cslam::http
