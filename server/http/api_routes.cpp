@@ -53,7 +53,7 @@ std::optional<std::vector<ClientId>> trajectory_clients(const CachedState& state
 
 int group_of(const CachedState& state, ClientId id) {
   const auto it = state.group_of.find(id);
-  return it == state.group_of.end() ? -1 : it->second;
+  return it == state.group_of.end() ? -1 : it->second.value();
 }
 
 void reply_trajectories_tum(const CachedState& state, const std::vector<ClientId>& ids, Res& res) {
@@ -101,10 +101,10 @@ struct SelectedPoints {
 SelectedPoints select_points(const CachedState& state, std::optional<long> group) {
   SelectedPoints out;
   for (const auto& [g, list] : state.points) {
-    if (group && g != *group) continue;
+    if (group && g.value() != *group) continue;
     for (const ViewerPoint& p : *list) {
       out.points.push_back(&p);
-      out.groups.push_back(g);
+      out.groups.push_back(g.value());
     }
   }
   return out;
@@ -139,7 +139,7 @@ void get_map_points(const ApiContext& ctx, const Req& req, Res& res) {
   const std::string format = param_or(req, "format", "json");
   if (format != "bin" && format != "json") throw std::invalid_argument("format must be bin or json, got '" + format + "'");
   const auto group = int_param(req, "group", -1, 1 << 30);
-  if (group && !state->groups.count(int(*group))) return json_error(res, 404, "unknown group " + std::to_string(*group));
+  if (group && !state->groups.count(GroupId::from_value(int(*group)))) return json_error(res, 404, "unknown group " + std::to_string(*group));
   const SelectedPoints selected = select_points(*state, group);
   res.set_header("X-Point-Count", std::to_string(selected.points.size()));
   if (format == "bin") return reply_points_bin(selected, res);

@@ -30,14 +30,14 @@ std::optional<int> recon_group(const CachedState& state, const Req& req, Res& re
   int group = -1;
   if (const auto g = int_param(req, "group", -1, 1 << 30)) {
     group = int(*g);
-    if (!state.groups.count(group)) {
+    if (!state.groups.count(GroupId::from_value(group))) {
       json_error(res, 404, "unknown group " + std::to_string(group));
       return std::nullopt;
     }
     return group;
   }
   for (const auto& [g, members] : state.groups)
-    if (group < 0 || members.size() > state.groups.at(group).size()) group = g;
+    if (group < 0 || members.size() > state.groups.at(GroupId::from_value(group)).size()) group = g.value();
   if (group < 0) {
     json_error(res, 409, "no client yet");
     return std::nullopt;
@@ -86,7 +86,7 @@ std::string dataset_dir(const CachedState& state, const std::filesystem::path& r
 void start_from_datasets(const ApiContext& ctx, const CachedState& state, Res& res, int group, const DenseConfig& dc) {
   const std::filesystem::path root(ctx.config.datasets_dir);
   std::vector<DatasetPoses> sources;
-  for (ClientId id : state.groups.at(group)) {
+  for (ClientId id : state.groups.at(GroupId::from_value(group))) {
     const auto traj = state.trajectories.find(id);
     if (traj == state.trajectories.end() || traj->second.empty()) continue;
     const std::string dir = dataset_dir(state, root, id);

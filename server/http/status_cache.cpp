@@ -3,6 +3,7 @@
 #include "server/http/auth_gate.h"
 #include "server/http/http_guard.h"
 
+#include "core/ids_json.h"
 #include "core/log.h"
 
 #include <sstream>

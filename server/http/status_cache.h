@@ -43,9 +43,9 @@ struct CachedState {
   std::string events_body;                        // body of GET /api/fusion/events
   std::string metrics;                            // body of GET /metrics
   std::map<ClientId, Trajectory> trajectories;    // each in its group's frame
-  std::map<ClientId, int> group_of;
-  std::map<int, std::vector<ClientId>> groups;
-  std::map<int, std::shared_ptr<const std::vector<ViewerPoint>>> points;  // per group, decimated
+  std::map<ClientId, GroupId> group_of;
+  std::map<GroupId, std::vector<ClientId>> groups;
+  std::map<GroupId, std::shared_ptr<const std::vector<ViewerPoint>>> points;  // per group, decimated
   // Snapshot writes (from MapStore::stats_json; absent without a store or without --state-dir).
   bool snapshots_on = false;
   double snapshot_failing_for_s = 0;     // 0 while the newest write succeeded

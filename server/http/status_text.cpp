@@ -5,6 +5,8 @@
 #include "server/http/http_guard.h"
 #include "server/http/status_cache.h"
 
+#include "core/ids_json.h"
+
 namespace cslam::http {
 namespace {
 
@@ -55,7 +57,7 @@ void client_gauges(std::ostringstream& o, const SystemSnapshot& s, const std::ma
              [](const ClientSnapshot& c) { return c.queue_depth; });
   per_client(o, s, "cslam_keyframes", "gauge", "Keyframes in the client's map.", [](const ClientSnapshot& c) { return c.keyframes; });
   per_client(o, s, "cslam_map_points", "gauge", "Map points in the client's map.", [](const ClientSnapshot& c) { return c.map_points; });
-  per_client(o, s, "cslam_group", "gauge", "Fused group id of the client.", [](const ClientSnapshot& c) { return c.group; });
+  per_client(o, s, "cslam_group", "gauge", "Fused group id of the client.", [](const ClientSnapshot& c) { return c.group.value(); });
 }
 
 void tracking_states(std::ostringstream& o, const SystemSnapshot& s) {

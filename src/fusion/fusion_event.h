@@ -11,7 +11,7 @@ namespace cslam {
 struct FusionEvent {
   double wall_time_s = 0;  // seconds since the system started
   ClientId client_a = 0, client_b = 0;
-  int group = -1;          // group id after the fusion
+  GroupId group;           // the group after the fusion
   int inliers = 0;
   double duration_ms = 0;  // detection hit to fused map
   std::string kind = "fusion";

@@ -237,7 +237,7 @@ FusionEvent FusionManager::link_event(const char* kind, const Pending& p, Client
   e.kind = kind;
   e.client_a = p.client;
   e.client_b = other_client;
-  e.group = group.value();
+  e.group = group;
   e.inliers = v.final_inliers;
   e.duration_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - hit).count();
   e.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

@@ -25,7 +25,7 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
   if (config_.run_slam) slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
   counters_.id = info_.id;
   counters_.name = info_.name;
-  counters_.group = info_.id;
+  counters_.group = GroupId::from_value(info_.id);  // until the first frame reports its group
   latency_ms_.reserve(kLatencyWindow);
   // Stepped (config.stepped): frames are processed inside submit(), in order.
   if (!config_.stepped) thread_ = std::thread([this] { run(); });

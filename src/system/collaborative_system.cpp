@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "core/ids_json.h"
 #include "core/log.h"
 #include "frame/frame_check.h"
 #include "core/stats.h"
@@ -146,7 +147,7 @@ SystemSnapshot CollaborativeSystem::snapshot() const {
   s.uptime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - impl_->start).count();
   for (const auto& [id, p] : impl_->clients) {
     s.clients.push_back(p->snapshot());
-    s.clients.back().group = impl_->group_of(*p).value();
+    s.clients.back().group = impl_->group_of(*p);
   }
   if (impl_->fusion) {
     s.events = impl_->fusion->events();
@@ -185,10 +186,10 @@ void CollaborativeSystem::final_global_ba_locked() {
     if (p->slam()) p->slam()->final_global_ba(fused);
 }
 
-std::map<int, std::vector<ClientId>> CollaborativeSystem::groups() const {
-  std::map<int, std::vector<ClientId>> out;
+std::map<GroupId, std::vector<ClientId>> CollaborativeSystem::groups() const {
+  std::map<GroupId, std::vector<ClientId>> out;
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  for (const auto& [id, p] : impl_->clients) out[impl_->group_of(*p).value()].push_back(id);
+  for (const auto& [id, p] : impl_->clients) out[impl_->group_of(*p)].push_back(id);
   return out;
 }
 
@@ -199,12 +200,12 @@ std::map<ClientId, Trajectory> CollaborativeSystem::trajectories() const {
   return out;
 }
 
-std::vector<ViewerPoint> CollaborativeSystem::map_points(int group, std::size_t max_points) const {
+std::vector<ViewerPoint> CollaborativeSystem::map_points(GroupId group, std::size_t max_points) const {
   std::vector<std::pair<ClientId, std::shared_ptr<Map>>> maps;
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     for (const auto& [id, p] : impl_->clients)
-      if (p->slam() && impl_->group_of(*p).value() == group)
+      if (p->slam() && impl_->group_of(*p) == group)
         if (auto m = p->slam()->main_map()) maps.emplace_back(id, m);
   }
   std::vector<ViewerPoint> out;
@@ -276,7 +277,7 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
   stats["clients"] = nlohmann::json::array();
   for (const auto& c : snap.clients) {
     const std::string id = std::to_string(c.id);
-    write_tum_trajectory(dir + "/client_" + id + ".txt", trajs.at(c.id), "client " + id + ", frame of group " + std::to_string(c.group));
+    write_tum_trajectory(dir + "/client_" + id + ".txt", trajs.at(c.id), "client " + id + ", frame of group " + std::to_string(c.group.value()));
     nlohmann::json cj = {{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
                          {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
                          {"frames_lost", c.frames_lost}, {"frames_skipped", c.frames_skipped},
@@ -308,11 +309,10 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
     Trajectory combined;
     for (ClientId c : members) combined.insert(combined.end(), trajs.at(c).begin(), trajs.at(c).end());
     sort_by_time(combined);
-    write_tum_trajectory(dir + "/fused_" + std::to_string(g) + ".txt", combined, "fused group " + std::to_string(g));
+    write_tum_trajectory(dir + "/fused_" + std::to_string(g.value()) + ".txt", combined, "fused group " + std::to_string(g.value()));
   }
   for (auto& cj : stats["clients"]) {
-    const int g = cj["group"].get<int>();
-    cj["fused"] = group_members.at(g).size() > 1;
+    cj["fused"] = group_members.at(cj["group"].get<GroupId>()).size() > 1;
   }
   stats["fusion_events"] = nlohmann::json::array();
   for (const auto& e : snap.events)

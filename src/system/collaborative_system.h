@@ -33,7 +33,7 @@ struct ClientSnapshot {
   int maps = 1;
   std::size_t queue_depth = 0;
   int keyframes = 0, map_points = 0;
-  int group = -1;  // fused group id (clients in one group share a frame); own id if unfused
+  GroupId group;  // fused group (clients in one group share a frame); its first map's if unfused
   SE3 T_world_cam;  // current pose in the group frame
   double last_timestamp = 0;
 };
@@ -88,9 +88,9 @@ class CollaborativeSystem {
   // Per-client trajectories, each in the frame of its fused group.
   std::map<ClientId, Trajectory> trajectories() const;
   // Group id -> member clients (a client alone is a group of one).
-  std::map<int, std::vector<ClientId>> groups() const;
+  std::map<GroupId, std::vector<ClientId>> groups() const;
   // Sparse map points of a group's clients (every n-th point so that at most max_points come back).
-  std::vector<ViewerPoint> map_points(int group, std::size_t max_points = 50000) const;
+  std::vector<ViewerPoint> map_points(GroupId group, std::size_t max_points = 50000) const;
   // Keyframe poses of one client in its group's frame.
   Trajectory keyframe_trajectory(ClientId client) const;
   // Every live keyframe of every client's maps with its current pose, sorted by id; each map is

@@ -162,10 +162,10 @@ int run_multi_client(const CliArgs& args) {
     if (pairs.size() != members.size()) continue;
     try {
       const auto r = compute_ate_joint(pairs, Alignment::kSE3);
-      std::printf("fused group %d (%zu clients) combined ATE rmse %.4f m (n=%d)\n", g, members.size(), r.stats.rmse, r.stats.n);
-      summary["ate_rmse_group_" + std::to_string(g)] = r.stats.rmse;
+      std::printf("fused group %d (%zu clients) combined ATE rmse %.4f m (n=%d)\n", g.value(), members.size(), r.stats.rmse, r.stats.n);
+      summary["ate_rmse_group_" + std::to_string(g.value())] = r.stats.rmse;
     } catch (const InputError& e) {
-      std::printf("group %d ATE n/a: %s\n", g, e.what());
+      std::printf("group %d ATE n/a: %s\n", g.value(), e.what());
     }
   }
   std::ofstream(out + "/summary.json") << summary.dump(2) << "\n";
