@@ -163,6 +163,7 @@ bool HttpGuard::on_readable(Connection& c) {
     const Io io = c.channel->read(buf, sizeof buf, &n);
     c.want_write = io == Io::kWantWrite;
     if (io == Io::kWantRead || io == Io::kWantWrite) break;
+    if (io == Io::kClosed && !c.buffer.empty()) return answer_then_close(c);
     if (io != Io::kDone) return false;  // peer closed, or an error
     if (!c.in_request) {
       c.in_request = true;
@@ -173,6 +174,16 @@ bool HttpGuard::on_readable(Connection& c) {
     if (c.buffer.size() > config_.max_header_bytes + config_.max_body_bytes * 3 + 65536) break;
   }
   return try_dispatch(c);
+}
+
+// The peer sent its last request and shut its side (HTTP/1.0 tools, `nc -q`), often in the same
+// read: a complete request is answered, then the connection closed; anything less is dropped.
+bool HttpGuard::answer_then_close(Connection& c) {
+  Parsed parsed;
+  if (parse_request(c.buffer, config_, &parsed) != Parse::kComplete) return false;
+  parsed.close = true;
+  enqueue(c, parsed);
+  return true;
 }
 
 bool HttpGuard::try_dispatch(Connection& c) {

@@ -94,6 +94,7 @@ class HttpGuard {
   bool on_handshake(Connection& c);  // false: the handshake failed
   // Looks for a complete request in c's buffer; answers errors itself. Returns false to close.
   bool try_dispatch(Connection& c);
+  bool answer_then_close(Connection& c);  // the peer half-closed after a request
   void send_continue_if_expected(Connection& c);
   void refuse(Connection& c, Parse verdict);  // answers a request that broke a limit, and closes
   void enqueue(Connection& c, Parsed& parsed);  // hands a complete request to the workers

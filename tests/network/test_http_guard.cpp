@@ -123,6 +123,23 @@ TEST_F(HttpGuardTest, StatusAnswersWhileFiftySlowlorisConnectionsAreOpen) {
   for (int fd : slow) ::close(fd);
 }
 
+// A client that sends its request and shuts its side at once (HTTP/1.0 tools, `nc -q`) gets its
+// answer, then the close: the request and the end of stream often arrive in one read.
+TEST_F(HttpGuardTest, ARequestFollowedByAHalfCloseIsAnswered) {
+  auto server = serve();
+  for (int i = 0; i < 20; ++i) {
+    const int fd = connect_to(server->port());
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(send_all(fd, "GET /api/status HTTP/1.1\r\nHost: x\r\n\r\n"));
+    ::shutdown(fd, SHUT_WR);
+    bool closed = false;
+    const std::string reply = read_until_close(fd, 10, &closed);
+    ::close(fd);
+    EXPECT_EQ(reply.rfind("HTTP/1.1 200", 0), 0u) << "attempt " << i << ": '" << reply.substr(0, 60) << "'";
+    EXPECT_TRUE(closed) << "attempt " << i;
+  }
+}
+
 TEST_F(HttpGuardTest, ARequestNotCompleteWithinTheDeadlineIsClosed) {
   GuardConfig g;
   g.request_deadline_s = 0.5;
