@@ -5,27 +5,21 @@
 
 #include <gtest/gtest.h>
 
+#include "common/small_camera.h"
 #include "frame/frame_check.h"
 
 using namespace cslam;
 
 namespace {
 
-PinholeCamera camera() {
-  PinholeCamera c;
-  c.width = 64;
-  c.height = 48;
-  c.fx = c.fy = 50;
-  c.cx = 32;
-  c.cy = 24;
-  return c;
-}
+PinholeCamera camera() { return test::small_camera(); }  // 160 x 120
 
 RgbdFrame good() {
+  const PinholeCamera c = camera();
   RgbdFrame f;
   f.timestamp = 12.5;
-  f.bgr = cv::Mat(48, 64, CV_8UC3, cv::Scalar(10, 20, 30));
-  f.depth = cv::Mat(48, 64, CV_16UC1, cv::Scalar(5000));
+  f.bgr = test::plane_colour(c);
+  f.depth = test::plane_depth(c, 1.5);
   return f;
 }
 
@@ -48,19 +42,19 @@ TEST(FrameCheck, WellFormedFramesPass) {
 
 TEST(FrameCheck, NamesEachProblem) {
   RgbdFrame f = good();
-  f.bgr = cv::Mat(40, 64, CV_8UC3);
-  EXPECT_TRUE(says(frame_problem(f, camera()), "colour image is not 64x48")) << frame_problem(f, camera());
+  f.bgr = cv::Mat(100, 160, CV_8UC3);
+  EXPECT_TRUE(says(frame_problem(f, camera()), "colour image is not 160x120")) << frame_problem(f, camera());
   f = good();
-  f.bgr = cv::Mat(48, 64, CV_8UC1);
+  f.bgr = cv::Mat(120, 160, CV_8UC1);
   EXPECT_TRUE(says(frame_problem(f, camera()), "colour"));
   f = good();
   f.bgr = cv::Mat();
   EXPECT_TRUE(says(frame_problem(f, camera()), "colour"));
   f = good();
-  f.depth = cv::Mat(48, 64, CV_32FC1);
-  EXPECT_TRUE(says(frame_problem(f, camera()), "depth image is not 64x48 16-bit"));
+  f.depth = cv::Mat(120, 160, CV_32FC1);
+  EXPECT_TRUE(says(frame_problem(f, camera()), "depth image is not 160x120 16-bit"));
   f = good();
-  f.depth = cv::Mat(48, 32, CV_16UC1);
+  f.depth = cv::Mat(120, 80, CV_16UC1);
   EXPECT_TRUE(says(frame_problem(f, camera()), "depth image is not"));
   f = good();
   f.depth_subsample = 0;

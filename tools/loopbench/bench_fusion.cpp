@@ -30,11 +30,6 @@ using namespace cslam;
 
 namespace {
 
-double cpu_ms() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return (u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3 + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e3;
-}
 
 std::shared_ptr<Map> build_map(const std::string& dir, const std::string& range, const std::string& camera, ClientId id,
                                const std::shared_ptr<const Vocabulary>& voc) {
@@ -106,7 +101,7 @@ int run(int argc, char** argv) {
   int seam_points = 0;
   for (int r = 0; r < runs; ++r) {
     Stopwatch total;
-    const double c0 = cpu_ms();
+    const double c0 = process_cpu_ms();
     Stopwatch sw;
     OverlapVerifyResult v;
     SE3 T_a_b;
@@ -117,12 +112,12 @@ int run(int argc, char** argv) {
       T_a_b = (query->T_world_cam() * v.S_query_candidate.to_se3() * candidate->T_cam_world).inverse();
     }
     wv.push_back(sw.ms());
-    const double c1 = cpu_ms();
+    const double c1 = process_cpu_ms();
     cv.push_back(c1 - c0);
     sw.reset();
     transform_map(*b, T_a_b);
     wt.push_back(sw.ms());
-    const double c2 = cpu_ms();
+    const double c2 = process_cpu_ms();
     ct.push_back(c2 - c1);
     sw.reset();
     {
@@ -130,7 +125,7 @@ int run(int argc, char** argv) {
       seam_points = int(connect_seam(*a, *candidate, *b, *query).points.size());
     }
     ws.push_back(sw.ms());
-    const double c3 = cpu_ms();
+    const double c3 = process_cpu_ms();
     cs.push_back(c3 - c2);
     wtot.push_back(total.ms());
     ctot.push_back(c3 - c0);
@@ -160,7 +155,7 @@ int run(int argc, char** argv) {
     std::size_t points = 0;
     for (int r = 0; r < args.get_int("group-ba-runs"); ++r) {
       Stopwatch sw;
-      const double c0 = cpu_ms();
+      const double c0 = process_cpu_ms();
       GlobalBa gba;
       {
         auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({a.get(), b.get()});
@@ -172,7 +167,7 @@ int run(int argc, char** argv) {
         gba.apply(res);
       }
       wg.push_back(sw.ms());
-      cg.push_back(cpu_ms() - c0);
+      cg.push_back(process_cpu_ms() - c0);
       points = gba.num_points();
     }
     std::printf("group global BA: %zu keyframes, %zu points, %zu linked pairs\n", a->num_keyframes() + b->num_keyframes(), points,

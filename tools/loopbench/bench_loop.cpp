@@ -100,26 +100,9 @@ std::vector<Sim3Correspondence> make_matches(const StereoIntrinsics& k, const Si
   return out;
 }
 
-double cpu_ms() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return (u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3 + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e3;
-}
 
-// Wall-clock and CPU time of repeated runs.
-struct Timing {
-  std::vector<double> wall, cpu;
-  template <typename F>
-  void measure(F&& f) {
-    const double c0 = cpu_ms();
-    Stopwatch sw;
-    f();
-    wall.push_back(sw.ms());
-    cpu.push_back(cpu_ms() - c0);
-  }
-};
 
-void print(const char* what, const Timing& t) {
+void print(const char* what, const RepeatTiming& t) {
   const Summary w = summarize(t.wall), c = summarize(t.cpu);
   std::printf("%-46s wall median %7.2f [%7.2f, %7.2f]  cpu median %7.2f [%7.2f, %7.2f] ms (n=%d)\n", what, w.median, w.min,
               w.max, c.median, c.min, c.max, w.n);
@@ -147,7 +130,7 @@ int run(int argc, char** argv) {
   for (bool sim3 : {false, true}) {
     const Graph g = make_graph(nodes, covis, sim3, 7);
     pcfg.fix_scale = !sim3;
-    Timing ms;
+    RepeatTiming ms;
     PoseGraphResult r;
     for (int i = 0; i < runs; ++i) ms.measure([&] { r = optimize_pose_graph(g.nodes, g.edges, pcfg); });
     std::vector<Sim3> before;
@@ -165,7 +148,7 @@ int run(int argc, char** argv) {
     const auto matches = make_matches(k, truth, nmatches, outliers, 11);
     Sim3RansacConfig cfg;
     cfg.fix_scale = fix_scale;
-    Timing ms, ms_refine;
+    RepeatTiming ms, ms_refine;
     Sim3RansacResult rr;
     Sim3RefineResult rf;
     int iterations_sum = 0;

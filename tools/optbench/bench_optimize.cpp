@@ -26,25 +26,9 @@ using namespace cslam;
 
 namespace {
 
-double cpu_ms() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return (u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3 + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e3;
-}
 
-struct Timing {
-  std::vector<double> wall, cpu;
-  template <typename F>
-  void measure(F&& f) {
-    const double c0 = cpu_ms();
-    Stopwatch sw;
-    f();
-    wall.push_back(sw.ms());
-    cpu.push_back(cpu_ms() - c0);
-  }
-};
 
-void print(const std::string& what, const Timing& t) {
+void print(const std::string& what, const RepeatTiming& t) {
   const Summary w = summarize(t.wall), c = summarize(t.cpu);
   std::printf("  %-34s wall median %8.3f [%8.3f, %8.3f]  cpu median %8.3f [%8.3f, %8.3f] ms (n=%d)\n", what.c_str(), w.median,
               w.min, w.max, c.median, c.min, c.max, w.n);
@@ -56,7 +40,7 @@ void bench_pose(int n, int runs, double outliers, double stereo, bool with_refer
   // Several different problems, cycled, so the figures are not those of one lucky instance.
   std::vector<problems::PoseProblem> problems;
   for (int i = 0; i < 8; ++i) problems.push_back(problems::random_pose_problem(rng, n, outliers, stereo));
-  Timing fast, ref;
+  RepeatTiming fast, ref;
   double worst = 0;
   int inlier_diff = 0;
   for (int r = 0; r < runs; ++r) {
@@ -96,14 +80,14 @@ void bench_ba(int free_cams, int fixed_cams, int points, double visibility, int 
   const BaProblem& p = s.problem;
   std::printf("bundle adjustment, %d free + %d fixed keyframes, %zu points, %zu observations (%.1f per point):\n", free_cams,
               fixed_cams, p.points.size(), p.observations.size(), double(p.observations.size()) / p.points.size());
-  std::vector<std::pair<std::string, Timing>> timings;
+  std::vector<std::pair<std::string, RepeatTiming>> timings;
   std::vector<BaResult> results;
   for (const std::string& name : solvers) {
     const BaSolver* solver = nullptr;
     for (const auto& b : kBaSolvers)
       if (name == b.name) solver = &b;
     if (!solver) throw ConfigError("--ba-solvers: unknown solver '" + name + "'");
-    Timing t;
+    RepeatTiming t;
     BaResult r;
     for (int i = 0; i < runs; ++i) t.measure([&] { r = solver->solve(p); });
     std::string label = name;

@@ -23,11 +23,6 @@ using namespace cslam;
 
 namespace {
 
-double cpu_ms() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return (u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3 + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e3;
-}
 double peak_rss_mb() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
@@ -84,12 +79,12 @@ int run(int argc, char** argv) {
   std::vector<double> fps, cpu_per_frame;
   size_t points = 0;
   for (int r = 0; r < args.get_int("repeats"); ++r) {
-    const double c0 = cpu_ms();
+    const double c0 = process_cpu_ms();
     Stopwatch sw;
     DenseReconstructor recon(cfg);
     for (const Frame& f : frames) recon.integrate(f.T_world_cam, f.bgr, f.depth, cam);
     const DenseResult res = recon.finish();
-    const double wall = sw.ms(), cpu = cpu_ms() - c0;
+    const double wall = sw.ms(), cpu = process_cpu_ms() - c0;
     fps.push_back(1000.0 * double(n) / wall);
     cpu_per_frame.push_back(cpu / double(n));
     points = res.cloud.size();
@@ -114,13 +109,13 @@ int run(int argc, char** argv) {
     size_t nt = frames.size();
     if (args.get_int("tsdf-frames") > 0) nt = std::min(nt, size_t(args.get_int("tsdf-frames")));
     std::vector<double> ms;
-    const double c0 = cpu_ms();
+    const double c0 = process_cpu_ms();
     for (size_t i = 0; i < nt; ++i) {
       Stopwatch sw;
       volume.integrate(frames[i].bgr, frames[i].depth, rays, frames[i].T_world_cam, cfg.min_depth, cfg.max_depth);
       ms.push_back(sw.ms());
     }
-    const double cpu = cpu_ms() - c0;
+    const double cpu = process_cpu_ms() - c0;
     const Summary s = summarize(ms);
     print_summary("TSDF integration per frame", s, "ms wall");
     std::printf("  TSDF: %zu frames, %.1f frames/s wall (mean), %.1f CPU-ms/frame, %zu blocks, %.1f MB\n", nt, 1000.0 / s.mean,
