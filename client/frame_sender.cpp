@@ -16,7 +16,8 @@ FrameSender::FrameSender(SenderConfig config)
   if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");
   if (config_.light_depth_subsample < 0 || config_.light_depth_subsample == 1 ||
       config_.light_depth_subsample > kMaxDepthSubsample)
-    throw ConfigError("SenderConfig::light_depth_subsample must be 0 (no depth) or 2.." + std::to_string(kMaxDepthSubsample));
+    throw ConfigError("SenderConfig::light_depth_subsample must be 0 (no depth) or 2.." +
+                      std::to_string(kMaxDepthSubsample));
   stats_.depth_every = config_.depth_every;
   if (config_.colour_stream_on()) {
     config_.colour_stream.validate();
@@ -91,8 +92,8 @@ wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
   }
   wire::RgbdFrame out;
   const bool key = key_wanted_;
-  wire::to_wire_light_frame(frame, colour_encoder_->encode(frame.bgr, key), config_.light_depth_subsample, config_.codecs,
-                            &out);
+  wire::to_wire_light_frame(frame, colour_encoder_->encode(frame.bgr, key), config_.light_depth_subsample,
+                            config_.codecs, &out);
   key_wanted_ = false;
   ++stats_.frames_light;
   if (key) {
@@ -165,9 +166,10 @@ void FrameSender::plan_resend(std::uint64_t server_last_seq) {
   const std::uint64_t lost = missing - resend_.size();
   if (lost > 0) {
     stats_.frames_lost += lost;
-    log()->warn("client {}: the server lacks frames {}..{}; {} of them are no longer kept (live, or beyond the {} MB "
-                "re-send buffer) and are lost",
-                config_.info.id, server_last_seq + 1, seq_, lost, config_.resend_buffer_bytes >> 20);
+    log()->warn(
+        "client {}: the server lacks frames {}..{}; {} of them are no longer kept (live, or beyond the {} MB "
+        "re-send buffer) and are lost",
+        config_.info.id, server_last_seq + 1, seq_, lost, config_.resend_buffer_bytes >> 20);
   }
   if (!resend_.empty())
     log()->warn("client {}: the server lacks frames {}..{}: sending {} kept frame(s) again", config_.info.id,
@@ -267,8 +269,7 @@ bool FrameSender::goodbye(double timeout_s) {
     handle_reply(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
   }
   const bool all_acked = in_flight_ == 0 && !has_waiting_frame() && resend_.empty();
-  if (!all_acked)
-    log()->warn("client {}: {} frame(s) not acknowledged before goodbye", config_.info.id, in_flight_);
+  if (!all_acked) log()->warn("client {}: {} frame(s) not acknowledged before goodbye", config_.info.id, in_flight_);
   wire::ClientMessage bye;
   bye.mutable_goodbye()->set_client_id(config_.info.id);
   bye.mutable_goodbye()->set_frames_sent(stats_.frames_sent);
@@ -340,8 +341,10 @@ bool FrameSender::handle_reply(std::chrono::milliseconds timeout) {
       if (e.code() == wire::ERROR_NOT_REGISTERED && welcomed_) reconnect();
       break;
     }
-    case wire::ServerMessage::kHeartbeatAck: break;
-    default: break;
+    case wire::ServerMessage::kHeartbeatAck:
+      break;
+    default:
+      break;
   }
   return true;
 }

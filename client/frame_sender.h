@@ -38,13 +38,13 @@ struct SenderConfig {
   std::string server = "tcp://127.0.0.1:5555";
   ClientInfo info;
   CodecOptions codecs;
-  double reply_timeout_s = 10.0;       // no reply for this long while waiting -> reconnect
-  double heartbeat_interval_s = 1.0;   // heartbeats while waiting for credits
-  int max_reconnects = 3;              // consecutive failed attempts before giving up
+  double reply_timeout_s = 10.0;      // no reply for this long while waiting -> reconnect
+  double heartbeat_interval_s = 1.0;  // heartbeats while waiting for credits
+  int max_reconnects = 3;             // consecutive failed attempts before giving up
   // CURVE (docs/security.md): the server's public key and this robot's key pair, Z85. Empty
   // server_public_key: plain TCP (only against a loopback server or one run with --insecure-bind).
   std::string server_public_key, public_key, secret_key;
-  bool new_session = false;            // first hello asks for a new recording session (new map)
+  bool new_session = false;  // first hello asks for a new recording session (new map)
   // Lossless frames already sent are kept (newest first, up to this many bytes of wire messages)
   // so that a server which restarted from an older snapshot, or lost frames in flight, gets
   // them again: a resumed Welcome's last_seq says where the server stands. 0: keep none.
@@ -73,13 +73,13 @@ struct SenderConfig {
 
 struct SenderStats {
   std::uint64_t frames_sent = 0, bytes_sent = 0, acks = 0, heartbeats = 0, reconnects = 0;
-  std::uint64_t frames_offered = 0;        // live: frames given to offer_*()
-  std::uint64_t frames_dropped_live = 0;   // live: replaced by a newer frame before a credit came
-  std::uint64_t poses_dropped = 0;         // feedback not taken before the poll queue was full
+  std::uint64_t frames_offered = 0;             // live: frames given to offer_*()
+  std::uint64_t frames_dropped_live = 0;        // live: replaced by a newer frame before a credit came
+  std::uint64_t poses_dropped = 0;              // feedback not taken before the poll queue was full
   std::map<std::string, std::uint64_t> errors;  // server error code name -> count
-  std::uint64_t frames_refused = 0;  // errors about a sent frame (seq != 0): frames not delivered
-  std::uint64_t frames_resent = 0;   // sent again after a resumed session said the server lacked them
-  std::uint64_t frames_lost = 0;     // the server lacked them and they were no longer kept (or live)
+  std::uint64_t frames_refused = 0;             // errors about a sent frame (seq != 0): frames not delivered
+  std::uint64_t frames_resent = 0;              // sent again after a resumed session said the server lacked them
+  std::uint64_t frames_lost = 0;                // the server lacked them and they were no longer kept (or live)
   // Lean stream: light frames sent, key packets of the colour stream, acks asking for full
   // depth, and stream gaps the server reported (each answered with a key packet).
   std::uint64_t frames_light = 0, colour_key_packets = 0, depth_requests = 0, stream_gaps = 0;
@@ -122,7 +122,8 @@ class FrameSender {
   // counting) the frame that waited before. `captured` is when the camera took it (pose latency
   // is measured from there).
   void offer_encoded(wire::RgbdFrame frame, std::chrono::steady_clock::time_point captured);
-  void offer_frame(const RgbdFrame& frame, std::chrono::steady_clock::time_point captured = std::chrono::steady_clock::now());
+  void offer_frame(const RgbdFrame& frame,
+                   std::chrono::steady_clock::time_point captured = std::chrono::steady_clock::now());
   // Live mode, between captures: handles replies until `until`, sending the waiting frame as
   // soon as a credit comes back (heartbeats and reconnects as in lossless mode).
   void service_until(std::chrono::steady_clock::time_point until);
@@ -130,7 +131,9 @@ class FrameSender {
 
   // Pose feedback. With a callback set, every ack's feedback goes there (on the calling thread,
   // from inside the sender's calls); otherwise it is queued (bounded) for take_poses().
-  void set_pose_callback(std::function<void(const wire::PoseFeedback&)> callback) { pose_callback_ = std::move(callback); }
+  void set_pose_callback(std::function<void(const wire::PoseFeedback&)> callback) {
+    pose_callback_ = std::move(callback);
+  }
   std::vector<wire::PoseFeedback> take_poses();
   // The newest feedback received so far (tracked or not).
   const std::optional<wire::PoseFeedback>& latest_pose() const { return latest_pose_; }
@@ -178,22 +181,22 @@ class FrameSender {
   bool hello_busy_ = false;  // the server asked to retry the hello (its old connection is still live)
   Clock::time_point last_reply_, last_heartbeat_;
   SenderStats stats_;
-  std::optional<wire::RgbdFrame> waiting_;          // live: the newest frame without a credit
+  std::optional<wire::RgbdFrame> waiting_;  // live: the newest frame without a credit
   // Live, lean stream: the waiting frame is encoded only when it is sent (a colour packet that
   // never leaves would break the stream).
   std::optional<RgbdFrame> waiting_raw_;
   std::unique_ptr<video::H264Encoder> colour_encoder_;
   RateController rate_;
   int frames_since_depth_ = 0;
-  bool depth_wanted_ = true;   // the first frame carries depth
-  bool key_wanted_ = true;     // the first colour packet, and the first after a gap or reconnect, is a key
-  std::uint64_t last_key_seq_ = 0;  // seq of the last key packet sent (a gap before it is healed)
+  bool depth_wanted_ = true;         // the first frame carries depth
+  bool key_wanted_ = true;           // the first colour packet, and the first after a gap or reconnect, is a key
+  std::uint64_t last_key_seq_ = 0;   // seq of the last key packet sent (a gap before it is healed)
   std::uint64_t last_full_seq_ = 0;  // seq of the last full frame sent (a request before it is met)
   Clock::time_point waiting_captured_;
   std::map<std::uint64_t, Clock::time_point> captured_at_;  // seq -> capture time, until acked
   std::function<void(const wire::PoseFeedback&)> pose_callback_;
   std::deque<wire::PoseFeedback> poses_;
-  std::deque<std::pair<std::uint64_t, std::string>> kept_;    // seq -> wire message, lossless frames
+  std::deque<std::pair<std::uint64_t, std::string>> kept_;  // seq -> wire message, lossless frames
   std::size_t kept_bytes_ = 0;
   std::deque<std::pair<std::uint64_t, std::string>> resend_;  // queued by plan_resend, oldest first
   std::optional<wire::PoseFeedback> latest_pose_;

@@ -33,20 +33,39 @@ int run(int argc, char** argv) {
       .option("rate", "lossless mode: frames per second, or 'max' to send as fast as credits allow", "30")
       .flag("live", "live mode: frames on the dataset's own clock; no credit -> keep only the newest (--rate ignored)")
       .option("poses-out", "write the poses received in acks (TUM) and FILE.feedback.csv (state, latency per ack)", "")
-      .option("start-at", "wall-clock time (Unix seconds) to start streaming at, after loading (benchmarks start robots together)", "0")
+      .option("start-at",
+              "wall-clock time (Unix seconds) to start streaming at, after loading (benchmarks start robots together)",
+              "0")
       .option("summary-out", "write a JSON summary (frames sent/dropped/skipped, pose latency p50/p99)", "")
-      .option("camera", "tum1 | tum2 | tum2-corrected | tum3 | synthetic | camera file (default: DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1)", "")
+      .option(
+          "camera",
+          "tum1 | tum2 | tum2-corrected | tum3 | synthetic | camera file (default: DIR/camera.yaml, else its "
+          "calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1)",
+          "")
       .option("rgb-codec", "raw | jpeg | png", "jpeg")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")
-      .option("depth-every", "lean stream: depth (with --rgb-codec colour) on every K-th frame and when the server asks; the light frames between send colour as an H.264 stream and depth subsampled (--light-depth); 1: every frame full", "1")
-      .option("light-depth", "lean stream: light frames carry depth at every S-th pixel of every S-th row (lossless); 0: no depth", "4")
-      .option("colour-crf", "lean stream: H.264 constant rate factor of the colour stream (lower: better, larger)", std::to_string(cslam::client::SenderConfig().colour_stream.crf))
-      .flag("adapt", "adapt the stream to the link: when acks come back later than the link's base latency (a queue builds) or a live frame is dropped, send full frames less often (lean stream, depth every --depth-every .. 30 frames); back up when the link is calm")
-      .flag("new-session", "start a new recording session (a new map, fused by the server) even if the server knows this id")
-      .flag("preload", "load and encode every frame before sending (measures the network path only; a lean stream preloads decoded frames and encodes each as it leaves)")
+      .option("depth-every",
+              "lean stream: depth (with --rgb-codec colour) on every K-th frame and when the server asks; the light "
+              "frames between send colour as an H.264 stream and depth subsampled (--light-depth); 1: every frame full",
+              "1")
+      .option("light-depth",
+              "lean stream: light frames carry depth at every S-th pixel of every S-th row (lossless); 0: no depth",
+              "4")
+      .option("colour-crf", "lean stream: H.264 constant rate factor of the colour stream (lower: better, larger)",
+              std::to_string(cslam::client::SenderConfig().colour_stream.crf))
+      .flag("adapt",
+            "adapt the stream to the link: when acks come back later than the link's base latency (a queue builds) or "
+            "a live frame is dropped, send full frames less often (lean stream, depth every --depth-every .. 30 "
+            "frames); back up when the link is calm")
+      .flag("new-session",
+            "start a new recording session (a new map, fused by the server) even if the server knows this id")
+      .flag("preload",
+            "load and encode every frame before sending (measures the network path only; a lean stream preloads "
+            "decoded frames and encodes each as it leaves)")
       .option("reply-timeout", "seconds without any reply before reconnecting", "10")
-      .option("resend-buffer", "MB of sent frames kept for a server that resumes behind (restarted from a snapshot); 0: none", "128")
+      .option("resend-buffer",
+              "MB of sent frames kept for a server that resumes behind (restarted from a snapshot); 0: none", "128")
       .option("progress-interval", "seconds between progress lines", "2")
       .option("log-level", "trace, debug, info, warn, error, off", "info")
       .option("server-key", "the server's CURVE public key file (cslam-keygen); needs --curve-secret", "")
@@ -99,8 +118,10 @@ int run(int argc, char** argv) {
   std::vector<cslam::RgbdFrame> preloaded_raw;  // a lean stream encodes each frame when it leaves
   if (cli.flag_set("preload")) {
     for (const auto& pair : pairs) {
-      if (config.colour_stream_on()) preloaded_raw.push_back(cslam::load_dataset_frame(pair, config.info.id));
-      else preloaded.push_back(sender.encode(cslam::load_dataset_frame(pair, config.info.id)));
+      if (config.colour_stream_on())
+        preloaded_raw.push_back(cslam::load_dataset_frame(pair, config.info.id));
+      else
+        preloaded.push_back(sender.encode(cslam::load_dataset_frame(pair, config.info.id)));
     }
     log->info("client {}: preloaded {} {} frames", id, pairs.size(), config.colour_stream_on() ? "decoded" : "encoded");
   }
@@ -133,7 +154,8 @@ int run(int argc, char** argv) {
         sender.service_until(due);
         sender.offer_frame(frame, due);
       } else {
-        cslam::wire::RgbdFrame frame = preloaded.empty() ? sender.encode(cslam::load_dataset_frame(pairs[i], config.info.id)) : preloaded[i];
+        cslam::wire::RgbdFrame frame =
+            preloaded.empty() ? sender.encode(cslam::load_dataset_frame(pairs[i], config.info.id)) : preloaded[i];
         sender.service_until(due);
         sender.offer_encoded(std::move(frame), due);
       }
@@ -150,14 +172,15 @@ int run(int argc, char** argv) {
     const auto& s = sender.stats();
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     char extra[256];
-    int used = std::snprintf(extra, sizeof extra, "%.2f MB/s, %.1f KB/frame", double(s.bytes_sent) / std::max(elapsed, 1e-9) / 1e6,
+    int used = std::snprintf(extra, sizeof extra, "%.2f MB/s, %.1f KB/frame",
+                             double(s.bytes_sent) / std::max(elapsed, 1e-9) / 1e6,
                              double(s.bytes_sent) / double(s.frames_sent) / 1e3);
     if (config.colour_stream_on() && used > 0)
       used += std::snprintf(extra + used, sizeof extra - std::size_t(used), ", %llu light, %llu depth requests",
                             (unsigned long long)s.frames_light, (unsigned long long)s.depth_requests);
     if (config.adapt.enabled && used > 0 && std::size_t(used) < sizeof extra)
-      std::snprintf(extra + used, sizeof extra - std::size_t(used), ", depth every %d (%llu down, %llu up)", s.depth_every,
-                    (unsigned long long)s.rate_steps_down, (unsigned long long)s.rate_steps_up);
+      std::snprintf(extra + used, sizeof extra - std::size_t(used), ", depth every %d (%llu down, %llu up)",
+                    s.depth_every, (unsigned long long)s.rate_steps_down, (unsigned long long)s.rate_steps_up);
     progress.update(s.frames_sent, extra);
   }
   progress.finish();
@@ -167,23 +190,25 @@ int run(int argc, char** argv) {
   std::uint64_t errors = 0;
   for (const auto& [code, n] : s.errors) errors += n;
   const nlohmann::json summary = pose_log.summary(s, wall, pairs.size());
-  log->info("client {}: done, {} frames in {:.2f} s ({:.1f} fps), {:.1f} KB/frame, {:.2f} MB/s, {} acks, {} errors, {} reconnects",
-            id, s.frames_sent, wall, double(s.frames_sent) / wall,
-            s.frames_sent ? double(s.bytes_sent) / double(s.frames_sent) / 1e3 : 0.0, double(s.bytes_sent) / wall / 1e6,
-            s.acks, errors, s.reconnects);
+  log->info(
+      "client {}: done, {} frames in {:.2f} s ({:.1f} fps), {:.1f} KB/frame, {:.2f} MB/s, {} acks, {} errors, {} "
+      "reconnects",
+      id, s.frames_sent, wall, double(s.frames_sent) / wall,
+      s.frames_sent ? double(s.bytes_sent) / double(s.frames_sent) / 1e3 : 0.0, double(s.bytes_sent) / wall / 1e6,
+      s.acks, errors, s.reconnects);
   log->info("client {}: pose feedback {}, {} dropped without credit, latency p50 {:.1f} ms p99 {:.1f} ms", id,
             summary["states"].dump(), s.frames_dropped_live, summary["latency_ms"]["p50"].get<double>(),
             summary["latency_ms"]["p99"].get<double>());
   if (config.colour_stream_on())
-    log->info("client {}: lean stream: {} of {} frames light ({:.1f} KB each), {} full ({:.1f} KB each), {} depth "
-              "requests, {} key packets, {} stream gaps",
-              id, s.frames_light, s.frames_sent,
-              s.frames_light ? double(s.bytes_light) / double(s.frames_light) / 1e3 : 0.0,
-              s.frames_sent - s.frames_light,
-              s.frames_sent > s.frames_light
-                  ? double(s.bytes_sent - s.bytes_light) / double(s.frames_sent - s.frames_light) / 1e3
-                  : 0.0,
-              s.depth_requests, s.colour_key_packets, s.stream_gaps);
+    log->info(
+        "client {}: lean stream: {} of {} frames light ({:.1f} KB each), {} full ({:.1f} KB each), {} depth "
+        "requests, {} key packets, {} stream gaps",
+        id, s.frames_light, s.frames_sent, s.frames_light ? double(s.bytes_light) / double(s.frames_light) / 1e3 : 0.0,
+        s.frames_sent - s.frames_light,
+        s.frames_sent > s.frames_light
+            ? double(s.bytes_sent - s.bytes_light) / double(s.frames_sent - s.frames_light) / 1e3
+            : 0.0,
+        s.depth_requests, s.colour_key_packets, s.stream_gaps);
   if (config.adapt.enabled)
     log->info("client {}: adaptive rate: {} steps down, {} up, depth every {} at the end", id, s.rate_steps_down,
               s.rate_steps_up, s.depth_every);
@@ -192,7 +217,8 @@ int run(int argc, char** argv) {
   // Session-level errors the sender recovered from (e.g. a frame that reached a restarted server
   // before the resumed hello; it is sent again) do not fail the run; a frame the server refused,
   // never acknowledged, or lost beyond the re-send buffer does (live mode drops frames by design).
-  if (s.frames_resent > 0) log->info("client {}: {} frame(s) sent again after the server resumed behind", id, s.frames_resent);
+  if (s.frames_resent > 0)
+    log->info("client {}: {} frame(s) sent again after the server resumed behind", id, s.frames_resent);
   return all_acked && s.frames_refused == 0 && (live || s.frames_lost == 0) ? 0 : 1;
 }
 

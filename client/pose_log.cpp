@@ -64,8 +64,10 @@ nlohmann::json PoseLog::summary(const SenderStats& stats, double wall_s, std::si
           {"depth_every_last", stats.depth_every},
           {"wall_s", wall_s},
           {"processed_fps", wall_s > 0 ? double(processed) / wall_s : 0.0},
-          {"latency_ms", {{"p50", percentile(latency, 0.5)}, {"p99", percentile(latency, 0.99)},
-                          {"max", latency.empty() ? 0.0 : *std::max_element(latency.begin(), latency.end())}}},
+          {"latency_ms",
+           {{"p50", percentile(latency, 0.5)},
+            {"p99", percentile(latency, 0.99)},
+            {"max", latency.empty() ? 0.0 : *std::max_element(latency.begin(), latency.end())}}},
           {"server_ms", {{"p50", percentile(server, 0.5)}, {"p99", percentile(server, 0.99)}}}};
 }
 

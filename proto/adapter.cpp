@@ -14,20 +14,36 @@ namespace {
 
 bool rgb_codec_from_wire(Encoding e, RgbCodec* out) {
   switch (e) {
-    case RGB_RAW_BGR8: *out = RgbCodec::kRaw; return true;
-    case RGB_JPEG: *out = RgbCodec::kJpeg; return true;
-    case RGB_PNG: *out = RgbCodec::kPng; return true;
-    default: return false;
+    case RGB_RAW_BGR8:
+      *out = RgbCodec::kRaw;
+      return true;
+    case RGB_JPEG:
+      *out = RgbCodec::kJpeg;
+      return true;
+    case RGB_PNG:
+      *out = RgbCodec::kPng;
+      return true;
+    default:
+      return false;
   }
 }
 
 bool depth_codec_from_wire(Encoding e, DepthCodec* out) {
   switch (e) {
-    case DEPTH_RAW_U16LE: *out = DepthCodec::kRaw; return true;
-    case DEPTH_PNG16: *out = DepthCodec::kPng; return true;
-    case DEPTH_RVL: *out = DepthCodec::kRvl; return true;
-    case DEPTH_ZSTD_DELTA: *out = DepthCodec::kZstdDelta; return true;
-    default: return false;
+    case DEPTH_RAW_U16LE:
+      *out = DepthCodec::kRaw;
+      return true;
+    case DEPTH_PNG16:
+      *out = DepthCodec::kPng;
+      return true;
+    case DEPTH_RVL:
+      *out = DepthCodec::kRvl;
+      return true;
+    case DEPTH_ZSTD_DELTA:
+      *out = DepthCodec::kZstdDelta;
+      return true;
+    default:
+      return false;
   }
 }
 
@@ -109,18 +125,19 @@ void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std:
                       "unknown depth encoding " + std::to_string(int(frame.depth().encoding())));
     const int s = depth_subsample_of(frame);
     if (s == 1 && inter_coded)
-      throw WireError(ERROR_MALFORMED, source,
-                      "a frame with full depth may become a keyframe, so its colour must decode on its own (JPEG, PNG or "
-                      "raw), not as an inter-coded (RGB_H264) packet");
+      throw WireError(
+          ERROR_MALFORMED, source,
+          "a frame with full depth may become a keyframe, so its colour must decode on its own (JPEG, PNG or "
+          "raw), not as an inter-coded (RGB_H264) packet");
     if (s == 1) {
       check_size(frame.depth(), camera, "depth", source);
     } else {
       const cv::Size size = subsampled_depth_size(camera.width, camera.height, s);
       if (frame.depth().width() != std::uint32_t(size.width) || frame.depth().height() != std::uint32_t(size.height))
         throw WireError(ERROR_SIZE_MISMATCH, source,
-                        "depth image subsampled by " + std::to_string(s) + " is " + std::to_string(frame.depth().width()) +
-                            "x" + std::to_string(frame.depth().height()) + ", not " + std::to_string(size.width) + "x" +
-                            std::to_string(size.height));
+                        "depth image subsampled by " + std::to_string(s) + " is " +
+                            std::to_string(frame.depth().width()) + "x" + std::to_string(frame.depth().height()) +
+                            ", not " + std::to_string(size.width) + "x" + std::to_string(size.height));
     }
   }
   if (!std::isfinite(frame.timestamp())) throw WireError(ERROR_MALFORMED, source, "non-finite timestamp");
@@ -171,7 +188,8 @@ cslam::RgbdFrame from_wire_frame(const RgbdFrame& frame, const PinholeCamera& ca
     for (int task = range.start; task < range.end; ++task) {
       try {
         if (task == 0 && inter_coded) {
-          out.bgr = colour_stream->decode(reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), source + " rgb");
+          out.bgr =
+              colour_stream->decode(reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), source + " rgb");
         } else if (task == 0) {
           out.bgr = decode_rgb(rgb_codec, reinterpret_cast<const std::uint8_t*>(rgb.data()), rgb.size(), camera.width,
                                camera.height, source + " rgb");

@@ -24,22 +24,32 @@ SE3 from_wire_pose(const Pose& p) {
 
 TrackState to_wire(FrameFate fate) {
   switch (fate) {
-    case FrameFate::kNotInitialized: return TRACK_NOT_INITIALIZED;
-    case FrameFate::kTracked: return TRACK_OK;
-    case FrameFate::kLost: return TRACK_LOST;
-    case FrameFate::kSkipped: return TRACK_SKIPPED;
-    case FrameFate::kRejected: return TRACK_REJECTED;
+    case FrameFate::kNotInitialized:
+      return TRACK_NOT_INITIALIZED;
+    case FrameFate::kTracked:
+      return TRACK_OK;
+    case FrameFate::kLost:
+      return TRACK_LOST;
+    case FrameFate::kSkipped:
+      return TRACK_SKIPPED;
+    case FrameFate::kRejected:
+      return TRACK_REJECTED;
   }
   return TRACK_UNSPECIFIED;
 }
 
 FrameFate fate_from_wire(TrackState state) {
   switch (state) {
-    case TRACK_NOT_INITIALIZED: return FrameFate::kNotInitialized;
-    case TRACK_OK: return FrameFate::kTracked;
-    case TRACK_LOST: return FrameFate::kLost;
-    case TRACK_SKIPPED: return FrameFate::kSkipped;
-    default: return FrameFate::kRejected;
+    case TRACK_NOT_INITIALIZED:
+      return FrameFate::kNotInitialized;
+    case TRACK_OK:
+      return FrameFate::kTracked;
+    case TRACK_LOST:
+      return FrameFate::kLost;
+    case TRACK_SKIPPED:
+      return FrameFate::kSkipped;
+    default:
+      return FrameFate::kRejected;
   }
 }
 

@@ -27,9 +27,9 @@ struct PoseFeedback {
   GroupId group;
   int map = 0;
   std::uint64_t map_epoch = 0, frames_skipped = 0;
-  double server_ms = 0;   // receipt to pose on the server
+  double server_ms = 0;     // receipt to pose on the server
   bool want_depth = false;  // the server asks for depth (and standalone colour) with the next frame
-  double latency_ms = 0;  // client side: frame captured (offered) to ack received
+  double latency_ms = 0;    // client side: frame captured (offered) to ack received
 };
 PoseFeedback from_wire_ack(const Ack& ack);
 

@@ -84,7 +84,6 @@ void to_proto(const PinholeCamera& c, Camera* p) {
   p->set_readout_time(c.readout_time);
 }
 
-
 struct Encoder {
   Snapshot* snap;
   std::map<const ScalePyramid*, std::uint32_t> pyramids;
@@ -225,8 +224,8 @@ struct Decoder {
   }
 
   std::shared_ptr<const cslam::FrameData> frame(const cslam::snapshot::FrameData& p, ClientId client,
-                                                const std::vector<PinholeCamera>& cameras, const cslam::RgbdParams& rgbd,
-                                                const std::string& what) const {
+                                                const std::vector<PinholeCamera>& cameras,
+                                                const cslam::RgbdParams& rgbd, const std::string& what) const {
     const std::size_t n = p.num_keypoints();
     if (n > 100000) fail(what + ": keypoint count out of range");
     if (std::size_t(p.keypoints_size()) != 5 * n || p.octaves().size() != n ||
@@ -355,8 +354,7 @@ std::string encode(const SystemState& state, const EncodeOptions& options) {
   h->set_format("cslam-snapshot");
   h->set_version(kFormatVersion);
   h->set_producer(options.producer);
-  h->set_created_unix_s(
-      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count());
+  h->set_created_unix_s(std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count());
   h->set_vocabulary_words(options.vocabulary_words);
   Encoder enc{&snap, {}};
   for (const ClientSlamState& cs : state.clients) {
@@ -420,7 +418,8 @@ std::string encode(const SystemState& state, const EncodeOptions& options) {
         q->set_reference(ps.reference ? ps.reference->seq : ps.observations.front().first.seq);
         q->set_visible(ps.visible);
         q->set_found(ps.found);
-        q->set_color(std::uint32_t(ps.color[0]) | (std::uint32_t(ps.color[1]) << 8) | (std::uint32_t(ps.color[2]) << 16));
+        q->set_color(std::uint32_t(ps.color[0]) | (std::uint32_t(ps.color[1]) << 8) |
+                     (std::uint32_t(ps.color[2]) << 16));
         q->set_first_keyframe_seq(ps.first_keyframe_seq);
       }
     }
@@ -465,7 +464,8 @@ SystemState decode(const std::string& bytes, const std::string& source, FileInfo
   const std::uint32_t stored = get_u32(bytes, 24), computed = crc_of(bytes.data() + kHeaderBytes, length);
   if (stored != computed) {
     std::ostringstream os;
-    os << "checksum mismatch (stored 0x" << std::hex << stored << ", content 0x" << computed << "): the file is corrupt";
+    os << "checksum mismatch (stored 0x" << std::hex << stored << ", content 0x" << computed
+       << "): the file is corrupt";
     fail(os.str());
   }
   Snapshot snap;
@@ -493,7 +493,8 @@ SystemState decode(const std::string& bytes, const std::string& source, FileInfo
     cs.info.name = c.name();
     cs.info.camera = dec.camera(c.camera(), where + " camera");
     std::vector<PinholeCamera> cameras;
-    for (int i = 0; i < c.cameras_size(); ++i) cameras.push_back(dec.camera(c.cameras(i), where + " camera " + std::to_string(i)));
+    for (int i = 0; i < c.cameras_size(); ++i)
+      cameras.push_back(dec.camera(c.cameras(i), where + " camera " + std::to_string(i)));
     cs.last_seq = c.last_seq();
     if (!std::isfinite(c.last_timestamp())) fail(where + ": last timestamp is not finite");
     cs.last_timestamp = c.last_timestamp();
@@ -520,8 +521,8 @@ SystemState decode(const std::string& bytes, const std::string& source, FileInfo
     for (const FrameRecord& r : c.records()) {
       if (r.map() >= std::uint32_t(c.maps_size())) fail(where + ": frame record in an unknown map");
       if (!std::isfinite(r.timestamp())) fail(where + ": frame record time is not finite");
-      cs.records.push_back(
-          {r.timestamp(), int(r.map()), KeyFrameId{cs.info.id, r.reference()}, dec.pose(r.t_cam_ref(), where + " frame record")});
+      cs.records.push_back({r.timestamp(), int(r.map()), KeyFrameId{cs.info.id, r.reference()},
+                            dec.pose(r.t_cam_ref(), where + " frame record")});
     }
     state.clients.push_back(std::move(cs));
   }

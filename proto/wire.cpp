@@ -8,26 +8,33 @@ namespace cslam::wire {
 
 Encoding to_wire(RgbCodec codec) {
   switch (codec) {
-    case RgbCodec::kRaw: return RGB_RAW_BGR8;
-    case RgbCodec::kJpeg: return RGB_JPEG;
-    case RgbCodec::kPng: return RGB_PNG;
+    case RgbCodec::kRaw:
+      return RGB_RAW_BGR8;
+    case RgbCodec::kJpeg:
+      return RGB_JPEG;
+    case RgbCodec::kPng:
+      return RGB_PNG;
   }
   return ENCODING_UNSPECIFIED;
 }
 
 Encoding to_wire(DepthCodec codec) {
   switch (codec) {
-    case DepthCodec::kRaw: return DEPTH_RAW_U16LE;
-    case DepthCodec::kPng: return DEPTH_PNG16;
-    case DepthCodec::kRvl: return DEPTH_RVL;
-    case DepthCodec::kZstdDelta: return DEPTH_ZSTD_DELTA;
+    case DepthCodec::kRaw:
+      return DEPTH_RAW_U16LE;
+    case DepthCodec::kPng:
+      return DEPTH_PNG16;
+    case DepthCodec::kRvl:
+      return DEPTH_RVL;
+    case DepthCodec::kZstdDelta:
+      return DEPTH_ZSTD_DELTA;
   }
   return ENCODING_UNSPECIFIED;
 }
 
 std::string version_mismatch_text(int peer_version) {
-  std::string text = "protocol version " + std::to_string(peer_version) + " is not supported: this server speaks version " +
-                     std::to_string(int(kProtocolVersion));
+  std::string text = "protocol version " + std::to_string(peer_version) +
+                     " is not supported: this server speaks version " + std::to_string(int(kProtocolVersion));
   if (peer_version >= 1 && peer_version < int(kProtocolVersion))
     text += " (since version 2 every ack carries the frame's pose); update the client to this cslam release";
   else if (peer_version == 0)
@@ -125,11 +132,16 @@ ServerMessage parse_server_message(const void* data, std::size_t size, const std
 
 const char* body_name(const ClientMessage& message) {
   switch (message.body_case()) {
-    case ClientMessage::kHello: return "hello";
-    case ClientMessage::kFrame: return "frame";
-    case ClientMessage::kGoodbye: return "goodbye";
-    case ClientMessage::kHeartbeat: return "heartbeat";
-    default: return "empty";
+    case ClientMessage::kHello:
+      return "hello";
+    case ClientMessage::kFrame:
+      return "frame";
+    case ClientMessage::kGoodbye:
+      return "goodbye";
+    case ClientMessage::kHeartbeat:
+      return "heartbeat";
+    default:
+      return "empty";
   }
 }
 

@@ -22,9 +22,11 @@ PKGS=(
 # nodejs: the web viewer's npm packages (scripts/install-web.sh); chromium: its browser test.
 TEST_PKGS=(
   python3-zmq python3-protobuf python3-opencv python3-zstandard python3-av python3-numpy python3-rosbag python3-sensor-msgs
+  clang-format
 )
 # python3-*: the Python client (client/python), tools/cslam-bag-replay and their tests (sensor-msgs: test bags;
 # av: PyAV on Debian's libavcodec/libx264, the lean stream's H.264 colour, byte-identical to C++).
+# clang-format: the suite checks that the C++ tree is formatted (.clang-format, tests/layout).
 if [ "$BUILD_ONLY" = 1 ]; then
   PKGS=("${PKGS[@]/chromium}")
 else

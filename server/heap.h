@@ -8,10 +8,10 @@
 namespace cslam::server {
 
 struct HeapStats {
-  bool known = false;              // the allocator reports figures (tcmalloc)
-  std::size_t allocated = 0;       // bytes the program holds
-  std::size_t free_mapped = 0;     // freed, still resident (page heap + caches)
-  std::size_t unmapped = 0;        // freed and handed back to the system
+  bool known = false;           // the allocator reports figures (tcmalloc)
+  std::size_t allocated = 0;    // bytes the program holds
+  std::size_t free_mapped = 0;  // freed, still resident (page heap + caches)
+  std::size_t unmapped = 0;     // freed and handed back to the system
 };
 
 HeapStats heap_stats();

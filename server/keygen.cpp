@@ -19,8 +19,9 @@ int run(int argc, char** argv) {
       .flag("force", "overwrite existing files");
   if (!cli.parse(argc, argv)) return 0;
   const std::string out = cli.get("out");
-  const std::set<cslam::ClientId> ids =
-      cli.get("client-ids").empty() ? std::set<cslam::ClientId>{} : cslam::auth::parse_client_ids(cli.get("client-ids"), "--client-ids");
+  const std::set<cslam::ClientId> ids = cli.get("client-ids").empty()
+                                            ? std::set<cslam::ClientId>{}
+                                            : cslam::auth::parse_client_ids(cli.get("client-ids"), "--client-ids");
   const std::string key_file = out + ".key", pub_file = out + ".pub";
   if (!cli.flag_set("force") && (std::filesystem::exists(key_file) || std::filesystem::exists(pub_file)))
     throw cslam::ConfigError("cslam-keygen: " + key_file + " or " + pub_file + " exists (use --force to overwrite)");

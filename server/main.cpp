@@ -66,7 +66,8 @@ cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, c
   if (!(max_mb >= 1)) throw cslam::ConfigError("cslam-server: --dense-store-max-mb must be at least 1");
   c.store.max_bytes = std::uint64_t(max_mb * 1024 * 1024);
   const double voxel = cli.get_double("dense-voxel");
-  if (!(voxel >= 0.005 && voxel <= 0.2)) throw cslam::ConfigError("cslam-server: --dense-voxel must be within [0.005, 0.2] m");
+  if (!(voxel >= 0.005 && voxel <= 0.2))
+    throw cslam::ConfigError("cslam-server: --dense-voxel must be within [0.005, 0.2] m");
   c.map.tsdf.voxel_size = float(voxel);
   c.map.tsdf.truncation = float(4 * voxel);
   c.map.keyframes_per_submap = cli.get_int("dense-submap-keyframes");
@@ -74,7 +75,8 @@ cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, c
     c.store.dir = state_dir + "/dense";
   } else {  // a private folder for this run, removed at exit
     std::string tmpl = (std::filesystem::temp_directory_path() / "cslam-dense-XXXXXX").string();
-    if (!mkdtemp(tmpl.data())) throw cslam::ConfigError("cslam-server: cannot create a temporary folder for the keyframe store");
+    if (!mkdtemp(tmpl.data()))
+      throw cslam::ConfigError("cslam-server: cannot create a temporary folder for the keyframe store");
     c.store.dir = tmpl;
     c.store_is_temporary = true;
   }
@@ -99,23 +101,29 @@ std::unique_ptr<cslam::server::DenseService> start_dense(const cslam::server::De
 }
 
 int run(int argc, char** argv) {
-  cslam::CliArgs cli("cslam-server", "Receives RGB-D frames from cslam clients over ZeroMQ and runs collaborative SLAM.");
-  cli.option("bind", "ZeroMQ endpoint to bind (tcp://127.0.0.1:* picks a free port; beyond loopback needs "
-                     "--curve-secret or --insecure-bind)", "tcp://127.0.0.1:5555")
+  cslam::CliArgs cli("cslam-server",
+                     "Receives RGB-D frames from cslam clients over ZeroMQ and runs collaborative SLAM.");
+  cli.option("bind",
+             "ZeroMQ endpoint to bind (tcp://127.0.0.1:* picks a free port; beyond loopback needs "
+             "--curve-secret or --insecure-bind)",
+             "tcp://127.0.0.1:5555")
       .option("clients", "number of clients to wait for before --exit-when-done can end the run", "1")
       .flag("exit-when-done", "exit once --clients clients said goodbye and no other client is still active")
       .option("out-dir", "folder for client_K.txt trajectories, stats.json and network_stats.json", "cslam-out")
       .flag("no-slam", "do not run SLAM (count frames only; for throughput benchmarks)")
-      .flag("deterministic", "each client's local mapping, loop closing and fusion checks run inline on its worker "
+      .flag("deterministic",
+            "each client's local mapping, loop closing and fusion checks run inline on its worker "
             "(no mapping threads): a lossless client's result depends only on its frames and on how the clients' "
             "frames interleave (tests, experiments)")
       .option("window", "flow-control window: frames in flight per client", "4")
       .option("queue-capacity", "frames queued per client before the SLAM worker (>= window)", "8")
       .option("max-msg-bytes", "largest accepted message (ZMQ_MAXMSGSIZE); larger ones drop the connection", "16777216")
       .option("heartbeat-timeout", "seconds of silence before a client is marked disconnected", "5")
-      .option("max-timestamp-jump", "a frame stamped more than max(this, 100 x the session's median frame interval) "
-              "+ 2 x the wall-clock time since its last frame past that frame is refused (ERROR_TIMESTAMP_JUMP); 0: off",
-              "10")
+      .option(
+          "max-timestamp-jump",
+          "a frame stamped more than max(this, 100 x the session's median frame interval) "
+          "+ 2 x the wall-clock time since its last frame past that frame is refused (ERROR_TIMESTAMP_JUMP); 0: off",
+          "10")
       .option("log-interval", "seconds between progress lines", "5")
       .option("endpoint-file", "write the bound endpoint to this file once listening", "")
       .option("log-level", "trace, debug, info, warn, error, off", "info")
@@ -126,13 +134,22 @@ int run(int argc, char** argv) {
       .option("max-pixels", "largest camera (width*height) a hello may announce", "2073600")
       .option("session-ttl", "seconds after which a disconnected or finished session is reclaimed (0: never)", "300")
       .option("decode-threads", "threads decoding frames for all clients", "2")
-      .option("tracking-wait", "after a new keyframe, a client's tracking waits until local mapping has created and fused its points (new-points), fully processed it (keyframe: repeatable runs, more latency) or not at all (none)", "new-points")
-      .option("flow", "flow frames (optical-flow tracking between full frames, a fraction of their CPU): off, under-load (while a client's worker falls behind its live frames, instead of skipping more), always", "under-load")
-      .option("state-dir", "folder of map snapshots: loaded at start, written periodically and at exit (empty: off)", "")
+      .option("tracking-wait",
+              "after a new keyframe, a client's tracking waits until local mapping has created and fused its points "
+              "(new-points), fully processed it (keyframe: repeatable runs, more latency) or not at all (none)",
+              "new-points")
+      .option("flow",
+              "flow frames (optical-flow tracking between full frames, a fraction of their CPU): off, under-load "
+              "(while a client's worker falls behind its live frames, instead of skipping more), always",
+              "under-load")
+      .option("state-dir", "folder of map snapshots: loaded at start, written periodically and at exit (empty: off)",
+              "")
       .option("snapshot-interval", "seconds between background map snapshots (0: only on demand and at exit)", "10")
-      .flag("state-reset", "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)")
+      .flag("state-reset",
+            "start with empty maps even if --state-dir holds a snapshot (it is replaced by the next one)")
       .flag("no-dense", "do not keep keyframe images nor build the live dense map")
-      .option("dense-store-max-mb", "keyframe image store budget (MB); beyond it new keyframes' images are refused (counted)", "4096")
+      .option("dense-store-max-mb",
+              "keyframe image store budget (MB); beyond it new keyframes' images are refused (counted)", "4096")
       .option("dense-voxel", "voxel size of the live dense map (m)", "0.02")
       .option("dense-submap-keyframes", "keyframes per dense submap", "8");
   cslam::http::declare_options(cli);
@@ -164,8 +181,9 @@ int run(int argc, char** argv) {
   rc.decode_threads = std::size_t(cli.get_int("decode-threads"));
   rc.reclaim_dir = out_dir + "/reclaimed";
   if (cli.get_int("max-clients") < 1 || cli.get_int("decode-threads") < 1 || rc.max_pixels < 1 || rc.session_ttl_s < 0)
-    throw cslam::ConfigError("cslam-server: --max-clients, --decode-threads and --max-pixels must be positive, "
-                             "--session-ttl not negative");
+    throw cslam::ConfigError(
+        "cslam-server: --max-clients, --decode-threads and --max-pixels must be positive, "
+        "--session-ttl not negative");
   if (rc.expected_clients > rc.max_clients)
     throw cslam::ConfigError("cslam-server: --clients is larger than --max-clients");
   const std::string curve_secret = cli.get("curve-secret"), allowed = cli.get("clients-allowed");
@@ -177,7 +195,8 @@ int run(int argc, char** argv) {
     curve.clients = std::make_shared<const cslam::auth::KeyRegistry>(cslam::auth::read_allowed_dir(allowed));
     rc.curve = std::move(curve);
   } else if (!cslam::server::loopback_endpoint(rc.bind) && !cli.flag_set("insecure-bind")) {
-    throw cslam::ConfigError("cslam-server: --bind " + rc.bind + " reaches beyond this machine without keys: give "
+    throw cslam::ConfigError("cslam-server: --bind " + rc.bind +
+                             " reaches beyond this machine without keys: give "
                              "--curve-secret and --clients-allowed (see docs/security.md), or --insecure-bind");
   }
   // Read (and refused, if wrong) before anything starts: a bad HTTP setting is the only line.
@@ -207,7 +226,7 @@ int run(int argc, char** argv) {
   // Keyframes reach the dense map once it exists (after the snapshot is loaded).
   std::atomic<cslam::server::DenseService*> dense_sink{nullptr};
   sc.on_keyframe = [&dense_sink](const cslam::ClientInfo& c, const cslam::KeyFrameId& id, const cslam::RgbdFrame& f,
-                                  const cslam::SE3& T_cam_depthcam) {
+                                 const cslam::SE3& T_cam_depthcam) {
     if (auto* d = dense_sink.load()) d->on_keyframe(c, id, f, T_cam_depthcam);
   };
   cslam::CollaborativeSystem system(sc);

@@ -54,9 +54,13 @@ bool loopback_endpoint(const std::string& endpoint) {
 
 Receiver::Receiver(zmq::context_t& context, const ReceiverConfig& config, CollaborativeSystem& system,
                    DoneChannel& done, WakePipe& stop)
-    : config_(config), system_(system), done_(done), stop_(stop),
+    : config_(config),
+      system_(system),
+      done_(done),
+      stop_(stop),
       zap_(config.curve ? std::make_unique<auth::ZapHandler>(context, config.curve->clients) : nullptr),
-      router_(context, zmq::socket_type::router), monitor_(context, zmq::socket_type::pair),
+      router_(context, zmq::socket_type::router),
+      monitor_(context, zmq::socket_type::pair),
       sessions_(config.max_clients),
       pool_(config.decode_threads, std::max<std::size_t>(16, config.max_clients * config.window),
             [&system](RgbdFrame frame) { return system.submit(std::move(frame)); }),
@@ -69,7 +73,8 @@ Receiver::Receiver(zmq::context_t& context, const ReceiverConfig& config, Collab
     router_.set(zmq::sockopt::curve_secretkey, config_.curve->server.secret_key);
     router_.set(zmq::sockopt::zap_domain, "cslam");
   }
-  const std::string monitor_endpoint = "inproc://cslam-router-monitor-" + std::to_string(reinterpret_cast<std::uintptr_t>(this));
+  const std::string monitor_endpoint =
+      "inproc://cslam-router-monitor-" + std::to_string(reinterpret_cast<std::uintptr_t>(this));
   if (zmq_socket_monitor(router_.handle(), monitor_endpoint.c_str(),
                          ZMQ_EVENT_ACCEPTED | ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_HANDSHAKE_FAILED_AUTH |
                              ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL | ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL) != 0)
@@ -79,16 +84,19 @@ Receiver::Receiver(zmq::context_t& context, const ReceiverConfig& config, Collab
   endpoint_ = router_.get(zmq::sockopt::last_endpoint);
   start_ = last_log_ = last_publish_ = Clock::now();
   reclaim_hook_ = [this](const ClientInfo& info, int connections) {
-    const std::string dir = config_.reclaim_dir + "/client_" + std::to_string(info.id) + "-" + std::to_string(connections);
+    const std::string dir =
+        config_.reclaim_dir + "/client_" + std::to_string(info.id) + "-" + std::to_string(connections);
     system_.retire_client(info.id, dir);
   };
   for (const auto& [info, last_seq] : config_.restored_sessions) restore_session({info, last_seq, ""});
-  log()->info("listening on {} ({}, window {} frames, max message {} bytes, heartbeat timeout {} s, max {} clients, "
-              "{} decode threads)",
-              endpoint_, config_.curve ? "CURVE, " + std::to_string(config_.curve->clients->size()) + " allowed keys"
-                                       : std::string("no authentication"),
-              config_.window, config_.max_message_bytes, config_.heartbeat_timeout_s, config_.max_clients,
-              config_.decode_threads);
+  log()->info(
+      "listening on {} ({}, window {} frames, max message {} bytes, heartbeat timeout {} s, max {} clients, "
+      "{} decode threads)",
+      endpoint_,
+      config_.curve ? "CURVE, " + std::to_string(config_.curve->clients->size()) + " allowed keys"
+                    : std::string("no authentication"),
+      config_.window, config_.max_message_bytes, config_.heartbeat_timeout_s, config_.max_clients,
+      config_.decode_threads);
 }
 
 Receiver::~Receiver() = default;
@@ -100,15 +108,14 @@ void Receiver::restore_session(const RestoredSession& session) {
 
 bool Receiver::run() {
   const auto tick = std::chrono::milliseconds(std::max<long>(
-      20, long(std::min({config_.heartbeat_timeout_s / 4, config_.log_interval_s, config_.publish_interval_s}) * 1000)));
+      20,
+      long(std::min({config_.heartbeat_timeout_s / 4, config_.log_interval_s, config_.publish_interval_s}) * 1000)));
   bool all_done = false;
   for (;;) {
-    zmq::pollitem_t items[] = {{router_.handle(), 0, ZMQ_POLLIN, 0},
-                               {monitor_.handle(), 0, ZMQ_POLLIN, 0},
-                               {nullptr, done_.read_fd(), ZMQ_POLLIN, 0},
-                               {nullptr, stop_.read_fd(), ZMQ_POLLIN, 0},
-                               {nullptr, pool_.read_fd(), ZMQ_POLLIN, 0},
-                               {nullptr, reclaimed_.read_fd(), ZMQ_POLLIN, 0}};
+    zmq::pollitem_t items[] = {
+        {router_.handle(), 0, ZMQ_POLLIN, 0},      {monitor_.handle(), 0, ZMQ_POLLIN, 0},
+        {nullptr, done_.read_fd(), ZMQ_POLLIN, 0}, {nullptr, stop_.read_fd(), ZMQ_POLLIN, 0},
+        {nullptr, pool_.read_fd(), ZMQ_POLLIN, 0}, {nullptr, reclaimed_.read_fd(), ZMQ_POLLIN, 0}};
     try {
       zmq::poll(items, 6, tick);
     } catch (const zmq::error_t& e) {
@@ -189,16 +196,23 @@ const char* Receiver::handle_message(const std::string& routing_id, const std::s
     return "malformed";
   }
   switch (message.body_case()) {
-    case wire::ClientMessage::kHello: on_hello(routing_id, key, message.hello()); break;
+    case wire::ClientMessage::kHello:
+      on_hello(routing_id, key, message.hello());
+      break;
     case wire::ClientMessage::kFrame: {
       auto frame = std::make_unique<wire::RgbdFrame>();
       frame->Swap(message.mutable_frame());  // no copy of the image bytes
       on_frame(routing_id, std::move(frame), body.size());
       break;
     }
-    case wire::ClientMessage::kGoodbye: on_goodbye(routing_id, message.goodbye()); break;
-    case wire::ClientMessage::kHeartbeat: on_heartbeat(routing_id, message.heartbeat()); break;
-    default: break;
+    case wire::ClientMessage::kGoodbye:
+      on_goodbye(routing_id, message.goodbye());
+      break;
+    case wire::ClientMessage::kHeartbeat:
+      on_heartbeat(routing_id, message.heartbeat());
+      break;
+    default:
+      break;
   }
   return wire::body_name(message);
 }
@@ -235,16 +249,19 @@ void Receiver::on_hello(const std::string& routing_id, const std::string& key, c
                     "the server has " + std::to_string(config_.max_clients) + " sessions (--max-clients)");
     case Admission::kBusy:
       return refuse(wire::ERROR_SESSION_BUSY, "session_busy",
-                    "client " + std::to_string(info.id) + " is connected from another peer; a new connection may "
-                    "resume it once that one has been silent for " + std::to_string(config_.heartbeat_timeout_s) + " s");
+                    "client " + std::to_string(info.id) +
+                        " is connected from another peer; a new connection may "
+                        "resume it once that one has been silent for " +
+                        std::to_string(config_.heartbeat_timeout_s) + " s");
     case Admission::kWrongKey:
       return refuse(wire::ERROR_NOT_AUTHORIZED, "not_authorized",
                     "client " + std::to_string(info.id) + " belongs to another key");
     case Admission::kNew:
-    case Admission::kResume: break;
+    case Admission::kResume:
+      break;
   }
   try {
-    system_.add_client(info);  // keeps the map of a known client; throws if its camera changed
+    system_.add_client(info);          // keeps the map of a known client; throws if its camera changed
   } catch (const std::exception& e) {  // std::invalid_argument: camera differs from the registered one
     return refuse(wire::ERROR_BAD_HELLO, "bad_hello", e.what());
   }
@@ -262,8 +279,8 @@ void Receiver::on_hello(const std::string& routing_id, const std::string& key, c
   ++stats_.client(info.id).messages;
   const std::uint32_t credits = session->in_flight >= config_.window ? 0 : config_.window - session->in_flight;
   log()->info("client {} ('{}') {} from peer {}, camera {}x{}, last seq {}, {} credits", info.id, info.name,
-              resumed ? "reconnected" : "connected", routing_id_text(routing_id), info.camera.width,
-              info.camera.height, session->last_seq, credits);
+              resumed ? "reconnected" : "connected", routing_id_text(routing_id), info.camera.width, info.camera.height,
+              session->last_seq, credits);
   wire::ServerMessage reply;
   wire::Welcome* w = reply.mutable_welcome();
   w->set_client_id(info.id);
@@ -297,14 +314,18 @@ void Receiver::on_frame(const std::string& routing_id, std::unique_ptr<wire::Rgb
     reply_error(routing_id, id, seq, code, what, credits);
   };
   if (frame->client_id() != id)
-    return refuse(wire::ERROR_WRONG_CLIENT, "client id " + std::to_string(frame->client_id()) + " differs from the hello", 1);
+    return refuse(wire::ERROR_WRONG_CLIENT,
+                  "client id " + std::to_string(frame->client_id()) + " differs from the hello", 1);
   const std::uint64_t reserved = session->reserved_seq();
-  if (seq <= reserved) return refuse(wire::ERROR_DUPLICATE_SEQ, "sequence number not above " + std::to_string(reserved), 1);
+  if (seq <= reserved)
+    return refuse(wire::ERROR_DUPLICATE_SEQ, "sequence number not above " + std::to_string(reserved), 1);
   if (seq - reserved > config_.max_seq_jump)
-    return refuse(wire::ERROR_SEQ_JUMP,
-                  "sequence number more than " + std::to_string(config_.max_seq_jump) + " past " + std::to_string(reserved), 1);
+    return refuse(
+        wire::ERROR_SEQ_JUMP,
+        "sequence number more than " + std::to_string(config_.max_seq_jump) + " past " + std::to_string(reserved), 1);
   if (session->in_flight >= config_.window)
-    return refuse(wire::ERROR_NO_CREDIT, "more than " + std::to_string(config_.window) + " frames in flight: wait for acks", 0);
+    return refuse(wire::ERROR_NO_CREDIT,
+                  "more than " + std::to_string(config_.window) + " frames in flight: wait for acks", 0);
   // Cheap checks here (a bad frame is refused at once); decoding happens in the pool.
   try {
     wire::check_frame(*frame, session->info.camera, source);
@@ -372,7 +393,8 @@ void Receiver::on_heartbeat(const std::string& routing_id, const wire::Heartbeat
   Session* session = sessions_.by_routing_id(routing_id);
   if (!session) {
     drop(nullptr, routing_id, "not_registered", "heartbeat before hello");
-    reply_error(routing_id, ClientId(heartbeat.client_id()), 0, wire::ERROR_NOT_REGISTERED, "heartbeat before hello", 0);
+    reply_error(routing_id, ClientId(heartbeat.client_id()), 0, wire::ERROR_NOT_REGISTERED, "heartbeat before hello",
+                0);
     return;
   }
   ++stats_.client(session->info.id).heartbeats;
@@ -447,7 +469,8 @@ void Receiver::reclaim_idle() {
     reclaiming_.insert(id);
     sessions_.erase(id);
     stats_.count_reclaimed();
-    log()->info("client {} {} for more than {} s: reclaiming its session", id, to_string(s.state), config_.session_ttl_s);
+    log()->info("client {} {} for more than {} s: reclaiming its session", id, to_string(s.state),
+                config_.session_ttl_s);
   }
 }
 
@@ -501,7 +524,8 @@ void Receiver::reply_error(const std::string& routing_id, ClientId client, std::
   send(routing_id, reply);
 }
 
-void Receiver::drop(Session* session, const std::string& routing_id, const std::string& reason, const std::string& what) {
+void Receiver::drop(Session* session, const std::string& routing_id, const std::string& reason,
+                    const std::string& what) {
   std::uint64_t count;
   if (session) {
     count = ++stats_.client(session->info.id).dropped[reason];
@@ -509,8 +533,7 @@ void Receiver::drop(Session* session, const std::string& routing_id, const std::
     stats_.count_unattributed(reason);
     count = stats_.unattributed().at(reason);
   }
-  if (should_log(count))
-    log()->warn("{}: dropped ({}, #{}): {}", source_of(session, routing_id), reason, count, what);
+  if (should_log(count)) log()->warn("{}: dropped ({}, #{}): {}", source_of(session, routing_id), reason, count, what);
 }
 
 }  // namespace cslam::server

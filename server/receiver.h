@@ -30,7 +30,7 @@
 namespace cslam::server {
 
 struct CurveConfig {
-  auth::CurveKeyPair server;                    // the server's key pair (--curve-secret)
+  auth::CurveKeyPair server;                         // the server's key pair (--curve-secret)
   std::shared_ptr<const auth::KeyRegistry> clients;  // allowed client keys (--clients-allowed)
 };
 
@@ -45,15 +45,15 @@ struct ReceiverConfig {
   std::size_t expected_clients = 1;  // with exit_when_done: clients to wait for
   bool exit_when_done = false;
   // Hardening (docs/security.md).
-  std::size_t max_clients = 64;                  // sessions (any state) at a time
-  std::uint64_t max_pixels = 1920 * 1080;        // largest camera a hello may announce
-  std::uint64_t max_seq_jump = 1000000;          // a frame's seq may be at most this far past the last one
-  TimestampBound timestamp_bound;                // forward timestamp jumps (session_table.h)
-  double session_ttl_s = 300;                    // reclaim sessions not active for this long (0: never)
-  std::size_t decode_threads = 2;                // decode pool size (shared by all clients)
+  std::size_t max_clients = 64;                     // sessions (any state) at a time
+  std::uint64_t max_pixels = 1920 * 1080;           // largest camera a hello may announce
+  std::uint64_t max_seq_jump = 1000000;             // a frame's seq may be at most this far past the last one
+  TimestampBound timestamp_bound;                   // forward timestamp jumps (session_table.h)
+  double session_ttl_s = 300;                       // reclaim sessions not active for this long (0: never)
+  std::size_t decode_threads = 2;                   // decode pool size (shared by all clients)
   std::string reclaim_dir = "cslam-out/reclaimed";  // outputs of reclaimed sessions (default hook)
-  std::optional<CurveConfig> curve;              // set: CURVE server + ZAP handler
-  double publish_interval_s = 0.2;               // live counters for HTTP
+  std::optional<CurveConfig> curve;                 // set: CURVE server + ZAP handler
+  double publish_interval_s = 0.2;                  // live counters for HTTP
   // Sessions restored from a snapshot (client, camera, last processed seq): resumed at their hello.
   std::vector<std::pair<ClientInfo, std::uint64_t>> restored_sessions;
 };
@@ -125,8 +125,8 @@ class Receiver {
   SessionTable sessions_;
   ServerStats stats_;
   DecodePool pool_;
-  DoneChannel reclaimed_;          // (client, 0) when a reclaim finished
-  std::set<ClientId> reclaiming_;  // ids whose pipeline is being reclaimed (hellos wait)
+  DoneChannel reclaimed_;             // (client, 0) when a reclaim finished
+  std::set<ClientId> reclaiming_;     // ids whose pipeline is being reclaimed (hellos wait)
   std::set<ClientId> reclaimed_ids_;  // ids whose pipeline was reclaimed (until they say hello again)
   ReclaimHook reclaim_hook_;
   std::unique_ptr<BackgroundWorker> reclaimer_;  // last member: joined first

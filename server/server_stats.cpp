@@ -39,25 +39,36 @@ void ServerStats::note_decode(double ms) { decode_max_ms_ = std::max(decode_max_
 namespace {
 
 std::map<std::string, std::uint64_t> client_counters(const ClientNetStats& net) {
-  return {{"frames_accepted", net.frames_accepted}, {"bytes_received", net.bytes_received},
-          {"messages", net.messages},               {"heartbeats", net.heartbeats},
-          {"reconnects", net.reconnects},           {"timeouts", net.timeouts},
-          {"goodbyes", net.goodbyes},               {"dropped", net.dropped_total()},
-          {"frames_light", net.frames_light}, {"raw_bytes", net.raw_bytes}};
+  return {{"frames_accepted", net.frames_accepted},
+          {"bytes_received", net.bytes_received},
+          {"messages", net.messages},
+          {"heartbeats", net.heartbeats},
+          {"reconnects", net.reconnects},
+          {"timeouts", net.timeouts},
+          {"goodbyes", net.goodbyes},
+          {"dropped", net.dropped_total()},
+          {"frames_light", net.frames_light},
+          {"raw_bytes", net.raw_bytes}};
 }
 
 }  // namespace
 
 http::NetStatus ServerStats::net_status(const SessionTable& sessions) const {
   http::NetStatus s;
-  s.totals = {{"bytes_received", total_bytes_}, {"frames_accepted", frames_total_}, {"messages", messages_},
-              {"sessions", sessions.size()},    {"max_clients", sessions.max_clients()},
-              {"sessions_reclaimed", reclaimed_}, {"receive_loops_over_20ms", loops_over_20ms_},
+  s.totals = {{"bytes_received", total_bytes_},
+              {"frames_accepted", frames_total_},
+              {"messages", messages_},
+              {"sessions", sessions.size()},
+              {"max_clients", sessions.max_clients()},
+              {"sessions_reclaimed", reclaimed_},
+              {"receive_loops_over_20ms", loops_over_20ms_},
               {"messages_over_20ms", messages_over_20ms_}};
   s.unattributed = unattributed_;
   s.transport = transport_;
-  s.gauges = {{"receive_loop_max_ms", loop_max_ms_},         {"message_max_ms", message_max_ms_},
-              {"receive_loop_max_cpu_ms", loop_max_cpu_ms_}, {"message_max_cpu_ms", message_max_cpu_ms_},
+  s.gauges = {{"receive_loop_max_ms", loop_max_ms_},
+              {"message_max_ms", message_max_ms_},
+              {"receive_loop_max_cpu_ms", loop_max_cpu_ms_},
+              {"message_max_cpu_ms", message_max_cpu_ms_},
               {"decode_max_ms", decode_max_ms_}};
   for (const auto& [kind, ms] : message_max_ms_by_kind_) s.gauges[std::string(kind) + "_message_max_ms"] = ms;
   for (const auto& [id, session] : sessions.sessions()) {
@@ -86,12 +97,13 @@ std::vector<std::string> ServerStats::progress_lines(const SystemSnapshot& snaps
     last_processed = c.frames_processed;
     last_bytes = net.bytes_received;
     char buf[320];
-    std::snprintf(buf, sizeof buf,
-                  "client %u: received %llu processed %llu dropped %llu queue %zu | %.1f fps %.2f MB/s (1:%.0f, %llu light) | %s",
-                  unsigned(c.id), (unsigned long long)net.frames_accepted, (unsigned long long)c.frames_processed,
-                  (unsigned long long)net.dropped_total(), c.queue_depth, fps, mbps,
-                  net.bytes_received > 0 ? double(net.raw_bytes) / double(net.bytes_received) : 0.0,
-                  (unsigned long long)net.frames_light, tracking_label(c.tracking));
+    std::snprintf(
+        buf, sizeof buf,
+        "client %u: received %llu processed %llu dropped %llu queue %zu | %.1f fps %.2f MB/s (1:%.0f, %llu light) | %s",
+        unsigned(c.id), (unsigned long long)net.frames_accepted, (unsigned long long)c.frames_processed,
+        (unsigned long long)net.dropped_total(), c.queue_depth, fps, mbps,
+        net.bytes_received > 0 ? double(net.raw_bytes) / double(net.bytes_received) : 0.0,
+        (unsigned long long)net.frames_light, tracking_label(c.tracking));
     lines.emplace_back(buf);
   }
   const HeapStats heap = heap_stats();
@@ -167,12 +179,14 @@ std::string ServerStats::to_json(const SystemSnapshot& snapshot, double wall_s) 
     for (const ClientSnapshot& s : snapshot.clients)
       if (s.id == id) c["frames_processed"] = s.frames_processed;
     const Summary t = summarize(net.decode_dispatch_ms);
-    c["decode_dispatch_ms"] = {{"n", t.n}, {"median", t.median}, {"mean", t.mean}, {"min", t.min}, {"max", t.max}, {"p95", t.p95}};
+    c["decode_dispatch_ms"] = {{"n", t.n},     {"median", t.median}, {"mean", t.mean},
+                               {"min", t.min}, {"max", t.max},       {"p95", t.p95}};
     all_ms.insert(all_ms.end(), net.decode_dispatch_ms.begin(), net.decode_dispatch_ms.end());
     j["clients"].push_back(c);
   }
   const Summary t = summarize(all_ms);
-  j["decode_dispatch_ms"] = {{"n", t.n}, {"median", t.median}, {"mean", t.mean}, {"min", t.min}, {"max", t.max}, {"p95", t.p95}};
+  j["decode_dispatch_ms"] = {{"n", t.n},     {"median", t.median}, {"mean", t.mean},
+                             {"min", t.min}, {"max", t.max},       {"p95", t.p95}};
   return j.dump(2);
 }
 

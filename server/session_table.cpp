@@ -9,20 +9,28 @@ namespace cslam::server {
 
 const char* to_string(SessionState state) {
   switch (state) {
-    case SessionState::kActive: return "active";
-    case SessionState::kDisconnected: return "disconnected";
-    case SessionState::kDone: return "done";
+    case SessionState::kActive:
+      return "active";
+    case SessionState::kDisconnected:
+      return "disconnected";
+    case SessionState::kDone:
+      return "done";
   }
   return "unknown";
 }
 
 const char* to_string(Admission admission) {
   switch (admission) {
-    case Admission::kNew: return "new";
-    case Admission::kResume: return "resume";
-    case Admission::kBusy: return "busy";
-    case Admission::kWrongKey: return "wrong_key";
-    case Admission::kFull: return "full";
+    case Admission::kNew:
+      return "new";
+    case Admission::kResume:
+      return "resume";
+    case Admission::kBusy:
+      return "busy";
+    case Admission::kWrongKey:
+      return "wrong_key";
+    case Admission::kFull:
+      return "full";
   }
   return "unknown";
 }
@@ -68,7 +76,8 @@ StampHistory::Verdict StampHistory::check(double t, Clock::time_point now, const
   }
   return {false, false,
           "timestamp " + seconds(t) + " is " + seconds(jump) + " past the last accepted frame's (" + seconds(last_) +
-              "); at most " + seconds(allowed) + " is allowed (median frame interval " + seconds(median_interval()) + ")"};
+              "); at most " + seconds(allowed) + " is allowed (median frame interval " + seconds(median_interval()) +
+              ")"};
 }
 
 void StampHistory::accept(double t, Clock::time_point now) {

@@ -75,16 +75,16 @@ const char* to_string(SessionState state);
 
 struct Session {
   ClientInfo info;
-  std::string routing_id;        // current ZeroMQ peer identity
-  std::string key;               // CURVE public key (Z85) of the connection, empty without CURVE
+  std::string routing_id;  // current ZeroMQ peer identity
+  std::string key;         // CURVE public key (Z85) of the connection, empty without CURVE
   SessionState state = SessionState::kActive;
-  std::uint64_t last_seq = 0;    // highest accepted sequence number
-  StampHistory stamps;           // timestamps of the frames handed on (forward-jump bound)
+  std::uint64_t last_seq = 0;        // highest accepted sequence number
+  StampHistory stamps;               // timestamps of the frames handed on (forward-jump bound)
   std::set<std::uint64_t> decoding;  // seqs handed to the decode pool, result not back yet
-  std::uint32_t in_flight = 0;   // frames reserved (decoding or queued) and not yet consumed
+  std::uint32_t in_flight = 0;       // frames reserved (decoding or queued) and not yet consumed
   Clock::time_point last_seen;
-  int connections = 1;           // hellos accepted (1 + reconnects)
-  bool restored = false;         // loaded from a persisted state, no connection yet
+  int connections = 1;    // hellos accepted (1 + reconnects)
+  bool restored = false;  // loaded from a persisted state, no connection yet
 
   // The highest seq this session has accepted or is decoding: the next frame must be above it.
   std::uint64_t reserved_seq() const { return decoding.empty() ? last_seq : std::max(last_seq, *decoding.rbegin()); }
@@ -92,11 +92,11 @@ struct Session {
 };
 
 enum class Admission {
-  kNew,             // a new session
-  kResume,          // an existing session, bound to this connection from now on
-  kBusy,            // the session is live on another connection (no CURVE)
-  kWrongKey,        // the session belongs to another CURVE key
-  kFull,            // max_clients sessions exist
+  kNew,       // a new session
+  kResume,    // an existing session, bound to this connection from now on
+  kBusy,      // the session is live on another connection (no CURVE)
+  kWrongKey,  // the session belongs to another CURVE key
+  kFull,      // max_clients sessions exist
 };
 const char* to_string(Admission admission);
 

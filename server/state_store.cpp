@@ -61,8 +61,10 @@ void StateStore::run() {
   auto next = std::chrono::steady_clock::now() + std::chrono::duration<double>(config_.interval_s);
   for (;;) {
     auto wake = [&] { return stop_ || requested_ > completed_; };
-    if (config_.interval_s > 0) cv_.wait_until(lock, next, wake);
-    else cv_.wait(lock, wake);
+    if (config_.interval_s > 0)
+      cv_.wait_until(lock, next, wake);
+    else
+      cv_.wait(lock, wake);
     if (stop_) return;
     const std::uint64_t serving = requested_;
     lock.unlock();
@@ -166,15 +168,22 @@ SnapshotHealth snapshot_health(const StateStoreStats& stats, std::chrono::steady
 std::string StateStore::stats_json() const {
   const StateStoreStats s = stats();
   const SnapshotHealth health = snapshot_health(s, std::chrono::steady_clock::now());
-  nlohmann::json j = {{"state_dir", config_.dir},     {"interval_s", config_.interval_s},
-                      {"written", s.written},         {"failed", s.failed},
-                      {"last_copy_ms", s.last_export_ms}, {"last_encode_ms", s.last_encode_ms},
-                      {"last_write_ms", s.last_write_ms}, {"last_bytes", s.last_bytes},
-                      {"last_copy_yields", s.last_yields}, {"last_copy_forced", s.last_forced},
-                      {"copy_yields", s.yields},      {"copy_forced", s.forced},
-                      {"last_error", s.last_error},
-                      {"last_success_age_s", health.last_success_age_s ? nlohmann::json(*health.last_success_age_s) : nlohmann::json()},
-                      {"failing_for_s", health.failing_for_s}};
+  nlohmann::json j = {
+      {"state_dir", config_.dir},
+      {"interval_s", config_.interval_s},
+      {"written", s.written},
+      {"failed", s.failed},
+      {"last_copy_ms", s.last_export_ms},
+      {"last_encode_ms", s.last_encode_ms},
+      {"last_write_ms", s.last_write_ms},
+      {"last_bytes", s.last_bytes},
+      {"last_copy_yields", s.last_yields},
+      {"last_copy_forced", s.last_forced},
+      {"copy_yields", s.yields},
+      {"copy_forced", s.forced},
+      {"last_error", s.last_error},
+      {"last_success_age_s", health.last_success_age_s ? nlohmann::json(*health.last_success_age_s) : nlohmann::json()},
+      {"failing_for_s", health.failing_for_s}};
   return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);  // last_error may hold a path's bytes
 }
 

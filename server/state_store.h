@@ -20,9 +20,9 @@
 namespace cslam::server {
 
 struct StateStoreConfig {
-  std::string dir;              // empty: persistence off
-  double interval_s = 10.0;     // <= 0: only on demand and at shutdown
-  bool reset = false;           // start empty even if the folder holds a snapshot
+  std::string dir;           // empty: persistence off
+  double interval_s = 10.0;  // <= 0: only on demand and at shutdown
+  bool reset = false;        // start empty even if the folder holds a snapshot
   std::uint32_t vocabulary_words = 0;
 };
 

@@ -69,7 +69,8 @@ std::string ids_text(const std::set<ClientId>& ids) {
 CurveKeyPair generate_keypair() {
   if (!zmq_has("curve")) throw std::runtime_error("libzmq was built without CURVE support");
   char pub[41], sec[41];
-  if (zmq_curve_keypair(pub, sec) != 0) throw std::runtime_error(std::string("zmq_curve_keypair: ") + zmq_strerror(zmq_errno()));
+  if (zmq_curve_keypair(pub, sec) != 0)
+    throw std::runtime_error(std::string("zmq_curve_keypair: ") + zmq_strerror(zmq_errno()));
   return {pub, sec};
 }
 
@@ -117,7 +118,8 @@ CurveKeyPair read_secret_file(const std::string& path) {
   if (!kv.count("secret-key")) throw ConfigError("key file " + path + ": no secret-key (is it a .pub file?)");
   CurveKeyPair k;
   k.secret_key = kv.at("secret-key");
-  if (!valid_z85_key(k.secret_key)) throw ConfigError("key file " + path + ": secret-key is not a 40-character Z85 key");
+  if (!valid_z85_key(k.secret_key))
+    throw ConfigError("key file " + path + ": secret-key is not a 40-character Z85 key");
   char pub[41];
   if (zmq_curve_public(pub, k.secret_key.c_str()) != 0) throw ConfigError("key file " + path + ": bad secret-key");
   k.public_key = pub;
@@ -132,7 +134,8 @@ AllowedKey read_public_file(const std::string& path) {
   AllowedKey a;
   a.public_key = kv.at("public-key");
   a.file = path;
-  if (!valid_z85_key(a.public_key)) throw ConfigError("key file " + path + ": public-key is not a 40-character Z85 key");
+  if (!valid_z85_key(a.public_key))
+    throw ConfigError("key file " + path + ": public-key is not a 40-character Z85 key");
   if (kv.count("client-ids")) a.client_ids = parse_client_ids(kv.at("client-ids"), "key file " + path);
   return a;
 }

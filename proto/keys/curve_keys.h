@@ -2,8 +2,8 @@
 // ZeroMQ CURVE key files (rfc.zeromq.org 26): Z85 text keys made by cslam-keygen.
 //   NAME.key (secret, mode 0600):  public-key = <40 Z85 chars>   secret-key = <40 Z85 chars>
 //   NAME.pub (for the peer):       public-key = <40 Z85 chars>   [client-ids = 1,2,...]
-// Lines are `key = value`, a line starting with '#' is a comment (Z85 keys may contain '#'); an unknown key or a malformed value is an
-// error naming the file. A server's --clients-allowed DIR holds one *.pub file per robot; its
+// Lines are `key = value`, a line starting with '#' is a comment (Z85 keys may contain '#'); an unknown key or a
+// malformed value is an error naming the file. A server's --clients-allowed DIR holds one *.pub file per robot; its
 // optional client-ids bind the key to those ids (the ids it may say hello as).
 #include <map>
 #include <set>
@@ -19,9 +19,9 @@ struct CurveKeyPair {
 };
 
 struct AllowedKey {
-  std::string public_key;      // Z85
+  std::string public_key;         // Z85
   std::set<ClientId> client_ids;  // empty: any id
-  std::string file;            // where it came from (for logs)
+  std::string file;               // where it came from (for logs)
 };
 
 // Generates a key pair with libzmq (libsodium). Throws std::runtime_error if CURVE is unavailable.

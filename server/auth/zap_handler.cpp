@@ -14,8 +14,10 @@ bool KeyRegistry::may_use(const std::string& public_key, ClientId id) const {
 }
 
 ZapHandler::ZapHandler(zmq::context_t& context, std::shared_ptr<const KeyRegistry> registry)
-    : registry_(std::move(registry)), zap_(context, zmq::socket_type::rep),
-      control_in_(context, zmq::socket_type::pair), control_out_(context, zmq::socket_type::pair) {
+    : registry_(std::move(registry)),
+      zap_(context, zmq::socket_type::rep),
+      control_in_(context, zmq::socket_type::pair),
+      control_out_(context, zmq::socket_type::pair) {
   zap_.set(zmq::sockopt::linger, 0);
   zap_.bind("inproc://zeromq.zap.01");
   const std::string control = "inproc://cslam-zap-control-" + std::to_string(reinterpret_cast<std::uintptr_t>(this));
@@ -76,7 +78,8 @@ void ZapHandler::answer(const std::vector<zmq::message_t>& request) {
   } else {
     const std::uint64_t n = ++rejected_;
     if (n <= 20 || n % 1000 == 0)
-      logger("auth")->warn("refused a {} connection from {} ({}, #{})", mechanism.empty() ? "?" : mechanism, address, reason, n);
+      logger("auth")->warn("refused a {} connection from {} ({}, #{})", mechanism.empty() ? "?" : mechanism, address,
+                           reason, n);
   }
   // Reply: version, request id, status code, status text, user id, metadata.
   zap_.send(zmq::buffer(version.empty() ? std::string("1.0") : version), zmq::send_flags::sndmore);

@@ -37,7 +37,7 @@ class ZapHandler {
   ~ZapHandler();  // stop()
   ZapHandler(const ZapHandler&) = delete;
   ZapHandler& operator=(const ZapHandler&) = delete;
-  void stop();    // idempotent; joins the thread
+  void stop();  // idempotent; joins the thread
 
   std::uint64_t accepted() const { return accepted_; }
   std::uint64_t rejected() const { return rejected_; }

@@ -126,9 +126,10 @@ void run_colour_png_bench(const std::string& dir, int files, int repeat) {
         }
       }
     }
-  std::printf("decoding colour PNGs: %zu files of %s (mean %.1f KB), %d passes;\n"
-              "thread CPU ms per image, median (min-max); 'differ' = images whose pixels differ from the first row\n\n",
-              paths.size(), dir.c_str(), kb, repeat);
+  std::printf(
+      "decoding colour PNGs: %zu files of %s (mean %.1f KB), %d passes;\n"
+      "thread CPU ms per image, median (min-max); 'differ' = images whose pixels differ from the first row\n\n",
+      paths.size(), dir.c_str(), kb, repeat);
   std::printf("%-36s %9s %16s %8s %8s\n", "path", "median", "min-max", "differ", "refused");
   for (const Path& m : methods) {
     if (m.ms.empty()) {
@@ -243,10 +244,11 @@ void run_h264_bench(const cslam::TumDataset& ds, const H264BenchOptions& options
       if (orb_frame) r.orb.push_back(100.0 * orb.kept(back));
     }
   }
-  std::printf("%zu colour images of %s in order, one stream per row (key interval %d); PSNR against the\n"
-              "dataset's images; times are thread CPU ms per frame, median; ORB kept: mean %% of the original's\n"
-              "ORB features found again (every %d-th frame)\n\n",
-              n, ds.root.c_str(), options.key_interval, options.orb_every);
+  std::printf(
+      "%zu colour images of %s in order, one stream per row (key interval %d); PSNR against the\n"
+      "dataset's images; times are thread CPU ms per frame, median; ORB kept: mean %% of the original's\n"
+      "ORB features found again (every %d-th frame)\n\n",
+      n, ds.root.c_str(), options.key_interval, options.orb_every);
   std::printf("%-36s %8s %8s %11s %9s %9s %9s %10s %10s %6s\n", "colour", "mean KB", "key KB", "MB/s @30Hz",
               "PSNR mean", "PSNR min", "ORB kept", "encode ms", "decode ms", "keys");
   for (const Row& r : rows) {
@@ -275,12 +277,14 @@ int run(int argc, char** argv) {
               "only that table",
               "")
       .flag("decode-only", "only the file-decoding table, not the codec round trips")
-      .flag("h264",
-            "only the H.264 table: the first --h264-frames colour images in order, one stream per preset, tune and CRF, "
-            "JPEG at --jpeg-qualities on the same images")
+      .flag(
+          "h264",
+          "only the H.264 table: the first --h264-frames colour images in order, one stream per preset, tune and CRF, "
+          "JPEG at --jpeg-qualities on the same images")
       .option("h264-crfs", "comma-separated x264 CRFs for --h264", "16,17,18,20,23,26,28,30,32")
       .option("h264-presets", "comma-separated x264 presets for --h264", "veryfast")
-      .option("h264-tunes", "x264 tunes for --h264, separated by ';' (each must include zerolatency)", "zerolatency,psnr")
+      .option("h264-tunes", "x264 tunes for --h264, separated by ';' (each must include zerolatency)",
+              "zerolatency,psnr")
       .option("h264-orb-every", "--h264: ORB survival on every N-th frame (0 = off)", "5")
       .option("h264-key-interval", "frames between key frames for --h264", "300")
       .option("h264-frames", "first N colour images in order for --h264 (0 = all)", "0");
@@ -315,19 +319,31 @@ int run(int argc, char** argv) {
   }
   int n = cli.get_int("frames");
   if (n <= 0 || n > int(ds.pairs.size())) n = int(ds.pairs.size());
-  struct RgbVariant { std::string name; cslam::CodecOptions opt; };
+  struct RgbVariant {
+    std::string name;
+    cslam::CodecOptions opt;
+  };
   std::vector<RgbVariant> rgb_variants;
   cslam::CodecOptions o;
-  o.rgb = cslam::RgbCodec::kRaw; rgb_variants.push_back({"raw", o});
-  for (int q : qualities) { o.rgb = cslam::RgbCodec::kJpeg; o.jpeg_quality = q; rgb_variants.push_back({"jpeg" + std::to_string(q), o}); }
-  o.rgb = cslam::RgbCodec::kPng; rgb_variants.push_back({"png", o});
+  o.rgb = cslam::RgbCodec::kRaw;
+  rgb_variants.push_back({"raw", o});
+  for (int q : qualities) {
+    o.rgb = cslam::RgbCodec::kJpeg;
+    o.jpeg_quality = q;
+    rgb_variants.push_back({"jpeg" + std::to_string(q), o});
+  }
+  o.rgb = cslam::RgbCodec::kPng;
+  rgb_variants.push_back({"png", o});
   std::vector<std::pair<std::string, cslam::CodecOptions>> depth_variants;
-  for (auto d : {cslam::DepthCodec::kRaw, cslam::DepthCodec::kPng, cslam::DepthCodec::kRvl, cslam::DepthCodec::kZstdDelta}) {
+  for (auto d :
+       {cslam::DepthCodec::kRaw, cslam::DepthCodec::kPng, cslam::DepthCodec::kRvl, cslam::DepthCodec::kZstdDelta}) {
     cslam::CodecOptions od;
     od.depth = d;
     depth_variants.push_back({cslam::to_string(d), od});
   }
-  cslam::CodecOptions z3; z3.depth = cslam::DepthCodec::kZstdDelta; z3.zstd_level = 3;
+  cslam::CodecOptions z3;
+  z3.depth = cslam::DepthCodec::kZstdDelta;
+  z3.zstd_level = 3;
   depth_variants.push_back({"zstd-l3", z3});
 
   std::map<std::string, Result> rgb_results, depth_results;
@@ -351,13 +367,15 @@ int run(int argc, char** argv) {
       const cslam::Bytes bytes = cslam::encode_depth(im.depth, opt);
       r.encode_ms.push_back(t.ms());
       t.reset();
-      const cv::Mat back = cslam::decode_depth(opt.depth, bytes.data(), bytes.size(), im.depth.cols, im.depth.rows, "bench");
+      const cv::Mat back =
+          cslam::decode_depth(opt.depth, bytes.data(), bytes.size(), im.depth.cols, im.depth.rows, "bench");
       r.decode_ms.push_back(t.ms());
       r.kb.push_back(bytes.size() / 1000.0);
       if (cv::norm(im.depth, back, cv::NORM_INF) != 0) r.lossless = false;
     }
   }
-  std::printf("%d frames of %s (640x480); median (min-max); times are thread CPU ms\n\n", n, cli.get("dataset").c_str());
+  std::printf("%d frames of %s (640x480); median (min-max); times are thread CPU ms\n\n", n,
+              cli.get("dataset").c_str());
   std::printf("%-10s %10s %24s %24s %24s %s\n", "rgb", "mean KB", "KB", "encode ms", "decode ms", "PSNR dB (median)");
   for (const auto& v : rgb_variants) {
     const Result& r = rgb_results[v.name];

@@ -36,9 +36,9 @@ struct Method {
 
 struct Result {
   std::vector<double> ms;
-  int differing = 0;       // images whose pixels differ from the reference path's
-  double max_abs = 0;      // largest per-pixel difference
-  double mean_abs = 0;     // mean absolute difference per channel value, averaged over images
+  int differing = 0;    // images whose pixels differ from the reference path's
+  double max_abs = 0;   // largest per-pixel difference
+  double mean_abs = 0;  // mean absolute difference per channel value, averaged over images
 };
 
 Bytes read_bytes(const std::string& path) {
@@ -52,8 +52,8 @@ Bytes read_bytes(const std::string& path) {
 cv::Mat turbojpeg_bgr(const Sample& s, int flags) {
   thread_local tjhandle tj = tjInitDecompress();
   cv::Mat out(s.height, s.width, CV_8UC3);
-  if (tjDecompress2(tj, s.bytes.data(), static_cast<unsigned long>(s.bytes.size()), out.data, s.width,
-                    int(out.step[0]), s.height, TJPF_BGR, flags) != 0)
+  if (tjDecompress2(tj, s.bytes.data(), static_cast<unsigned long>(s.bytes.size()), out.data, s.width, int(out.step[0]),
+                    s.height, TJPF_BGR, flags) != 0)
     throw InputError(s.path, tjGetErrorStr2(tj));
   return out;
 }
@@ -63,7 +63,8 @@ bool is_png(const std::string& path) { return path.size() >= 4 && path.compare(p
 std::vector<Method> methods() {
   std::vector<Method> m;
   // Colour. The first one is the reference the others are compared with.
-  m.push_back({"imread (load_rgbd before)", true, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_COLOR); }});
+  m.push_back(
+      {"imread (load_rgbd before)", true, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_COLOR); }});
   m.push_back({"load_colour_image (load_rgbd)", true, [](const Sample& s) { return load_colour_image(s.path); }});
   m.push_back({"imdecode (from memory)", true, [](const Sample& s) {
                  return cv::imdecode(s.bytes, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
@@ -76,13 +77,16 @@ std::vector<Method> methods() {
                  return decode_jpeg_bgr(s.bytes.data(), s.bytes.size(), s.path, s.width, s.height);
                }});
   m.push_back({"turbojpeg fast DCT", true, [](const Sample& s) { return turbojpeg_bgr(s, TJFLAG_FASTDCT); }});
-  m.push_back({"turbojpeg fast upsampling", true, [](const Sample& s) { return turbojpeg_bgr(s, TJFLAG_FASTUPSAMPLE); }});
+  m.push_back(
+      {"turbojpeg fast upsampling", true, [](const Sample& s) { return turbojpeg_bgr(s, TJFLAG_FASTUPSAMPLE); }});
   m.push_back({"turbojpeg fast DCT + upsampling", true,
                [](const Sample& s) { return turbojpeg_bgr(s, TJFLAG_FASTDCT | TJFLAG_FASTUPSAMPLE); }});
   // Depth.
-  m.push_back({"imread (load_rgbd before)", false, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_ANYDEPTH); }});
+  m.push_back(
+      {"imread (load_rgbd before)", false, [](const Sample& s) { return cv::imread(s.path, cv::IMREAD_ANYDEPTH); }});
   m.push_back({"load_depth_image (load_rgbd)", false, [](const Sample& s) { return load_depth_image(s.path); }});
-  m.push_back({"imdecode (from memory)", false, [](const Sample& s) { return cv::imdecode(s.bytes, cv::IMREAD_ANYDEPTH); }});
+  m.push_back(
+      {"imdecode (from memory)", false, [](const Sample& s) { return cv::imdecode(s.bytes, cv::IMREAD_ANYDEPTH); }});
   m.push_back({"decode_png16_gray (from memory)", false, [](const Sample& s) {
                  cv::Mat out;
                  std::string why;
@@ -137,15 +141,16 @@ void run_file_decode_bench(const TumDataset& ds, const FileDecodeBenchOptions& o
           if (max_abs > 0) ++results[k].differing;
           results[k].max_abs = std::max(results[k].max_abs, max_abs);
           if (same_shape)
-            results[k].mean_abs += cv::norm(out, reference, cv::NORM_L1) / double(out.total() * out.channels()) /
-                                   double(samples.size());
+            results[k].mean_abs +=
+                cv::norm(out, reference, cv::NORM_L1) / double(out.total() * out.channels()) / double(samples.size());
         }
       }
     }
-  std::printf("decoding the dataset's own files: first %zu colour (%s) and %zu depth images, %d passes;\n"
-              "thread CPU ms per image, median (min-max); 'differ' = images whose pixels differ from the first row\n\n",
-              colour.size(), colour.empty() ? "-" : colour.front().path.substr(colour.front().path.rfind('.')).c_str(),
-              depth.size(), options.repeat);
+  std::printf(
+      "decoding the dataset's own files: first %zu colour (%s) and %zu depth images, %d passes;\n"
+      "thread CPU ms per image, median (min-max); 'differ' = images whose pixels differ from the first row\n\n",
+      colour.size(), colour.empty() ? "-" : colour.front().path.substr(colour.front().path.rfind('.')).c_str(),
+      depth.size(), options.repeat);
   std::printf("%-6s %-34s %9s %20s %8s %8s %9s\n", "image", "path", "median", "min-max", "differ", "max|d|", "mean|d|");
   for (std::size_t k = 0; k < ms.size(); ++k) {
     const Summary s = summarize(results[k].ms);

@@ -9,8 +9,8 @@
 namespace cslam {
 
 struct FileDecodeBenchOptions {
-  int files = 100;   // the first `files` colour and depth images of the dataset
-  int repeat = 3;    // passes over them (each image timed once per pass)
+  int files = 100;  // the first `files` colour and depth images of the dataset
+  int repeat = 3;   // passes over them (each image timed once per pass)
 };
 
 // Prints one table (median and min-max thread-CPU ms per image, over files x repeat samples).

@@ -212,7 +212,8 @@ void http_abuse(int port, std::atomic<bool>& stop) {
 }
 
 int run(int argc, char** argv) {
-  cslam::CliArgs cli("cslam-bench-hostile", "Hardening figures of cslam-server under a hostile peer (docs/security.md).");
+  cslam::CliArgs cli("cslam-bench-hostile",
+                     "Hardening figures of cslam-server under a hostile peer (docs/security.md).");
   cli.option("bin", "folder of cslam-server", "build/bin")
       .option("out", "scratch folder", "/tmp/cslam-bench-hostile")
       .option("frames", "frames the good client sends", "300")
@@ -226,9 +227,21 @@ int run(int argc, char** argv) {
   std::filesystem::create_directories(out);
   const bool hostile_on = cli.flag_set("hostile");
 
-  std::vector<std::string> args = {cli.get("bin") + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file",
-                                   out + "/endpoint", "--http", "0", "--http-port-file", out + "/http_port",
-                                   "--out-dir", out + "/run", "--log-level", "warn", "--max-clients", "64"};
+  std::vector<std::string> args = {cli.get("bin") + "/cslam-server",
+                                   "--bind",
+                                   "tcp://127.0.0.1:*",
+                                   "--endpoint-file",
+                                   out + "/endpoint",
+                                   "--http",
+                                   "0",
+                                   "--http-port-file",
+                                   out + "/http_port",
+                                   "--out-dir",
+                                   out + "/run",
+                                   "--log-level",
+                                   "warn",
+                                   "--max-clients",
+                                   "64"};
   if (!cli.flag_set("slam")) args.push_back("--no-slam");
   const int pid = ::fork();
   if (pid == 0) {
@@ -271,8 +284,10 @@ int run(int argc, char** argv) {
   std::thread prober([&] {
     for (int i = 0; i < cli.get_int("probes") && !stop; ++i) {
       const double ms = probe_status(http_port);
-      if (ms < 0) ++status_failed;
-      else status_ms.push_back(ms);
+      if (ms < 0)
+        ++status_failed;
+      else
+        status_ms.push_back(ms);
       // Keep the slowloris connections trickling (each line used to reset httplib's timeout).
       if (i % 10 == 0)
         for (int fd : slow) (void)::send(fd, "X-T: 1\r\n", 8, MSG_NOSIGNAL | MSG_DONTWAIT);
@@ -308,7 +323,8 @@ int run(int argc, char** argv) {
   std::ifstream(out + "/run/network_stats.json") >> net;
   const cslam::Summary st = cslam::summarize(status_ms);
   std::sort(status_ms.begin(), status_ms.end());
-  const double p99 = status_ms.empty() ? -1 : status_ms[std::min(status_ms.size() - 1, std::size_t(0.99 * double(status_ms.size())))];
+  const double p99 =
+      status_ms.empty() ? -1 : status_ms[std::min(status_ms.size() - 1, std::size_t(0.99 * double(status_ms.size())))];
   nlohmann::json j = {{"hostile", hostile_on},
                       {"slam", cli.flag_set("slam")},
                       {"good_frames_sent", sender.stats().frames_sent},

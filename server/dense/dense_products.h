@@ -29,8 +29,8 @@ std::string encode_csm1(const TriangleMesh& mesh, std::uint32_t version);
 // reference keyframes (for the up direction).
 NavMaps group_nav_maps(const std::vector<const DenseSubmapView*>& submaps, const NavMapConfig& config = {});
 
-// Writes dense_mesh_G.ply, dense_cloud_G.ply, occupancy_G.pgm + .yaml and octomap_G.bt and dense_cloud_G.ply for every group with a mesh into dir; returns
-// the files written.
+// Writes dense_mesh_G.ply, dense_cloud_G.ply, occupancy_G.pgm + .yaml and octomap_G.bt and dense_cloud_G.ply for every
+// group with a mesh into dir; returns the files written.
 std::vector<std::string> write_dense_outputs(const DenseMapView& view, const std::string& dir);
 
 }  // namespace cslam::server

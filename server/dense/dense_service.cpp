@@ -75,8 +75,10 @@ void DenseService::start() {
   // the two, or ran without a dense map): the dense map lacks them; say so and count them.
   const std::size_t lost = held.size() - restored;
   if (lost > 0) {
-    log()->warn("keyframe store {}: {} keyframe(s) of the snapshot have no stored images; the dense map lacks them "
-                "(counted in missing_images)", store_.path(), lost);
+    log()->warn(
+        "keyframe store {}: {} keyframe(s) of the snapshot have no stored images; the dense map lacks them "
+        "(counted in missing_images)",
+        store_.path(), lost);
     std::lock_guard<std::mutex> lock(mutex_);
     stats_.missing_images += lost;
   }
@@ -142,9 +144,12 @@ bool DenseService::put_job(Job& job) {
   const PutStatus status = store_.put(job.record);
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (status == PutStatus::kStored || status == PutStatus::kAlreadyStored) ++stats_.stored;
-    else if (status == PutStatus::kFull) ++stats_.store_refused_full;
-    else ++stats_.store_errors;
+    if (status == PutStatus::kStored || status == PutStatus::kAlreadyStored)
+      ++stats_.stored;
+    else if (status == PutStatus::kFull)
+      ++stats_.store_refused_full;
+    else
+      ++stats_.store_errors;
     job.store_state = kStored;
   }
   stored_cv_.notify_all();
@@ -232,7 +237,8 @@ std::optional<DenseService::StoredKeyframe> DenseService::stored_keyframe(KeyFra
   }
 }
 
-std::optional<DenseService::StoredKeyframe> DenseService::decode_stored(KeyFrameId id, const PinholeCamera& camera) const {
+std::optional<DenseService::StoredKeyframe> DenseService::decode_stored(KeyFrameId id,
+                                                                        const PinholeCamera& camera) const {
   try {
     const auto record = store_.get(id);
     if (!record) return std::nullopt;
@@ -258,9 +264,9 @@ void DenseService::step(bool final) {
   const double cpu0 = thread_cpu_ms();
   const std::vector<KeyframePose> poses = system_.keyframe_poses();
   const DenseImageLoader loader = [this](KeyFrameId id) { return load(id); };
-  const DenseStepResult r =
-      final ? map_.flush(poses, loader)
-            : map_.step(poses, uptime_s(), loader, {config_.max_integrations_per_step, config_.max_reintegrations_per_step});
+  const DenseStepResult r = final ? map_.flush(poses, loader)
+                                  : map_.step(poses, uptime_s(), loader,
+                                              {config_.max_integrations_per_step, config_.max_reintegrations_per_step});
   for (const KeyFrameId id : r.culled) store_.erase(id);
   const auto view = map_.view();
   std::lock_guard<std::mutex> lock(mutex_);
@@ -282,13 +288,13 @@ void DenseService::step(bool final) {
   if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_log_).count() >= config_.log_interval_s) {
     last_log_ = std::chrono::steady_clock::now();
     const HeapStats heap = heap_stats();
-    log()->info("dense: {} submaps ({:.1f} MB meshes, {:.1f} MB volumes), {} keyframes integrated ({} pending, {} "
-                "queued), {} re-integrations, heap {:.0f} MB held {:.0f} MB free, store {} keyframes {:.1f} MB{}",
-                stats_.submaps, double(view->mesh_bytes) / 1e6, double(view->volume_bytes) / 1e6, stats_.integrated,
-                stats_.pending, queue_.size(), stats_.reintegrated, double(heap.allocated) / 1e6,
-                double(heap.free_mapped) / 1e6,
-                store_.stats().keyframes, double(store_.stats().payload_bytes) / 1e6,
-                store_.stats().last_error.empty() ? "" : " (store error: " + store_.stats().last_error + ")");
+    log()->info(
+        "dense: {} submaps ({:.1f} MB meshes, {:.1f} MB volumes), {} keyframes integrated ({} pending, {} "
+        "queued), {} re-integrations, heap {:.0f} MB held {:.0f} MB free, store {} keyframes {:.1f} MB{}",
+        stats_.submaps, double(view->mesh_bytes) / 1e6, double(view->volume_bytes) / 1e6, stats_.integrated,
+        stats_.pending, queue_.size(), stats_.reintegrated, double(heap.allocated) / 1e6,
+        double(heap.free_mapped) / 1e6, store_.stats().keyframes, double(store_.stats().payload_bytes) / 1e6,
+        store_.stats().last_error.empty() ? "" : " (store error: " + store_.stats().last_error + ")");
   }
 }
 

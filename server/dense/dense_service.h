@@ -23,9 +23,9 @@ namespace cslam::server {
 struct DenseServiceConfig {
   bool enabled = true;
   LiveDenseConfig map;
-  KeyframeStoreConfig store;        // dir: --state-dir/dense, or a private temporary folder
-  bool store_is_temporary = false;  // removed at exit
-  double step_interval_s = 0.25;    // poses are re-read at least this often
+  KeyframeStoreConfig store;         // dir: --state-dir/dense, or a private temporary folder
+  bool store_is_temporary = false;   // removed at exit
+  double step_interval_s = 0.25;     // poses are re-read at least this often
   std::size_t queue_capacity = 512;  // keyframes waiting for the worker (their received bytes, ~0.1 MB each)
   std::size_t queue_decoded = 16;    // ... of which the first ones also keep their decoded images
   int max_integrations_per_step = 2;
@@ -107,16 +107,16 @@ class DenseService {
   const DenseServiceConfig config_;
   const CollaborativeSystem& system_;
   KeyframeStore store_;
-  LiveDenseMap map_;  // the worker's alone
-  std::map<ClientId, PinholeCamera> cameras_;  // the worker's alone
-  std::mutex camera_mutex_;                     // store_cameras_
+  LiveDenseMap map_;                                 // the worker's alone
+  std::map<ClientId, PinholeCamera> cameras_;        // the worker's alone
+  std::mutex camera_mutex_;                          // store_cameras_
   std::map<ClientId, PinholeCamera> store_cameras_;  // cameras written to the store by put_job
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::chrono::steady_clock::time_point last_log_ = start_;
 
   mutable std::mutex mutex_;  // queue_, stop_, stats_
   std::condition_variable wake_;
-  std::condition_variable stored_cv_;  // the worker stored a batch (wait_stored)
+  std::condition_variable stored_cv_;       // the worker stored a batch (wait_stored)
   std::deque<std::shared_ptr<Job>> queue_;  // each left here until stored (wait_stored sees it)
   bool stop_ = false, finished_ = false;
   DenseServiceStats stats_;

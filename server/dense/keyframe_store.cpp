@@ -90,10 +90,17 @@ class Use {
 // NULL as the NaN it was written from. Anything else is damage.
 bool column_double(sqlite3_stmt* s, int col, double& out) {
   switch (sqlite3_column_type(s, col)) {
-    case SQLITE_FLOAT: out = sqlite3_column_double(s, col); return true;
-    case SQLITE_INTEGER: out = double(sqlite3_column_int64(s, col)); return true;
-    case SQLITE_NULL: out = std::numeric_limits<double>::quiet_NaN(); return true;
-    default: return false;
+    case SQLITE_FLOAT:
+      out = sqlite3_column_double(s, col);
+      return true;
+    case SQLITE_INTEGER:
+      out = double(sqlite3_column_int64(s, col));
+      return true;
+    case SQLITE_NULL:
+      out = std::numeric_limits<double>::quiet_NaN();
+      return true;
+    default:
+      return false;
   }
 }
 
@@ -106,8 +113,8 @@ bool column_blob(sqlite3_stmt* s, int col, std::string& out, std::string& why) {
   const void* data = sqlite3_column_blob(s, col);
   const int n = sqlite3_column_bytes(s, col);
   if (n < 0 || std::uint64_t(n) > kMaxImageBlobBytes) {
-    why = "column " + std::string(sqlite3_column_name(s, col)) + " has " + std::to_string(n) + " bytes, over the limit of " +
-          std::to_string(kMaxImageBlobBytes);
+    why = "column " + std::string(sqlite3_column_name(s, col)) + " has " + std::to_string(n) +
+          " bytes, over the limit of " + std::to_string(kMaxImageBlobBytes);
     return false;
   }
   if (n > 0 && !data) {
@@ -122,10 +129,14 @@ bool column_blob(sqlite3_stmt* s, int col, std::string& out, std::string& why) {
 
 const char* to_string(PutStatus status) {
   switch (status) {
-    case PutStatus::kStored: return "stored";
-    case PutStatus::kAlreadyStored: return "already stored";
-    case PutStatus::kFull: return "full";
-    case PutStatus::kError: return "error";
+    case PutStatus::kStored:
+      return "stored";
+    case PutStatus::kAlreadyStored:
+      return "already stored";
+    case PutStatus::kFull:
+      return "full";
+    case PutStatus::kError:
+      return "error";
   }
   return "unknown";
 }
@@ -165,8 +176,8 @@ KeyframeStore::KeyframeStore(KeyframeStoreConfig config)
     throw;
   }
   const auto s = stats();
-  logger("dense")->info("keyframe store {}: {} keyframes, {:.1f} MB of images (budget {:.1f} MB), file {:.1f} MB", path_,
-                        s.keyframes, s.payload_bytes / 1e6, s.max_bytes / 1e6, s.file_bytes / 1e6);
+  logger("dense")->info("keyframe store {}: {} keyframes, {:.1f} MB of images (budget {:.1f} MB), file {:.1f} MB",
+                        path_, s.keyframes, s.payload_bytes / 1e6, s.max_bytes / 1e6, s.file_bytes / 1e6);
 }
 
 KeyframeStore::~KeyframeStore() {
@@ -204,7 +215,8 @@ void KeyframeStore::open_or_create() {
   if (fs::exists(path_, ec) && !fs::is_regular_file(path_, ec)) throw InputError(path_, "not a regular file");
 
   // NOMUTEX: the connection is only ever used under mutex_.
-  int rc = sqlite3_open_v2(path_.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
+  int rc =
+      sqlite3_open_v2(path_.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
     const std::string folder = folder_not_writable();
     throw InputError(path_, "cannot open the keyframe store: " + (folder.empty() ? db_error(rc) : folder));
@@ -269,8 +281,9 @@ void KeyframeStore::open_or_create() {
       throw InputError(path_, "not a keyframe store (an SQLite file with application_id " + hex32(app) + ", expected " +
                                   hex32(kApplicationId) + ")");
     if (version != kSchemaVersion)
-      throw InputError(path_, "keyframe store of schema version " + std::to_string(version) + "; this server reads version " +
-                                  std::to_string(kSchemaVersion) + " (move the file away to start a new store)");
+      throw InputError(path_, "keyframe store of schema version " + std::to_string(version) +
+                                  "; this server reads version " + std::to_string(kSchemaVersion) +
+                                  " (move the file away to start a new store)");
   }
 
   // WAL: a commit appends the transaction's pages to the -wal file and marks it committed with a
@@ -291,7 +304,8 @@ void KeyframeStore::open_or_create() {
     }
     sqlite3_finalize(s);
     if (r != SQLITE_OK) throw fail("cannot switch the keyframe store to WAL mode", r);
-    if (mode != "wal") throw InputError(path_, "cannot switch the keyframe store to WAL mode (journal mode is '" + mode + "')");
+    if (mode != "wal")
+      throw InputError(path_, "cannot switch the keyframe store to WAL mode (journal mode is '" + mode + "')");
   }
   exec("PRAGMA synchronous=NORMAL", "cannot configure the keyframe store");
   // After a checkpoint, a WAL that grew larger than this is truncated back.
@@ -300,9 +314,9 @@ void KeyframeStore::open_or_create() {
   exec("PRAGMA cell_size_check=ON", "cannot configure the keyframe store");
 
   if (fresh) {
-    const std::string sql = std::string("BEGIN IMMEDIATE;") + kSchema + "PRAGMA application_id=" +
-                            std::to_string(kApplicationId) + ";PRAGMA user_version=" + std::to_string(kSchemaVersion) +
-                            ";COMMIT;";
+    const std::string sql = std::string("BEGIN IMMEDIATE;") + kSchema +
+                            "PRAGMA application_id=" + std::to_string(kApplicationId) +
+                            ";PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";COMMIT;";
     exec(sql.c_str(), "cannot create the keyframe store");
   } else {
     // Takes the exclusive lock now rather than at the first put.
@@ -327,10 +341,12 @@ void KeyframeStore::open_or_create() {
   prepare("SELECT count(*), coalesce(sum(length(rgb) + length(depth)), 0) FROM keyframes", &st_->counters);
   prepare(
       "INSERT OR REPLACE INTO cameras(client, fx, fy, cx, cy, k1, k2, p1, p2, k3, width, height, depth_factor, "
-      "depth_scale_correction, readout_time, name) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
+      "depth_scale_correction, readout_time, name) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, "
+      "?15, ?16)",
       &st_->put_camera);
   prepare(
-      "SELECT fx, fy, cx, cy, k1, k2, p1, p2, k3, width, height, depth_factor, depth_scale_correction, readout_time, name "
+      "SELECT fx, fy, cx, cy, k1, k2, p1, p2, k3, width, height, depth_factor, depth_scale_correction, readout_time, "
+      "name "
       "FROM cameras WHERE client = ?1",
       &st_->camera);
 
@@ -415,9 +431,10 @@ PutStatus KeyframeStore::put(const KeyframeRecord& record) {
       const std::uint64_t held = stats_.payload_bytes;
       s.unlock();
       if (first)
-        logger("dense")->warn("keyframe store {} is full ({} of {} bytes of images): new keyframes' images are refused, "
-                              "stored ones are kept (--dense-store-max-mb)",
-                              path_, held, config_.max_bytes);
+        logger("dense")->warn(
+            "keyframe store {} is full ({} of {} bytes of images): new keyframes' images are refused, "
+            "stored ones are kept (--dense-store-max-mb)",
+            path_, held, config_.max_bytes);
       return PutStatus::kFull;
     }
   }

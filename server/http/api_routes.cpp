@@ -86,7 +86,8 @@ void reply_trajectories_json(const CachedState& state, const std::vector<ClientI
 void get_trajectories(const ApiContext& ctx, const Req& req, Res& res) {
   const auto state = ctx.cache.get();
   const std::string format = param_or(req, "format", "json");
-  if (format != "tum" && format != "json") throw std::invalid_argument("format must be tum or json, got '" + format + "'");
+  if (format != "tum" && format != "json")
+    throw std::invalid_argument("format must be tum or json, got '" + format + "'");
   const auto ids = trajectory_clients(*state, req, res);
   if (!ids) return;
   if (format == "tum") return reply_trajectories_tum(*state, *ids, res);
@@ -137,9 +138,11 @@ void reply_points_json(const SelectedPoints& selected, Res& res) {
 void get_map_points(const ApiContext& ctx, const Req& req, Res& res) {
   const auto state = ctx.cache.get();
   const std::string format = param_or(req, "format", "json");
-  if (format != "bin" && format != "json") throw std::invalid_argument("format must be bin or json, got '" + format + "'");
+  if (format != "bin" && format != "json")
+    throw std::invalid_argument("format must be bin or json, got '" + format + "'");
   const auto group = int_param(req, "group", -1, 1 << 30);
-  if (group && !state->groups.count(GroupId::from_value(int(*group)))) return json_error(res, 404, "unknown group " + std::to_string(*group));
+  if (group && !state->groups.count(GroupId::from_value(int(*group))))
+    return json_error(res, 404, "unknown group " + std::to_string(*group));
   const SelectedPoints selected = select_points(*state, group);
   res.set_header("X-Point-Count", std::to_string(selected.points.size()));
   if (format == "bin") return reply_points_bin(selected, res);
@@ -160,8 +163,12 @@ void get_health(const ApiContext& ctx, const Req&, Res& res) {
     reasons.push_back("map snapshots have failed for " + std::to_string(int(state->snapshot_failing_for_s)) +
                       " s (threshold " + std::to_string(int(threshold_s)) + " s): " + state->snapshot_last_error);
   const bool healthy = reasons.empty();
-  json_reply(res, {{"status", healthy ? "ok" : "unhealthy"}, {"reasons", reasons}, {"uptime_s", state->uptime_s},
-                   {"snapshots", state->snapshots_on ? "on" : "off"}, {"snapshot_failing_for_s", state->snapshot_failing_for_s}},
+  json_reply(res,
+             {{"status", healthy ? "ok" : "unhealthy"},
+              {"reasons", reasons},
+              {"uptime_s", state->uptime_s},
+              {"snapshots", state->snapshots_on ? "on" : "off"},
+              {"snapshot_failing_for_s", state->snapshot_failing_for_s}},
              healthy ? 200 : 503);
 }
 

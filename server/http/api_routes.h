@@ -24,7 +24,7 @@ struct ApiRoute {
   Method method;
   const char* pattern;  // httplib's regex, matched whole
   ApiHandler handler;
-  bool guarded;         // input checks and exceptions as JSON 400 / 500 (api_params.h)
+  bool guarded;  // input checks and exceptions as JSON 400 / 500 (api_params.h)
 };
 
 std::vector<ApiRoute> state_routes();  // api_routes.cpp

@@ -30,9 +30,9 @@ namespace cslam::http {
 bool tokens_equal(std::string_view a, std::string_view b);
 
 struct AuthConfig {
-  int max_failures = 10;             // wrong tokens an address may send at once ...
-  double window_s = 60;              // ... the bucket refills completely in this time
-  std::size_t max_tracked = 4096;    // addresses with a partly used bucket
+  int max_failures = 10;           // wrong tokens an address may send at once ...
+  double window_s = 60;            // ... the bucket refills completely in this time
+  std::size_t max_tracked = 4096;  // addresses with a partly used bucket
 };
 
 struct AuthStats {

@@ -111,10 +111,15 @@ nlohmann::json dense_status_json(const DenseService* dense) {
           {"integrate_ms", {{"p50", percentile(st.integrate_ms, 0.5)}, {"max", percentile(st.integrate_ms, 1.0)}}},
           {"cpu_ms", st.integrate_cpu_ms},
           {"last_correction_s", st.last_correction_s},
-          {"store", {{"keyframes", st.store.keyframes}, {"payload_bytes", st.store.payload_bytes},
-                     {"file_bytes", st.store.file_bytes}, {"max_bytes", st.store.max_bytes},
-                     {"stored", st.stored}, {"refused_full", st.store_refused_full}, {"errors", st.store_errors},
-                     {"last_error", st.store.last_error}}}};
+          {"store",
+           {{"keyframes", st.store.keyframes},
+            {"payload_bytes", st.store.payload_bytes},
+            {"file_bytes", st.store.file_bytes},
+            {"max_bytes", st.store.max_bytes},
+            {"stored", st.stored},
+            {"refused_full", st.store_refused_full},
+            {"errors", st.store_errors},
+            {"last_error", st.store.last_error}}}};
 }
 
 bool not_modified(const httplib::Request& req, httplib::Response& res, const std::string& etag) {
@@ -147,8 +152,11 @@ bool dense_on(const DenseContext& ctx, Res& res) {
 void get_status(const DenseContext& ctx, const Req&, Res& res) { json_reply(res, dense_status_json(ctx.dense)); }
 
 nlohmann::json submap_json(const DenseSubmapView& sm) {
-  return {{"id", sm.id}, {"client", sm.client}, {"version", sm.version},
-          {"pose_version", sm.pose_version}, {"T_world_submap", pose_json(sm.T_world_submap)},
+  return {{"id", sm.id},
+          {"client", sm.client},
+          {"version", sm.version},
+          {"pose_version", sm.pose_version},
+          {"T_world_submap", pose_json(sm.T_world_submap)},
           {"keyframes", sm.keyframes.size()},
           {"vertices", sm.mesh ? sm.mesh->vertices.size() : std::size_t(0)},
           {"triangles", sm.mesh ? sm.mesh->triangles.size() : std::size_t(0)},
@@ -171,7 +179,8 @@ void get_submap_index(const DenseContext& ctx, const Req& req, Res& res) {
   std::optional<long> only;
   if (req.has_param("group")) {
     only = strict_long(req.get_param_value("group"));
-    if (!only) return json_error(res, 400, "parameter group must be an integer, got '" + req.get_param_value("group") + "'");
+    if (!only)
+      return json_error(res, 400, "parameter group must be an integer, got '" + req.get_param_value("group") + "'");
   }
   const std::string etag = "\"" + std::to_string(view->version) + (only ? "-" + std::to_string(*only) : "") + "\"";
   if (not_modified(req, res, etag)) return;
@@ -209,7 +218,8 @@ void get_submap_mesh(const DenseContext& ctx, const Req& req, Res& res) {
   const std::string key = "csm-" + std::to_string(sm->id) + "-" + std::to_string(*lod);
   const auto bytes = ctx.products->get(key, sm->version, [&] {
     if (*lod == 0) return encode_csm1(*sm->mesh, std::uint32_t(sm->version));
-    return encode_csm1(simplify_by_clustering(*sm->mesh, sm->voxel_size * float(1 << *lod)), std::uint32_t(sm->version));
+    return encode_csm1(simplify_by_clustering(*sm->mesh, sm->voxel_size * float(1 << *lod)),
+                       std::uint32_t(sm->version));
   });
   res.set_content(*bytes, "application/octet-stream");
 }
@@ -259,7 +269,8 @@ std::string base64(const std::int8_t* data, std::size_t n) {
 }
 
 // Replies with the group's navigation maps, or an error; the maps are built once per version.
-void with_nav_maps(const DenseContext& ctx, const Req& req, Res& res, const std::function<void(int, const NavMaps&)>& reply) {
+void with_nav_maps(const DenseContext& ctx, const Req& req, Res& res,
+                   const std::function<void(int, const NavMaps&)>& reply) {
   if (!dense_on(ctx, res)) return;
   const auto view = ctx.dense->view();
   const auto group = requested_group(req, res, *view);
@@ -272,12 +283,18 @@ void with_nav_maps(const DenseContext& ctx, const Req& req, Res& res, const std:
 void get_occupancy_json(const DenseContext& ctx, const Req& req, Res& res) {
   with_nav_maps(ctx, req, res, [&](int group, const NavMaps& m) {
     if (m.grid.empty()) return json_error(res, 404, "no occupancy grid yet: " + m.grid_error);
-    json_reply(res, {{"group", group}, {"resolution", m.grid.resolution}, {"width", m.grid.width},
-                     {"height", m.grid.height}, {"T_world_grid", pose_json(m.grid.T_world_grid)},
-                     {"up", {m.up.x(), m.up.y(), m.up.z()}}, {"floor", m.floor},
-                     {"cells", {{"occupied", m.stats.cells_occupied}, {"free", m.stats.cells_free},
-                                {"unknown", m.stats.cells_unknown}}},
-                     {"data", base64(m.grid.cells.data(), m.grid.cells.size())}});
+    json_reply(
+        res,
+        {{"group", group},
+         {"resolution", m.grid.resolution},
+         {"width", m.grid.width},
+         {"height", m.grid.height},
+         {"T_world_grid", pose_json(m.grid.T_world_grid)},
+         {"up", {m.up.x(), m.up.y(), m.up.z()}},
+         {"floor", m.floor},
+         {"cells",
+          {{"occupied", m.stats.cells_occupied}, {"free", m.stats.cells_free}, {"unknown", m.stats.cells_unknown}}},
+         {"data", base64(m.grid.cells.data(), m.grid.cells.size())}});
   });
 }
 
@@ -310,7 +327,8 @@ void add_dense_status(const DenseService* dense, nlohmann::json& status, std::st
   status["dense"] = j;
   if (!dense) return;
   const auto line = [&metrics](const char* name, const char* type, const nlohmann::json& v, const char* help) {
-    metrics += std::string("# HELP ") + name + " " + help + "\n# TYPE " + name + " " + type + "\n" + name + " " + v.dump() + "\n";
+    metrics += std::string("# HELP ") + name + " " + help + "\n# TYPE " + name + " " + type + "\n" + name + " " +
+               v.dump() + "\n";
   };
   line("cslam_dense_submaps", "gauge", j["submaps"], "TSDF submaps of the live dense map");
   line("cslam_dense_queue", "gauge", j["queue"], "keyframes waiting for the dense worker");
@@ -321,7 +339,8 @@ void add_dense_status(const DenseService* dense, nlohmann::json& status, std::st
   line("cslam_dense_integrate_ms_p50", "gauge", j["integrate_ms"]["p50"], "integration time per keyframe (ms, median)");
   line("cslam_dense_store_keyframes", "gauge", j["store"]["keyframes"], "keyframes in the image store");
   line("cslam_dense_store_bytes", "gauge", j["store"]["payload_bytes"], "image bytes in the store");
-  line("cslam_dense_store_refused_full_total", "counter", j["store"]["refused_full"], "keyframe images refused: store full");
+  line("cslam_dense_store_refused_full_total", "counter", j["store"]["refused_full"],
+       "keyframe images refused: store full");
   line("cslam_dense_store_errors_total", "counter", j["store"]["errors"], "failed store writes");
 }
 
@@ -359,7 +378,8 @@ HttpServer::HeldFramesSource held_frames_source(const DenseService* dense) {
 }
 
 void add_dense_routes(httplib::Server& server, const DenseService* dense) {
-  const DenseContext context{dense, std::make_shared<ProductCache<std::string>>(), std::make_shared<ProductCache<NavMaps>>()};
+  const DenseContext context{dense, std::make_shared<ProductCache<std::string>>(),
+                             std::make_shared<ProductCache<NavMaps>>()};
   const std::pair<const char*, DenseHandler> routes[] = {
       {"/api/dense/status", get_status},
       {"/api/dense/submaps", get_submap_index},

@@ -16,7 +16,11 @@ namespace cslam::http {
 class BufferedStream : public httplib::Stream {
  public:
   BufferedStream(Channel& channel, std::string request, std::string ip, int port, double write_timeout_s)
-      : channel_(channel), in_(std::move(request)), ip_(std::move(ip)), port_(port), write_timeout_s_(write_timeout_s) {}
+      : channel_(channel),
+        in_(std::move(request)),
+        ip_(std::move(ip)),
+        port_(port),
+        write_timeout_s_(write_timeout_s) {}
   bool is_readable() const override { return pos_ < in_.size(); }
   bool is_writable() const override { return !failed_; }
   ssize_t read(char* ptr, size_t size) override {

@@ -49,7 +49,7 @@ struct HttpGuard::Connection {
   Clock::time_point idle_since;     // end of the last response / accept
   bool in_request = false;          // bytes of a request (or a TLS handshake) have arrived
   bool continue_sent = false;
-  bool want_write = false;          // TLS wants the socket writable before it can go on
+  bool want_write = false;  // TLS wants the socket writable before it can go on
   std::size_t served = 0;
   int fd() const { return channel->fd(); }
 };
@@ -78,7 +78,8 @@ int HttpGuard::bind(const std::string& host, int port) { return listen_socket(ho
 
 void HttpGuard::start() {
   if (listen_fd_ < 0 || loop_thread_.joinable()) return;
-  for (std::size_t i = 0; i < std::max<std::size_t>(1, config_.workers); ++i) workers_.emplace_back([this] { worker(); });
+  for (std::size_t i = 0; i < std::max<std::size_t>(1, config_.workers); ++i)
+    workers_.emplace_back([this] { worker(); });
   loop_thread_ = std::thread([this] { loop(); });
 }
 
@@ -372,7 +373,7 @@ std::unique_ptr<HttpGuard::Job> HttpGuard::next_job() {
 void HttpGuard::hand_back(std::unique_ptr<Connection> c) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (stop_) return;  // closed here
+    if (stop_) return;                  // closed here
     returned_.push_back(std::move(c));  // back to the event loop, with its channel
   }
   const char w = 'r';

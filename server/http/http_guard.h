@@ -33,16 +33,16 @@ struct pollfd;
 namespace cslam::http {
 
 struct GuardConfig {
-  double request_deadline_s = 5.0;        // whole request (headers + body) from its first byte
+  double request_deadline_s = 5.0;  // whole request (headers + body) from its first byte
   std::size_t max_header_count = 100;
-  std::size_t max_header_bytes = 32 * 1024;  // request line + headers
-  std::size_t max_body_bytes = 64 * 1024;    // Content-Length or decoded chunked body
-  std::size_t max_connections = 512;         // open connections; more are answered 503 and closed
+  std::size_t max_header_bytes = 32 * 1024;   // request line + headers
+  std::size_t max_body_bytes = 64 * 1024;     // Content-Length or decoded chunked body
+  std::size_t max_connections = 512;          // open connections; more are answered 503 and closed
   std::size_t keep_alive_max_requests = 100;  // then "Connection: close"
-  double keep_alive_idle_s = 5.0;            // an idle keep-alive connection is closed after this
-  std::size_t workers = 4;                   // threads running handlers (see docs/http.md)
-  std::size_t queue_capacity = 64;           // complete requests waiting for a worker; more: 503
-  double write_timeout_s = 5.0;              // a response that cannot be written in this time is dropped
+  double keep_alive_idle_s = 5.0;             // an idle keep-alive connection is closed after this
+  std::size_t workers = 4;                    // threads running handlers (see docs/http.md)
+  std::size_t queue_capacity = 64;            // complete requests waiting for a worker; more: 503
+  double write_timeout_s = 5.0;               // a response that cannot be written in this time is dropped
 };
 
 struct GuardStats {
@@ -75,7 +75,7 @@ class HttpGuard {
   void loop();
   bool adopt_returned();  // false once stopping
   void dispatch_buffered();
-  bool poll_once();       // false if poll failed
+  bool poll_once();  // false if poll failed
   // Fills the poll set (wake pipe, listening socket, connections); returns the poll timeout (ms).
   // `active` gets the connections with TLS bytes already decrypted (readable whatever poll says).
   int poll_set(std::vector<pollfd>& fds, std::vector<int>& active) const;
@@ -83,8 +83,8 @@ class HttpGuard {
   void expire_deadlines();
   std::chrono::steady_clock::time_point deadline(const Connection& c) const;
   void worker();
-  std::unique_ptr<Job> next_job();  // null once stopping
-  void serve(Job& job);   // resets job.connection if the connection is to be closed
+  std::unique_ptr<Job> next_job();                // null once stopping
+  void serve(Job& job);                           // resets job.connection if the connection is to be closed
   void hand_back(std::unique_ptr<Connection> c);  // a kept-alive connection, to the event loop
   void accept_all();
   void adopt(int fd, const std::string& ip, int port);  // an accepted socket
@@ -96,7 +96,7 @@ class HttpGuard {
   bool try_dispatch(Connection& c);
   bool answer_then_close(Connection& c);  // the peer half-closed after a request
   void send_continue_if_expected(Connection& c);
-  void refuse(Connection& c, Parse verdict);  // answers a request that broke a limit, and closes
+  void refuse(Connection& c, Parse verdict);    // answers a request that broke a limit, and closes
   void enqueue(Connection& c, Parsed& parsed);  // hands a complete request to the workers
   void reply_and_close(Connection& c, int status, const char* text);
   void close_connection(int fd);

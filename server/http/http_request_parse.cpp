@@ -21,7 +21,8 @@ std::string trim(const std::string& s) {
 }
 
 // Decodes a chunked body starting at `pos`; kIncomplete until the last chunk and trailers arrived.
-Parse decode_chunked(const std::string& buf, std::size_t pos, std::size_t max_body, std::string* body, std::size_t* end) {
+Parse decode_chunked(const std::string& buf, std::size_t pos, std::size_t max_body, std::string* body,
+                     std::size_t* end) {
   body->clear();
   for (;;) {
     const auto eol = buf.find("\r\n", pos);
@@ -29,7 +30,8 @@ Parse decode_chunked(const std::string& buf, std::size_t pos, std::size_t max_bo
     std::string size_text = buf.substr(pos, eol - pos);
     if (const auto semi = size_text.find(';'); semi != std::string::npos) size_text.resize(semi);
     size_text = trim(size_text);
-    if (size_text.empty() || size_text.size() > 8 || size_text.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+    if (size_text.empty() || size_text.size() > 8 ||
+        size_text.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
       return Parse::kBad;
     const std::size_t n = std::stoul(size_text, nullptr, 16);
     if (body->size() + n > max_body) return Parse::kBodyTooLarge;
@@ -53,7 +55,8 @@ Parse decode_chunked(const std::string& buf, std::size_t pos, std::size_t max_bo
 }
 
 // Splits the header block (request line first) into lines, within the header limits.
-Parse header_lines(const std::string& buf, const GuardConfig& cfg, std::vector<std::string>* lines, std::size_t* header_end) {
+Parse header_lines(const std::string& buf, const GuardConfig& cfg, std::vector<std::string>* lines,
+                   std::size_t* header_end) {
   *header_end = buf.find("\r\n\r\n");
   if (*header_end == std::string::npos) {
     if (buf.size() > cfg.max_header_bytes) return Parse::kHeaderTooLarge;
@@ -83,7 +86,8 @@ Parse scan_header(const std::string& line, HeaderScan* h, Parsed* out) {
   if (colon == std::string::npos || colon == 0) return Parse::kBad;
   const std::string name = lower(trim(line.substr(0, colon))), value = trim(line.substr(colon + 1));
   if (name == "content-length") {
-    if (value.empty() || value.size() > 18 || value.find_first_not_of("0123456789") != std::string::npos) return Parse::kBad;
+    if (value.empty() || value.size() > 18 || value.find_first_not_of("0123456789") != std::string::npos)
+      return Parse::kBad;
     const long long v = std::stoll(value);
     if (h->content_length >= 0 && v != h->content_length) return Parse::kBad;
     h->content_length = v;

@@ -14,7 +14,7 @@ enum class Parse { kIncomplete, kComplete, kHeaderTooLarge, kBodyTooLarge, kBad 
 struct Parsed {
   std::string request;  // normalised: request line, headers, Content-Length, body
   std::size_t consumed = 0;
-  bool close = false;   // the client asked for Connection: close (or HTTP/1.0 without keep-alive)
+  bool close = false;  // the client asked for Connection: close (or HTTP/1.0 without keep-alive)
   bool expect_continue = false;
 };
 

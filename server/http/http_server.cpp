@@ -27,7 +27,8 @@ std::string read_token_file(const std::string& path) {
   std::string line;
   std::getline(in, line);
   const auto b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
-  if (b == std::string::npos) throw ConfigError("cslam-server: --http-token-file " + path + " has no token on its first line");
+  if (b == std::string::npos)
+    throw ConfigError("cslam-server: --http-token-file " + path + " has no token on its first line");
   return line.substr(b, e - b + 1);
 }
 
@@ -40,32 +41,45 @@ void HttpConfig::validate() const {
   if (!enabled || loopback()) return;
   const std::string where = "cslam-server: --http-bind " + (bind.empty() ? std::string("(all addresses)") : bind);
   if (token.empty())
-    throw ConfigError(where + " reaches beyond this machine: give --http-token or --http-token-file (every /api/* and "
+    throw ConfigError(where +
+                      " reaches beyond this machine: give --http-token or --http-token-file (every /api/* and "
                       "/metrics request must then carry it), or bind 127.0.0.1");
   if (token.size() < kMinExposedTokenLength)
     throw ConfigError(where + " reaches beyond this machine: the token must have at least " +
                       std::to_string(kMinExposedTokenLength) + " characters (e.g. head -c 24 /dev/urandom | base64)");
   if (tls_cert.empty() && !insecure)
-    throw ConfigError(where + " would send the token and the maps in clear text: give --http-cert and --http-key "
+    throw ConfigError(where +
+                      " would send the token and the maps in clear text: give --http-cert and --http-key "
                       "(TLS), or --http-insecure (e.g. behind a TLS-terminating proxy)");
 }
 
 void declare_options(CliArgs& cli) {
   cli.option("http", "HTTP status API and web viewer port (0: any free port, off: disabled)", "8080")
-      .option("http-bind", "address the HTTP server binds (beyond loopback: --http-token and TLS, or --http-insecure)", "127.0.0.1")
+      .option("http-bind", "address the HTTP server binds (beyond loopback: --http-token and TLS, or --http-insecure)",
+              "127.0.0.1")
       .option("http-token", "require 'Authorization: Bearer TOKEN' on every /api/* and /metrics request", "")
-      .option("http-token-file", "read --http-token from the first line of this file (keeps it out of the process list)", "")
+      .option("http-token-file",
+              "read --http-token from the first line of this file (keeps it out of the process list)", "")
       .option("http-cert", "serve HTTPS with this PEM certificate (chain); needs --http-key", "")
       .option("http-key", "the PEM private key (unencrypted) of --http-cert", "")
-      .flag("http-insecure", "allow plain HTTP with a --http-bind beyond loopback (e.g. behind a TLS-terminating proxy)")
+      .flag("http-insecure",
+            "allow plain HTTP with a --http-bind beyond loopback (e.g. behind a TLS-terminating proxy)")
       .option("web-root", "folder of the web viewer (index.html, viewer.js, node_modules/three)", CSLAM_WEB_DIR)
       .option("http-port-file", "write the bound HTTP port to this file once listening", "")
-      .option("datasets-dir", "reconstruction over HTTP: per-client TUM folders DIR/<name>, DIR/robot_K or DIR/client_K", "")
-      .option("recon-max-mb", "memory budget of one reconstruction request (MB): refused (413) if its estimate is over, stopped if the server grows more while it runs", "768")
+      .option("datasets-dir",
+              "reconstruction over HTTP: per-client TUM folders DIR/<name>, DIR/robot_K or DIR/client_K", "")
+      .option("recon-max-mb",
+              "memory budget of one reconstruction request (MB): refused (413) if its estimate is over, stopped if the "
+              "server grows more while it runs",
+              "768")
       .option("recon-keep-jobs", "finished reconstruction jobs kept for download (the oldest go first)", "8")
       .option("recon-keep-s", "seconds a finished reconstruction job is kept for download", "900")
-      .option("health-snapshot-failing-s", "GET /api/health answers 503 once map snapshots have failed for this many seconds", "120")
-      .option("recon-camera", "camera preset or file for the reconstruction datasets (default: each DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says, else tum1)", "");
+      .option("health-snapshot-failing-s",
+              "GET /api/health answers 503 once map snapshots have failed for this many seconds", "120")
+      .option("recon-camera",
+              "camera preset or file for the reconstruction datasets (default: each DIR/camera.yaml, else its "
+              "calibration.txt (fx fy cx cy), else the TUM camera its folder name says, else tum1)",
+              "");
 }
 
 namespace {
@@ -96,7 +110,8 @@ void read_limits(const CliArgs& cli, HttpConfig& c) {
   c.recon.max_age_s = cli.get_double("recon-keep-s");
   if (!(c.recon.max_age_s >= 0)) throw ConfigError("cslam-server: --recon-keep-s must be >= 0");
   c.health_snapshot_failing_s = cli.get_double("health-snapshot-failing-s");
-  if (!(c.health_snapshot_failing_s > 0)) throw ConfigError("cslam-server: --health-snapshot-failing-s must be positive");
+  if (!(c.health_snapshot_failing_s > 0))
+    throw ConfigError("cslam-server: --health-snapshot-failing-s must be positive");
 }
 
 }  // namespace
@@ -147,8 +162,10 @@ bool HttpServer::start() {
   auto log = logger("http");
   if (!config_.enabled) return false;
   if (!std::filesystem::exists(std::filesystem::path(config_.web_root) / "node_modules/three/build/three.module.js"))
-    log->warn("three.js not found under {}/node_modules (run scripts/install-web.sh): the viewer shows the client "
-              "table only", config_.web_root);
+    log->warn(
+        "three.js not found under {}/node_modules (run scripts/install-web.sh): the viewer shows the client "
+        "table only",
+        config_.web_root);
   guard_ = std::make_unique<HttpGuard>(*server_, config_.guard, config_.tls.get());
   port_ = guard_->bind(config_.bind, config_.port);
   if (port_ < 0) {
@@ -206,7 +223,8 @@ void HttpServer::request_handlers() {
     return httplib::Server::HandlerResponse::Unhandled;
   });
   s.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
-    if (res.body.empty()) json_error(res, res.status, res.status == 404 ? "no such resource: " + req.path : "request failed");
+    if (res.body.empty())
+      json_error(res, res.status, res.status == 404 ? "no such resource: " + req.path : "request failed");
   });
   s.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
     std::string what = "internal error";
@@ -227,10 +245,12 @@ bool HttpServer::refuse_unauthorised(const httplib::Request& req, httplib::Respo
   if (!api || !auth_.enabled()) return false;
   const AuthGate::Result r = auth_.check(req.remote_addr, req.get_header_value("Authorization"));
   switch (r.verdict) {
-    case AuthGate::Verdict::kOk: return false;
+    case AuthGate::Verdict::kOk:
+      return false;
     case AuthGate::Verdict::kThrottled:
       res.set_header("Retry-After", std::to_string(r.retry_after_s));
-      json_error(res, 429, "too many wrong tokens from this address: retry after " + std::to_string(r.retry_after_s) + " s");
+      json_error(res, 429,
+                 "too many wrong tokens from this address: retry after " + std::to_string(r.retry_after_s) + " s");
       return true;
     default:
       res.set_header("WWW-Authenticate", "Bearer");
@@ -257,7 +277,8 @@ void HttpServer::static_routes() {
     file(std::string(req.matches[1]), "text/javascript; charset=utf-8")(req, res);
   });
   // three.js (r160 is one ES module file) from the npm install, never from the internet.
-  server_->Get("/vendor/three.module.js", file("node_modules/three/build/three.module.js", "text/javascript; charset=utf-8"));
+  server_->Get("/vendor/three.module.js",
+               file("node_modules/three/build/three.module.js", "text/javascript; charset=utf-8"));
 }
 
 }  // namespace cslam::http

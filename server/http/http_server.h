@@ -20,7 +20,7 @@ namespace httplib {
 class Server;
 struct Request;
 struct Response;
-}
+}  // namespace httplib
 
 namespace cslam::http {
 
@@ -29,22 +29,22 @@ class RequestRouter;  // server/http/request_router.h
 
 struct HttpConfig {
   bool enabled = true;
-  int port = 8080;                // 0: any free port (see HttpServer::port())
+  int port = 8080;  // 0: any free port (see HttpServer::port())
   std::string bind = "127.0.0.1";
   std::string token;              // non-empty: every /api/* and /metrics request needs "Authorization: Bearer TOKEN"
   std::string tls_cert, tls_key;  // PEM files: the server speaks HTTPS only
   bool insecure = false;          // --http-insecure: plain HTTP beyond loopback (e.g. behind a TLS proxy)
   std::shared_ptr<const TlsContext> tls;  // loaded from tls_cert/tls_key by config_from (else by HttpServer)
-  AuthConfig auth;                // failed-token rate limit per source address
-  std::string web_root;           // folder with index.html, viewer.js, node_modules/three
-  std::string port_file;          // written with the bound port once listening
-  std::string datasets_dir;       // reconstruction: DIR/<name>, DIR/robot_K or DIR/client_K per client
-  std::string recon_camera;  // camera preset or file for the datasets; empty: io/dataset_camera.h's rule
+  AuthConfig auth;                        // failed-token rate limit per source address
+  std::string web_root;                   // folder with index.html, viewer.js, node_modules/three
+  std::string port_file;                  // written with the bound port once listening
+  std::string datasets_dir;               // reconstruction: DIR/<name>, DIR/robot_K or DIR/client_K per client
+  std::string recon_camera;               // camera preset or file for the datasets; empty: io/dataset_camera.h's rule
   CacheConfig cache;
-  GuardConfig guard;              // request deadline, header/body caps, keep-alive, worker pool
-  ReconJobsConfig recon;          // reconstruction budget (--recon-max-mb), finished jobs kept
+  GuardConfig guard;                       // request deadline, header/body caps, keep-alive, worker pool
+  ReconJobsConfig recon;                   // reconstruction budget (--recon-max-mb), finished jobs kept
   double health_snapshot_failing_s = 120;  // GET /api/health: 503 once snapshots fail this long
-  bool loopback() const;  // bind is 127.*, localhost or ::1
+  bool loopback() const;                   // bind is 127.*, localhost or ::1
   // Throws ConfigError (one line) unless the exposure is deliberate: beyond loopback a token of at
   // least 16 characters is required, and TLS (tls_cert + tls_key) unless `insecure`.
   void validate() const;
@@ -104,8 +104,8 @@ class HttpServer {
   AuthGate auth_;
   ReconJobs jobs_;
   HeldFramesSource held_frames_;
-  std::unique_ptr<RequestRouter> server_;    // routes only: never listens itself
-  std::unique_ptr<HttpGuard> guard_;         // owns the socket, hands complete requests to httplib
+  std::unique_ptr<RequestRouter> server_;  // routes only: never listens itself
+  std::unique_ptr<HttpGuard> guard_;       // owns the socket, hands complete requests to httplib
   int port_ = -1;
 };
 

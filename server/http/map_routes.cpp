@@ -44,7 +44,8 @@ void post_load(MapStore& store, const std::string& token, const Req& req, Res& r
   } catch (const std::exception&) {
     return json_error(res, 400, kLoadBodyError);
   }
-  if (!body.is_object() || !body.contains("file") || !body["file"].is_string()) return json_error(res, 400, kLoadBodyError);
+  if (!body.is_object() || !body.contains("file") || !body["file"].is_string())
+    return json_error(res, 400, kLoadBodyError);
   try {
     const std::size_t n = store.load(body["file"].get<std::string>());
     json_reply(res, {{"loaded_clients", n}});

@@ -17,13 +17,13 @@ namespace cslam::http {
 
 struct NetClientStatus {
   ClientId id = 0;
-  std::string connection;  // active | disconnected | done
+  std::string connection;                         // active | disconnected | done
   std::map<std::string, std::uint64_t> counters;  // frames_accepted, bytes_received, messages, ...
   std::map<std::string, std::uint64_t> dropped;   // reason -> count
 };
 
 struct NetStatus {
-  std::map<std::string, std::uint64_t> totals;       // bytes_received, frames_accepted, sessions, ...
+  std::map<std::string, std::uint64_t> totals;        // bytes_received, frames_accepted, sessions, ...
   std::map<std::string, std::uint64_t> unattributed;  // reason -> count (peers without a session)
   std::map<std::string, std::uint64_t> transport;     // accepted / disconnected / auth_failed
   std::map<std::string, double> gauges;               // receive_stall_max_ms, decode_ms_max, ...

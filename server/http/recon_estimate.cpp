@@ -15,9 +15,12 @@ namespace {
 
 // The depth image nearest to `t` (within 0.1 s), or end.
 std::vector<TimedFile>::const_iterator nearest_depth(const std::vector<TimedFile>& depth, double t) {
-  auto it = std::lower_bound(depth.begin(), depth.end(), t, [](const TimedFile& f, double x) { return f.timestamp < x; });
-  if (it == depth.end()) it = std::prev(it);
-  else if (it != depth.begin() && t - std::prev(it)->timestamp < it->timestamp - t) it = std::prev(it);
+  auto it =
+      std::lower_bound(depth.begin(), depth.end(), t, [](const TimedFile& f, double x) { return f.timestamp < x; });
+  if (it == depth.end())
+    it = std::prev(it);
+  else if (it != depth.begin() && t - std::prev(it)->timestamp < it->timestamp - t)
+    it = std::prev(it);
   return std::abs(it->timestamp - t) > 0.1 ? depth.end() : it;
 }
 
@@ -117,7 +120,8 @@ ReconEstimate estimate_recon_memory(const std::vector<DatasetPoses>& sources, co
   const double leaf = config.voxel_size;
   const double cloud_points = std::min(e.surface_m2 / (leaf * leaf), double(e.frames) * e.points_per_frame);
   e.images = 4 * largest_image * 5;  // BGR + 16-bit depth: a decoded pair and the one loading
-  e.chunk_points = std::min<double>(std::max(1, config.chunk_frames), double(e.frames)) * e.points_per_frame * kChunkPointBytes;
+  e.chunk_points =
+      std::min<double>(std::max(1, config.chunk_frames), double(e.frames)) * e.points_per_frame * kChunkPointBytes;
   e.cloud = cloud_points * kCloudPointBytes;
   e.ply = cloud_points * 15;  // binary: xyz float, rgb
   if (config.build_mesh) add_mesh_estimate(config, e);

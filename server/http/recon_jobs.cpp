@@ -23,7 +23,7 @@ struct ReconJobs::Job {
   std::atomic<int> done{0}, total{0}, used{0};
   std::atomic<double> peak_growth_mb{0};
   double estimate_mb = 0;
-  std::thread thread;  // joined by expire() or ~ReconJobs, never by itself
+  std::thread thread;        // joined by expire() or ~ReconJobs, never by itself
   mutable std::mutex mutex;  // guards the fields below
   std::string state = "queued", message;
   double elapsed_s = 0;
@@ -45,7 +45,8 @@ constexpr double kMB = 1024.0 * 1024.0;
 // Our PLY writers take a path: write to a private temp file, read it back, remove it.
 template <typename Writer>
 std::shared_ptr<const std::string> ply_bytes(const std::string& tag, Writer write) {
-  const auto path = std::filesystem::temp_directory_path() / ("cslam-http-" + std::to_string(::getpid()) + "-" + tag + ".ply");
+  const auto path =
+      std::filesystem::temp_directory_path() / ("cslam-http-" + std::to_string(::getpid()) + "-" + tag + ".ply");
   write(path.string());
   std::ifstream in(path, std::ios::binary);
   std::ostringstream bytes;
@@ -173,13 +174,15 @@ void ReconJobs::keep_products(const Job& job, const DenseResult& result, Outcome
     return;
   }
   out.cloud = ply_bytes(job.id + "-cloud", [&](const std::string& p) { write_ply(p, result.cloud); });
-  if (out.triangles > 0) out.mesh = ply_bytes(job.id + "-mesh", [&](const std::string& p) { write_ply_mesh(p, result.mesh); });
+  if (out.triangles > 0)
+    out.mesh = ply_bytes(job.id + "-mesh", [&](const std::string& p) { write_ply_mesh(p, result.mesh); });
   out.message = std::to_string(result.counts.used) + " frames used, " + std::to_string(out.points) + " points";
 }
 
 ReconJobs::Outcome ReconJobs::execute(Job& job, const ReconFunction& reconstruct, const DenseConfig& config) {
-  const MemoryWatch memory(config_.memory_probe ? config_.memory_probe : std::function<std::size_t()>(server::resident_bytes),
-                           config_.max_mb, job.peak_growth_mb);
+  const MemoryWatch memory(
+      config_.memory_probe ? config_.memory_probe : std::function<std::size_t()>(server::resident_bytes),
+      config_.max_mb, job.peak_growth_mb);
   Outcome out;
   try {
     DenseResult result = reconstruct(config, [&](const DenseProgress& p) {
@@ -275,7 +278,7 @@ void ReconJobs::expire() {
   if (gone.empty()) return;
   for (auto& job : gone)
     if (job->thread.joinable()) job->thread.join();  // finished: returns at once
-  gone.clear();  // the PLY bytes go here (unless a download still holds them)
+  gone.clear();                                      // the PLY bytes go here (unless a download still holds them)
   server::release_free_memory();  // a finished job's memory shows as released (tcmalloc keeps freed spans)
 }
 
@@ -302,7 +305,8 @@ std::optional<ReconJobView> ReconJobs::view(const std::string& id) const {
   v.points = job->points;
   v.triangles = job->triangles;
   v.bytes_held = job->bytes_held();
-  v.elapsed_s = job->finished() ? job->elapsed_s : std::chrono::duration<double>(SteadyClock::now() - job->start).count();
+  v.elapsed_s =
+      job->finished() ? job->elapsed_s : std::chrono::duration<double>(SteadyClock::now() - job->start).count();
   v.progress = v.state == "done" ? 1.0 : v.frames_total > 0 ? double(v.frames_done) / v.frames_total : 0.0;
   return v;
 }

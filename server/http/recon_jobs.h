@@ -39,9 +39,9 @@ struct ReconJobsConfig {
 // What a request would take, by part (bytes). An estimate meant to err high on the scenes
 // measured (docs/security.md gives its accuracy); the running check is the backstop.
 struct ReconEstimate {
-  std::size_t frames = 0;                 // poses of the request (at most one frame each)
-  double points_per_frame = 0;            // pixels at the stride
-  double surface_m2 = 0;                  // surface the frames can see (capped by the scene extent)
+  std::size_t frames = 0;       // poses of the request (at most one frame each)
+  double points_per_frame = 0;  // pixels at the stride
+  double surface_m2 = 0;        // surface the frames can see (capped by the scene extent)
   double images = 0, chunk_points = 0, cloud = 0, tsdf = 0, mesh = 0, ply = 0;
   double total_bytes() const { return images + chunk_points + cloud + tsdf + mesh + ply; }
   double total_mb() const { return total_bytes() / (1024.0 * 1024.0); }
@@ -56,15 +56,15 @@ using ReconFunction = std::function<DenseResult(const DenseConfig&, const DenseP
 struct ReconJobView {
   std::string id;
   int group = -1;
-  std::string state;  // queued, running, done, failed, cancelled
+  std::string state;    // queued, running, done, failed, cancelled
   double progress = 0;  // 0..1
   int frames_done = 0, frames_total = 0, frames_used = 0;
   std::size_t points = 0, triangles = 0;
   std::string message;
   double elapsed_s = 0;
-  double estimate_mb = 0;     // estimate_recon_memory before it started
-  double peak_growth_mb = 0;  // largest resident-memory growth seen while it ran
-  std::size_t bytes_held = 0; // PLY bytes kept for download
+  double estimate_mb = 0;      // estimate_recon_memory before it started
+  double peak_growth_mb = 0;   // largest resident-memory growth seen while it ran
+  std::size_t bytes_held = 0;  // PLY bytes kept for download
 };
 
 struct ReconStats {
@@ -77,9 +77,9 @@ struct ReconStats {
 struct ReconStart {
   enum class Outcome { kStarted, kBusy, kOverBudget };
   Outcome outcome = Outcome::kStarted;
-  std::string id;        // kStarted
+  std::string id;  // kStarted
   ReconEstimate estimate;
-  std::string message;   // kBusy / kOverBudget: why
+  std::string message;  // kBusy / kOverBudget: why
 };
 
 class ReconJobs {
@@ -106,7 +106,7 @@ class ReconJobs {
 
  private:
   struct Job;
-  struct Outcome;  // what a job ends with: state, message, products
+  struct Outcome;                                                     // what a job ends with: state, message, products
   void run(Job& job, ReconFunction reconstruct, DenseConfig config);  // the job's thread
   Outcome execute(Job& job, const ReconFunction& reconstruct, const DenseConfig& config);
   static void keep_products(const Job& job, const DenseResult& result, Outcome& out);

@@ -19,10 +19,18 @@ using Res = httplib::Response;
 void reply_started(const ApiContext& ctx, Res& res, int group, const ReconStart& started) {
   if (started.outcome == ReconStart::Outcome::kBusy) return json_error(res, 409, started.message);
   if (started.outcome == ReconStart::Outcome::kOverBudget)
-    return json_reply(res, {{"error", started.message}, {"status", 413}, {"estimate_mb", started.estimate.total_mb()},
-                            {"max_mb", ctx.jobs.config().max_mb}}, 413);
-  json_reply(res, {{"job", started.id}, {"group", group}, {"status_url", "/api/reconstruction/" + started.id},
-                   {"estimate_mb", started.estimate.total_mb()}}, 202);
+    return json_reply(res,
+                      {{"error", started.message},
+                       {"status", 413},
+                       {"estimate_mb", started.estimate.total_mb()},
+                       {"max_mb", ctx.jobs.config().max_mb}},
+                      413);
+  json_reply(res,
+             {{"job", started.id},
+              {"group", group},
+              {"status_url", "/api/reconstruction/" + started.id},
+              {"estimate_mb", started.estimate.total_mb()}},
+             202);
 }
 
 // ?group=G, or the largest group; nullopt after replying 404 / 409.
@@ -62,11 +70,13 @@ DenseConfig recon_config(const Req& req) {
 // Without --datasets-dir: the keyframes the server keeps.
 void start_from_held_frames(const ApiContext& ctx, Res& res, int group, const DenseConfig& dc) {
   if (!ctx.held_frames)
-    return json_error(res, 503, "reconstruction needs the clients' images: the dense map is off (--no-dense) and "
-                                "there is no --datasets-dir");
+    return json_error(res, 503,
+                      "reconstruction needs the clients' images: the dense map is off (--no-dense) and "
+                      "there is no --datasets-dir");
   const auto held = ctx.held_frames(group);
   if (!held) return json_error(res, 409, "group " + std::to_string(group) + " has no stored keyframes yet");
-  reply_started(ctx, res, group, ctx.jobs.start(group, held->reconstruct, estimate_recon_memory(held->estimate_inputs, dc), dc));
+  reply_started(ctx, res, group,
+                ctx.jobs.start(group, held->reconstruct, estimate_recon_memory(held->estimate_inputs, dc), dc));
 }
 
 // The client's dataset folder under --datasets-dir: DIR/<name>, DIR/robot_K or DIR/client_K (the
@@ -90,7 +100,8 @@ void start_from_datasets(const ApiContext& ctx, const CachedState& state, Res& r
     const auto traj = state.trajectories.find(id);
     if (traj == state.trajectories.end() || traj->second.empty()) continue;
     const std::string dir = dataset_dir(state, root, id);
-    if (dir.empty()) return json_error(res, 409, "no dataset folder for client " + std::to_string(id) + " under " + root.string());
+    if (dir.empty())
+      return json_error(res, 409, "no dataset folder for client " + std::to_string(id) + " under " + root.string());
     sources.push_back({dir, traj->second, dataset_camera(dir, ctx.config.recon_camera).camera});
   }
   if (sources.empty()) return json_error(res, 409, "group " + std::to_string(group) + " has no poses yet");
@@ -109,11 +120,20 @@ void post_reconstruction(const ApiContext& ctx, const Req& req, Res& res) {
 void get_reconstruction(const ApiContext& ctx, const Req& req, Res& res) {
   const auto v = ctx.jobs.view(req.matches[1]);
   if (!v) return json_error(res, 404, "unknown reconstruction job " + std::string(req.matches[1]));
-  nlohmann::json j = {{"job", v->id},         {"group", v->group},          {"state", v->state},
-                      {"progress", v->progress}, {"frames_done", v->frames_done}, {"frames_total", v->frames_total},
-                      {"frames_used", v->frames_used}, {"points", v->points}, {"triangles", v->triangles},
-                      {"message", v->message},   {"elapsed_s", v->elapsed_s},
-                      {"estimate_mb", v->estimate_mb}, {"peak_growth_mb", v->peak_growth_mb}, {"bytes_held", v->bytes_held}};
+  nlohmann::json j = {{"job", v->id},
+                      {"group", v->group},
+                      {"state", v->state},
+                      {"progress", v->progress},
+                      {"frames_done", v->frames_done},
+                      {"frames_total", v->frames_total},
+                      {"frames_used", v->frames_used},
+                      {"points", v->points},
+                      {"triangles", v->triangles},
+                      {"message", v->message},
+                      {"elapsed_s", v->elapsed_s},
+                      {"estimate_mb", v->estimate_mb},
+                      {"peak_growth_mb", v->peak_growth_mb},
+                      {"bytes_held", v->bytes_held}};
   if (v->state == "done") {
     j["cloud_url"] = "/api/reconstruction/" + v->id + "/cloud.ply";
     if (v->triangles > 0) j["mesh_url"] = "/api/reconstruction/" + v->id + "/mesh.ply";
@@ -126,7 +146,9 @@ void send_ply(const ApiContext& ctx, const Req& req, Res& res, bool mesh) {
   const auto v = ctx.jobs.view(id);
   if (!v) return json_error(res, 404, "unknown reconstruction job " + id);
   const auto bytes = mesh ? ctx.jobs.mesh_ply(id) : ctx.jobs.cloud_ply(id);
-  if (!bytes) return json_error(res, v->state == "done" ? 404 : 409, "job " + id + " is " + v->state + (v->state == "done" ? " without a mesh" : ""));
+  if (!bytes)
+    return json_error(res, v->state == "done" ? 404 : 409,
+                      "job " + id + " is " + v->state + (v->state == "done" ? " without a mesh" : ""));
   res.set_header("Content-Disposition", "attachment; filename=\"" + id + (mesh ? "_mesh" : "_cloud") + ".ply\"");
   res.set_content(*bytes, "application/octet-stream");
 }

@@ -108,9 +108,11 @@ void StatusCache::apply_extra(CachedState& next) {
     last_extra_error_ = error;
   }
   next.status["status_extra_errors"] = extra_errors_;
-  next.metrics += "# HELP cslam_status_extra_errors_total Refreshes whose status/metrics contribution threw.\n"
-                  "# TYPE cslam_status_extra_errors_total counter\n"
-                  "cslam_status_extra_errors_total " + std::to_string(extra_errors_) + "\n";
+  next.metrics +=
+      "# HELP cslam_status_extra_errors_total Refreshes whose status/metrics contribution threw.\n"
+      "# TYPE cslam_status_extra_errors_total counter\n"
+      "cslam_status_extra_errors_total " +
+      std::to_string(extra_errors_) + "\n";
 }
 
 namespace {
@@ -133,7 +135,8 @@ std::pair<double, double> frame_rates(const std::deque<RateSample>& samples) {
 
 std::string StatusCache::connection_of(const ClientSnapshot& c, const NetStatus* net, double now,
                                        const std::deque<RateSample>& samples) {
-  if (samples.size() < 2 || samples[samples.size() - 2].submitted != c.frames_submitted || !last_input_change_.count(c.id))
+  if (samples.size() < 2 || samples[samples.size() - 2].submitted != c.frames_submitted ||
+      !last_input_change_.count(c.id))
     last_input_change_[c.id] = now;
   const bool busy = c.queue_depth > 0 || now - last_input_change_[c.id] < config_.idle_after_s;
   std::string connection = c.frames_submitted == 0 ? "connected" : busy ? "streaming" : "idle";
@@ -182,12 +185,8 @@ void StatusCache::compose(CachedState& next, const SystemSnapshot& snap, const N
     events.push_back(event_json(e));
     ++fusions;
   }
-  next.status = {{"server", "cslam-server"},
-                 {"version", config_.version},
-                 {"uptime_s", snap.uptime_s},
-                 {"generation", next.generation},
-                 {"clients", std::move(clients)},
-                 {"groups", next.groups},
+  next.status = {{"server", "cslam-server"},      {"version", config_.version},    {"uptime_s", snap.uptime_s},
+                 {"generation", next.generation}, {"clients", std::move(clients)}, {"groups", next.groups},
                  {"fusion_events", fusions}};
   if (net) next.status["network"] = network_json(*net);
   next.events_body = nlohmann::json{{"events", std::move(events)}}.dump();
@@ -205,7 +204,8 @@ void StatusCache::add_points(CachedState& next, double now) {
   }
   last_points_t_ = now;
   for (const auto& [group, members] : next.groups)
-    next.points[group] = std::make_shared<const std::vector<ViewerPoint>>(system_.map_points(group, config_.max_map_points));
+    next.points[group] =
+        std::make_shared<const std::vector<ViewerPoint>>(system_.map_points(group, config_.max_map_points));
 }
 
 void StatusCache::refresh() {

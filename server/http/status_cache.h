@@ -24,31 +24,31 @@
 namespace cslam::http {
 
 struct GuardStats;  // server/http/http_guard.h
-class AuthGate;    // server/http/auth_gate.h
+class AuthGate;     // server/http/auth_gate.h
 
 struct CacheConfig {
-  double refresh_hz = 5.0;           // status, events, metrics, trajectories
-  double points_refresh_s = 1.0;     // map points (the heaviest query) at most this often
+  double refresh_hz = 5.0;             // status, events, metrics, trajectories
+  double points_refresh_s = 1.0;       // map points (the heaviest query) at most this often
   std::size_t max_map_points = 20000;  // per group
-  double idle_after_s = 3.0;         // no new frame for this long: connection "idle"
+  double idle_after_s = 3.0;           // no new frame for this long: connection "idle"
   std::string version = "0.1.0";
 };
 
 struct CachedState {
   double uptime_s = 0;
   std::uint64_t generation = 0;
-  nlohmann::json status;                          // GET /api/status
-  std::string status_body;                        // ... serialised once per refresh
-  std::map<ClientId, nlohmann::json> clients;     // body of GET /api/clients/{id} (with pose)
-  std::string events_body;                        // body of GET /api/fusion/events
-  std::string metrics;                            // body of GET /metrics
-  std::map<ClientId, Trajectory> trajectories;    // each in its group's frame
+  nlohmann::json status;                        // GET /api/status
+  std::string status_body;                      // ... serialised once per refresh
+  std::map<ClientId, nlohmann::json> clients;   // body of GET /api/clients/{id} (with pose)
+  std::string events_body;                      // body of GET /api/fusion/events
+  std::string metrics;                          // body of GET /metrics
+  std::map<ClientId, Trajectory> trajectories;  // each in its group's frame
   std::map<ClientId, GroupId> group_of;
   std::map<GroupId, std::vector<ClientId>> groups;
   std::map<GroupId, std::shared_ptr<const std::vector<ViewerPoint>>> points;  // per group, decimated
   // Snapshot writes (from MapStore::stats_json; absent without a store or without --state-dir).
   bool snapshots_on = false;
-  double snapshot_failing_for_s = 0;     // 0 while the newest write succeeded
+  double snapshot_failing_for_s = 0;  // 0 while the newest write succeeded
   std::string snapshot_last_error;
 };
 
@@ -103,9 +103,9 @@ class StatusCache {
   void set_recon_jobs(ReconJobs* jobs) { recon_ = jobs; }
   using StatusExtra = std::function<void(nlohmann::json& status, std::string& metrics)>;
   void set_extra(StatusExtra extra) { extra_ = std::move(extra); }
-  void start();        // starts the refresh thread (refresh() once first)
-  void stop();         // idempotent
-  void refresh();      // one refresh step (also usable without the thread, in tests)
+  void start();    // starts the refresh thread (refresh() once first)
+  void stop();     // idempotent
+  void refresh();  // one refresh step (also usable without the thread, in tests)
   std::shared_ptr<const CachedState> get() const;
 
  private:

@@ -15,7 +15,10 @@ std::string label(const std::string& v) {
   std::string out;
   for (char c : v) {
     if (c == '\\' || c == '"') out += '\\';
-    if (c == '\n') { out += "\\n"; continue; }
+    if (c == '\n') {
+      out += "\\n";
+      continue;
+    }
     out += c;
   }
   return out;
@@ -27,7 +30,8 @@ void head(std::ostringstream& o, const std::string& name, const char* type, cons
 
 // One line per client: name{client="ID",name="NAME"} value(c).
 template <typename F>
-void per_client(std::ostringstream& o, const SystemSnapshot& s, const char* name, const char* type, const char* help, F value) {
+void per_client(std::ostringstream& o, const SystemSnapshot& s, const char* name, const char* type, const char* help,
+                F value) {
   head(o, name, type, help);
   for (const ClientSnapshot& c : s.clients)
     o << name << "{client=\"" << c.id << "\",name=\"" << label(c.name) << "\"} " << value(c) << "\n";
@@ -44,32 +48,38 @@ void frame_counters(std::ostringstream& o, const SystemSnapshot& s) {
              [](const ClientSnapshot& c) { return c.frames_lost; });
   per_client(o, s, "cslam_frames_skipped_total", "counter", "Live frames skipped because a newer one was queued.",
              [](const ClientSnapshot& c) { return c.frames_skipped; });
-  per_client(o, s, "cslam_frames_flow_total", "counter", "Frames tracked as flow frames (optical flow, no ORB extraction).",
+  per_client(o, s, "cslam_frames_flow_total", "counter",
+             "Frames tracked as flow frames (optical flow, no ORB extraction).",
              [](const ClientSnapshot& c) { return c.frames_flow; });
 }
 
 void client_gauges(std::ostringstream& o, const SystemSnapshot& s, const std::map<ClientId, double>& fps) {
-  per_client(o, s, "cslam_fps", "gauge", "Frames processed per second (last seconds).", [&fps](const ClientSnapshot& c) {
-    const auto it = fps.find(c.id);
-    return it == fps.end() ? 0.0 : it->second;
-  });
+  per_client(o, s, "cslam_fps", "gauge", "Frames processed per second (last seconds).",
+             [&fps](const ClientSnapshot& c) {
+               const auto it = fps.find(c.id);
+               return it == fps.end() ? 0.0 : it->second;
+             });
   per_client(o, s, "cslam_queue_depth", "gauge", "Frames queued before the SLAM worker.",
              [](const ClientSnapshot& c) { return c.queue_depth; });
-  per_client(o, s, "cslam_keyframes", "gauge", "Keyframes in the client's map.", [](const ClientSnapshot& c) { return c.keyframes; });
-  per_client(o, s, "cslam_map_points", "gauge", "Map points in the client's map.", [](const ClientSnapshot& c) { return c.map_points; });
-  per_client(o, s, "cslam_group", "gauge", "Fused group id of the client.", [](const ClientSnapshot& c) { return c.group.value(); });
+  per_client(o, s, "cslam_keyframes", "gauge", "Keyframes in the client's map.",
+             [](const ClientSnapshot& c) { return c.keyframes; });
+  per_client(o, s, "cslam_map_points", "gauge", "Map points in the client's map.",
+             [](const ClientSnapshot& c) { return c.map_points; });
+  per_client(o, s, "cslam_group", "gauge", "Fused group id of the client.",
+             [](const ClientSnapshot& c) { return c.group.value(); });
 }
 
 void tracking_states(std::ostringstream& o, const SystemSnapshot& s) {
   head(o, "cslam_tracking_state", "gauge", "1 for the client's current tracking state.");
   for (const ClientSnapshot& c : s.clients)
     for (FrameFate st : {FrameFate::kNotInitialized, FrameFate::kTracked, FrameFate::kLost})
-      o << "cslam_tracking_state{client=\"" << c.id << "\",state=\"" << tracking_label(st) << "\"} " << (c.tracking == st ? 1 : 0)
-        << "\n";
+      o << "cslam_tracking_state{client=\"" << c.id << "\",state=\"" << tracking_label(st) << "\"} "
+        << (c.tracking == st ? 1 : 0) << "\n";
 }
 
 bool gauge_total(const std::string& k) {
-  return k == "sessions" || k == "max_clients" || k == "sessions_reclaiming" || k == "decode_queue" || k == "process_threads";
+  return k == "sessions" || k == "max_clients" || k == "sessions_reclaiming" || k == "decode_queue" ||
+         k == "process_threads";
 }
 
 void net_totals(std::ostringstream& o, const NetStatus& n) {
@@ -85,10 +95,12 @@ void net_totals(std::ostringstream& o, const NetStatus& n) {
 }
 
 void net_events(std::ostringstream& o, const NetStatus& n) {
-  head(o, "cslam_net_unattributed_dropped_total", "counter", "Messages dropped from peers without a session, by reason.");
+  head(o, "cslam_net_unattributed_dropped_total", "counter",
+       "Messages dropped from peers without a session, by reason.");
   for (const auto& [reason, v] : n.unattributed)
     o << "cslam_net_unattributed_dropped_total{reason=\"" << label(reason) << "\"} " << v << "\n";
-  head(o, "cslam_net_transport_events_total", "counter", "Connection events (accepted, disconnected, auth_failed, ...).");
+  head(o, "cslam_net_transport_events_total", "counter",
+       "Connection events (accepted, disconnected, auth_failed, ...).");
   for (const auto& [event, v] : n.transport)
     o << "cslam_net_transport_events_total{event=\"" << label(event) << "\"} " << v << "\n";
 }
@@ -106,11 +118,13 @@ void net_clients(std::ostringstream& o, const NetStatus& n) {
   head(o, "cslam_net_client_dropped_by_reason_total", "counter", "Frames/messages of a client dropped, by reason.");
   for (const auto& [id, c] : n.clients)
     for (const auto& [reason, v] : c.dropped)
-      o << "cslam_net_client_dropped_by_reason_total{client=\"" << id << "\",reason=\"" << label(reason) << "\"} " << v << "\n";
+      o << "cslam_net_client_dropped_by_reason_total{client=\"" << id << "\",reason=\"" << label(reason) << "\"} " << v
+        << "\n";
   head(o, "cslam_net_client_connection", "gauge", "1 for the client's connection state.");
   for (const auto& [id, c] : n.clients)
     for (const char* st : {"active", "disconnected", "done"})
-      o << "cslam_net_client_connection{client=\"" << id << "\",state=\"" << st << "\"} " << (c.connection == st ? 1 : 0) << "\n";
+      o << "cslam_net_client_connection{client=\"" << id << "\",state=\"" << st << "\"} "
+        << (c.connection == st ? 1 : 0) << "\n";
 }
 
 }  // namespace
@@ -131,8 +145,11 @@ nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps
           {"frames_lost", c.frames_lost},
           {"frames_skipped", c.frames_skipped},
           {"frames_flow", c.frames_flow},
-          {"pose_latency_ms", {{"last", c.pose_latency_last_ms}, {"p50", c.pose_latency_p50_ms},
-                               {"p99", c.pose_latency_p99_ms}, {"samples", c.pose_latency_samples}}},
+          {"pose_latency_ms",
+           {{"last", c.pose_latency_last_ms},
+            {"p50", c.pose_latency_p50_ms},
+            {"p99", c.pose_latency_p99_ms},
+            {"samples", c.pose_latency_samples}}},
           {"queue_depth", c.queue_depth},
           {"fps", fps},
           {"input_fps", input_fps},
@@ -157,10 +174,16 @@ nlohmann::json link_json(const NetClientStatus& net, const std::deque<RateSample
 }
 
 nlohmann::json event_json(const FusionEvent& e) {
-  return {{"time_s", e.wall_time_s}, {"kind", e.kind},          {"clients", {e.client_a, e.client_b}},
-          {"group", e.group},        {"inliers", e.inliers},    {"duration_ms", e.duration_ms},
-          {"query_timestamp", e.query_timestamp}, {"candidate_timestamp", e.candidate_timestamp},
-          {"seam_points", e.seam_points}, {"seam_edges", e.seam_edges}};
+  return {{"time_s", e.wall_time_s},
+          {"kind", e.kind},
+          {"clients", {e.client_a, e.client_b}},
+          {"group", e.group},
+          {"inliers", e.inliers},
+          {"duration_ms", e.duration_ms},
+          {"query_timestamp", e.query_timestamp},
+          {"candidate_timestamp", e.candidate_timestamp},
+          {"seam_points", e.seam_points},
+          {"seam_edges", e.seam_edges}};
 }
 
 std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, double>& fps, std::size_t fusion_count) {
@@ -178,7 +201,9 @@ std::string metrics_text(const SystemSnapshot& s, const std::map<ClientId, doubl
 }
 
 nlohmann::json network_json(const NetStatus& n) {
-  nlohmann::json j = {{"totals", n.totals}, {"unattributed", n.unattributed}, {"transport_events", n.transport},
+  nlohmann::json j = {{"totals", n.totals},
+                      {"unattributed", n.unattributed},
+                      {"transport_events", n.transport},
                       {"timings_ms", n.gauges}};
   j["clients"] = nlohmann::json::array();
   for (const auto& [id, c] : n.clients) {
@@ -207,10 +232,14 @@ std::string guard_metrics_text(const GuardStats& g) {
     << "cslam_http_requests_total " << g.requests << "\n"
     << "# HELP cslam_http_refused_total Requests or connections refused by the HTTP guard, by reason.\n"
        "# TYPE cslam_http_refused_total counter\n";
-  const std::pair<const char*, std::uint64_t> reasons[] = {
-      {"timed_out", g.timed_out},   {"header_too_large", g.header_too_large}, {"body_too_large", g.body_too_large},
-      {"bad_request", g.bad_request}, {"overloaded", g.overloaded},       {"connections", g.connections_refused},
-      {"tls_handshake", g.tls_handshake_failed}, {"plain_http_on_tls", g.plain_http_on_tls}};
+  const std::pair<const char*, std::uint64_t> reasons[] = {{"timed_out", g.timed_out},
+                                                           {"header_too_large", g.header_too_large},
+                                                           {"body_too_large", g.body_too_large},
+                                                           {"bad_request", g.bad_request},
+                                                           {"overloaded", g.overloaded},
+                                                           {"connections", g.connections_refused},
+                                                           {"tls_handshake", g.tls_handshake_failed},
+                                                           {"plain_http_on_tls", g.plain_http_on_tls}};
   for (const auto& [reason, n] : reasons) o << "cslam_http_refused_total{reason=\"" << reason << "\"} " << n << "\n";
   return o.str();
 }
@@ -221,7 +250,8 @@ std::string snapshot_metrics_text(const nlohmann::json& j) {
        "# TYPE cslam_snapshot_writes_total counter\n"
     << "cslam_snapshot_writes_total{result=\"ok\"} " << j.value("written", std::uint64_t(0)) << "\n"
     << "cslam_snapshot_writes_total{result=\"failed\"} " << j.value("failed", std::uint64_t(0)) << "\n"
-    << "# HELP cslam_snapshot_failing_seconds Seconds since the first failed write after the last good one (0: the newest write succeeded).\n"
+    << "# HELP cslam_snapshot_failing_seconds Seconds since the first failed write after the last good one (0: the "
+       "newest write succeeded).\n"
        "# TYPE cslam_snapshot_failing_seconds gauge\n"
     << "cslam_snapshot_failing_seconds " << j.value("failing_for_s", 0.0) << "\n";
   const auto age = j.find("last_success_age_s");
@@ -247,9 +277,11 @@ nlohmann::json recon_json(const ReconStats& r) {
 std::string recon_metrics_text(const ReconStats& r) {
   std::ostringstream o;
   o << "# HELP cslam_recon_jobs Reconstruction jobs kept (running or finished, not yet expired).\n"
-       "# TYPE cslam_recon_jobs gauge\ncslam_recon_jobs " << r.jobs << "\n"
+       "# TYPE cslam_recon_jobs gauge\ncslam_recon_jobs "
+    << r.jobs << "\n"
     << "# HELP cslam_recon_bytes_held PLY bytes of finished reconstruction jobs kept for download.\n"
-       "# TYPE cslam_recon_bytes_held gauge\ncslam_recon_bytes_held " << r.bytes_held << "\n"
+       "# TYPE cslam_recon_bytes_held gauge\ncslam_recon_bytes_held "
+    << r.bytes_held << "\n"
     << "# HELP cslam_recon_jobs_total Reconstruction requests, by outcome.\n"
        "# TYPE cslam_recon_jobs_total counter\n"
     << "cslam_recon_jobs_total{outcome=\"started\"} " << r.started << "\n"

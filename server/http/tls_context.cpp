@@ -53,12 +53,15 @@ TlsContext::TlsContext(const std::string& cert_file, const std::string& key_file
   SSL_CTX_set_default_passwd_cb(ctx_, no_passphrase);
   try {
     if (SSL_CTX_use_certificate_chain_file(ctx_, cert_file.c_str()) != 1)
-      throw ConfigError("cslam-server: --http-cert " + cert_file + " is not a PEM certificate (" + openssl_error() + ")");
-    if (SSL_CTX_use_PrivateKey_file(ctx_, key_file.c_str(), SSL_FILETYPE_PEM) != 1 || SSL_CTX_check_private_key(ctx_) != 1) {
+      throw ConfigError("cslam-server: --http-cert " + cert_file + " is not a PEM certificate (" + openssl_error() +
+                        ")");
+    if (SSL_CTX_use_PrivateKey_file(ctx_, key_file.c_str(), SSL_FILETYPE_PEM) != 1 ||
+        SSL_CTX_check_private_key(ctx_) != 1) {
       const unsigned long e = ERR_peek_error();
       if (ERR_GET_LIB(e) == ERR_LIB_X509 && ERR_GET_REASON(e) == X509_R_KEY_VALUES_MISMATCH) {
         ERR_clear_error();
-        throw ConfigError("cslam-server: --http-key " + key_file + " does not belong to the certificate in " + cert_file);
+        throw ConfigError("cslam-server: --http-key " + key_file + " does not belong to the certificate in " +
+                          cert_file);
       }
       throw ConfigError("cslam-server: --http-key " + key_file + " is not an unencrypted PEM private key (" +
                         openssl_error() + ")");

@@ -29,8 +29,8 @@ XyzCloud::Ptr to_xyz(const std::vector<Eigen::Vector3f>& pts) {
 // Targets bucketed in a coarse grid: cell centres (for a small KD-tree) and member lists.
 struct CoarseGrid {
   std::vector<Eigen::Vector3f> centres;
-  std::vector<std::uint32_t> start;    // members of cell c: order[start[c] .. start[c + 1])
-  std::vector<std::uint32_t> order;    // target indices grouped by cell
+  std::vector<std::uint32_t> start;  // members of cell c: order[start[c] .. start[c + 1])
+  std::vector<std::uint32_t> order;  // target indices grouped by cell
 };
 
 CoarseGrid build_grid(const std::vector<Eigen::Vector3f>& pts, float cell) {
@@ -42,7 +42,8 @@ CoarseGrid build_grid(const std::vector<Eigen::Vector3f>& pts, float cell) {
   for (size_t i = 0; i < pts.size(); ++i) {
     const Eigen::Vector3i c = (pts[i] * inv).array().floor().cast<int>();
     auto k = [](int v) { return std::uint64_t(std::int64_t(v) + (std::int64_t(1) << 20)) & 0x1FFFFF; };
-    const auto [it, inserted] = cell_of_key.try_emplace(k(c.x()) | (k(c.y()) << 21) | (k(c.z()) << 42), std::uint32_t(coords.size()));
+    const auto [it, inserted] =
+        cell_of_key.try_emplace(k(c.x()) | (k(c.y()) << 21) | (k(c.z()) << 42), std::uint32_t(coords.size()));
     if (inserted) coords.push_back(c);
     cell_of_point[i] = it->second;
   }

@@ -84,7 +84,8 @@ void filter_recursive(const PclCloud::Ptr& in, float voxel, bool colors, Colored
 }  // namespace
 
 ColoredCloud voxel_filter(const ColoredCloud& cloud, float voxel_size) {
-  if (!(voxel_size > 0) || !std::isfinite(voxel_size)) throw std::invalid_argument("voxel_filter: voxel size must be positive");
+  if (!(voxel_size > 0) || !std::isfinite(voxel_size))
+    throw std::invalid_argument("voxel_filter: voxel size must be positive");
   ColoredCloud out;
   if (cloud.empty()) return out;
   filter_recursive(to_pcl(cloud), voxel_size, cloud.has_colors(), out);
@@ -92,7 +93,8 @@ ColoredCloud voxel_filter(const ColoredCloud& cloud, float voxel_size) {
 }
 
 ColoredCloud remove_statistical_outliers(const ColoredCloud& cloud, const OutlierConfig& config) {
-  if (config.mean_k < 1 || !(config.stddev_mul > 0)) throw std::invalid_argument("remove_statistical_outliers: mean_k >= 1 and stddev_mul > 0 required");
+  if (config.mean_k < 1 || !(config.stddev_mul > 0))
+    throw std::invalid_argument("remove_statistical_outliers: mean_k >= 1 and stddev_mul > 0 required");
   ColoredCloud out;
   if (cloud.size() <= size_t(config.mean_k)) return cloud;
   pcl::StatisticalOutlierRemoval<pcl::PointXYZRGB> sor;

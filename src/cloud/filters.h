@@ -13,7 +13,7 @@ namespace cslam {
 ColoredCloud voxel_filter(const ColoredCloud& cloud, float voxel_size);
 
 struct OutlierConfig {
-  int mean_k = 20;         // neighbours whose mean distance is measured
+  int mean_k = 20;          // neighbours whose mean distance is measured
   double stddev_mul = 2.0;  // points with mean distance > mean + stddev_mul * std are removed
 };
 // Statistical outlier removal; returns the kept points.

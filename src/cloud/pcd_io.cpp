@@ -13,7 +13,8 @@ namespace cslam {
 
 void write_pcd(const std::string& path, const ColoredCloud& cloud, bool binary) {
   if (cloud.empty()) throw std::invalid_argument("refusing to write an empty point cloud to " + path);
-  if (cloud.has_colors() && cloud.colors.size() != cloud.size()) throw std::invalid_argument("write_pcd: colour count differs from point count");
+  if (cloud.has_colors() && cloud.colors.size() != cloud.size())
+    throw std::invalid_argument("write_pcd: colour count differs from point count");
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
@@ -27,7 +28,8 @@ void write_pcd(const std::string& path, const ColoredCloud& cloud, bool binary) 
     for (size_t i = 0; i < cloud.size(); ++i) {
       const auto& p = cloud.points[i];
       std::uint32_t rgb = 0;
-      if (cloud.has_colors()) rgb = (std::uint32_t(cloud.colors[i][0]) << 16) | (std::uint32_t(cloud.colors[i][1]) << 8) | cloud.colors[i][2];
+      if (cloud.has_colors())
+        rgb = (std::uint32_t(cloud.colors[i][0]) << 16) | (std::uint32_t(cloud.colors[i][1]) << 8) | cloud.colors[i][2];
       if (binary) {
         char b[16];
         std::memcpy(b, p.data(), 12);

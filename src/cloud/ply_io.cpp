@@ -112,24 +112,64 @@ PType parse_type(const std::string& t, const std::string& path) {
 
 size_t type_size(PType t) {
   switch (t) {
-    case PType::kI8: case PType::kU8: return 1;
-    case PType::kI16: case PType::kU16: return 2;
-    case PType::kI32: case PType::kU32: case PType::kF32: return 4;
-    case PType::kF64: return 8;
+    case PType::kI8:
+    case PType::kU8:
+      return 1;
+    case PType::kI16:
+    case PType::kU16:
+      return 2;
+    case PType::kI32:
+    case PType::kU32:
+    case PType::kF32:
+      return 4;
+    case PType::kF64:
+      return 8;
   }
   return 0;
 }
 
 double read_binary(const char* p, PType t) {
   switch (t) {
-    case PType::kI8: { std::int8_t v; std::memcpy(&v, p, 1); return v; }
-    case PType::kU8: { std::uint8_t v; std::memcpy(&v, p, 1); return v; }
-    case PType::kI16: { std::int16_t v; std::memcpy(&v, p, 2); return v; }
-    case PType::kU16: { std::uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case PType::kI32: { std::int32_t v; std::memcpy(&v, p, 4); return v; }
-    case PType::kU32: { std::uint32_t v; std::memcpy(&v, p, 4); return v; }
-    case PType::kF32: { float v; std::memcpy(&v, p, 4); return v; }
-    case PType::kF64: { double v; std::memcpy(&v, p, 8); return v; }
+    case PType::kI8: {
+      std::int8_t v;
+      std::memcpy(&v, p, 1);
+      return v;
+    }
+    case PType::kU8: {
+      std::uint8_t v;
+      std::memcpy(&v, p, 1);
+      return v;
+    }
+    case PType::kI16: {
+      std::int16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case PType::kU16: {
+      std::uint16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case PType::kI32: {
+      std::int32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case PType::kU32: {
+      std::uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case PType::kF32: {
+      float v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case PType::kF64: {
+      double v;
+      std::memcpy(&v, p, 8);
+      return v;
+    }
   }
   return 0;
 }
@@ -181,7 +221,8 @@ class ElementReader {
     for (size_t k = 0; k < e.props.size(); ++k) {
       const Property& p = e.props[k];
       const PType t = p.is_list ? p.count_type : p.type;
-      if (!in_.read(b, std::streamsize(type_size(t)))) throw InputError(path_, "file ends inside element '" + e.name + "'");
+      if (!in_.read(b, std::streamsize(type_size(t))))
+        throw InputError(path_, "file ends inside element '" + e.name + "'");
       values[k] = read_binary(b, t);
       if (p.is_list) {
         const long n = long(values[k]);
@@ -211,7 +252,8 @@ PlyContent read_ply_file(const std::string& path, bool want_faces) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open PLY file");
   std::string line;
-  if (!std::getline(in, line) || line.substr(0, 3) != "ply") throw InputError(path, "not a PLY file (missing 'ply' magic)");
+  if (!std::getline(in, line) || line.substr(0, 3) != "ply")
+    throw InputError(path, "not a PLY file (missing 'ply' magic)");
   bool binary = false, have_format = false;
   std::vector<Element> elements;
   while (true) {
@@ -225,9 +267,12 @@ PlyContent read_ply_file(const std::string& path, bool want_faces) {
     if (kw == "format") {
       std::string f;
       ls >> f;
-      if (f == "ascii") binary = false;
-      else if (f == "binary_little_endian") binary = true;
-      else throw InputError(path, "unsupported PLY format '" + f + "' (ascii or binary_little_endian)");
+      if (f == "ascii")
+        binary = false;
+      else if (f == "binary_little_endian")
+        binary = true;
+      else
+        throw InputError(path, "unsupported PLY format '" + f + "' (ascii or binary_little_endian)");
       have_format = true;
     } else if (kw == "element") {
       Element e;
@@ -305,7 +350,8 @@ PlyContent read_ply_file(const std::string& path, bool want_faces) {
   if (!have_vertex) throw InputError(path, "PLY file has no vertex element");
   for (const auto& t : out.triangles)
     for (auto v : t)
-      if (v >= out.cloud.points.size()) throw InputError(path, "face refers to vertex " + std::to_string(v) + " out of range");
+      if (v >= out.cloud.points.size())
+        throw InputError(path, "face refers to vertex " + std::to_string(v) + " out of range");
   return out;
 }
 
@@ -313,16 +359,20 @@ PlyContent read_ply_file(const std::string& path, bool want_faces) {
 
 void write_ply(const std::string& path, const ColoredCloud& cloud) {
   if (cloud.empty()) throw std::invalid_argument("refusing to write an empty point cloud to " + path);
-  if (cloud.has_colors() && cloud.colors.size() != cloud.size()) throw std::invalid_argument("write_ply: colour count differs from point count");
-  if (cloud.has_normals() && cloud.normals.size() != cloud.size()) throw std::invalid_argument("write_ply: normal count differs from point count");
+  if (cloud.has_colors() && cloud.colors.size() != cloud.size())
+    throw std::invalid_argument("write_ply: colour count differs from point count");
+  if (cloud.has_normals() && cloud.normals.size() != cloud.size())
+    throw std::invalid_argument("write_ply: normal count differs from point count");
   AtomicFile f(path);
   write_ply_body(f.stream(), cloud);
   f.commit();
 }
 
 void write_ply_mesh(const std::string& path, const TriangleMesh& mesh) {
-  if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("refusing to write an empty mesh to " + path);
-  if (!mesh.colors.empty() && mesh.colors.size() != mesh.vertices.size()) throw std::invalid_argument("write_ply_mesh: colour count differs from vertex count");
+  if (mesh.vertices.empty() || mesh.triangles.empty())
+    throw std::invalid_argument("refusing to write an empty mesh to " + path);
+  if (!mesh.colors.empty() && mesh.colors.size() != mesh.vertices.size())
+    throw std::invalid_argument("write_ply_mesh: colour count differs from vertex count");
   AtomicFile f(path);
   write_ply_mesh_body(f.stream(), mesh);
   f.commit();
@@ -336,7 +386,8 @@ std::string ply_bytes(const ColoredCloud& cloud) {
 }
 
 std::string ply_mesh_bytes(const TriangleMesh& mesh) {
-  if (mesh.vertices.empty() || mesh.triangles.empty()) throw std::invalid_argument("refusing to encode an empty mesh as PLY");
+  if (mesh.vertices.empty() || mesh.triangles.empty())
+    throw std::invalid_argument("refusing to encode an empty mesh as PLY");
   std::ostringstream out;
   write_ply_mesh_body(out, mesh);
   return std::move(out).str();

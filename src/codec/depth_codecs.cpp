@@ -203,7 +203,8 @@ std::vector<std::uint8_t> zstd_delta_encode(const std::uint16_t* pixels, int wid
   payload.insert(payload.end(), high.begin(), high.begin() + std::ptrdiff_t(m));
   std::vector<std::uint8_t> out(ZSTD_compressBound(payload.size()));
   const std::size_t written = ZSTD_compress(out.data(), out.size(), payload.data(), payload.size(), level);
-  if (ZSTD_isError(written)) throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(written));
+  if (ZSTD_isError(written))
+    throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(written));
   out.resize(written);
   return out;
 }
@@ -221,8 +222,8 @@ void zstd_delta_decode(const std::uint8_t* data, std::size_t size, std::uint16_t
   const std::size_t got = ZSTD_decompress(payload.data(), payload.size(), data, size);
   if (ZSTD_isError(got)) throw InputError(source, std::string("zstd depth: ") + ZSTD_getErrorName(got));
   if (got != payload.size()) throw InputError(source, "zstd depth: decoded size differs from the announced size");
-  const std::uint32_t table_size =
-      std::uint32_t(payload[0]) | (std::uint32_t(payload[1]) << 8) | (std::uint32_t(payload[2]) << 16) | (std::uint32_t(payload[3]) << 24);
+  const std::uint32_t table_size = std::uint32_t(payload[0]) | (std::uint32_t(payload[1]) << 8) |
+                                   (std::uint32_t(payload[2]) << 16) | (std::uint32_t(payload[3]) << 24);
   if (table_size > 65535 || 4 + 2 * std::size_t(table_size) + n > payload.size())
     throw InputError(source, "zstd depth: value table larger than the data");
   std::vector<std::uint16_t> table(table_size);

@@ -35,8 +35,8 @@ cv::Mat subsample_depth(const cv::Mat& depth, int subsample) {
 
 cv::Mat expand_depth(const cv::Mat& coarse, int subsample, int width, int height) {
   if (coarse.type() != CV_16UC1 || coarse.size() != subsampled_depth_size(width, height, subsample))
-    throw std::invalid_argument("expand_depth: the coarse image is not the subsampled size of " + std::to_string(width) +
-                                "x" + std::to_string(height));
+    throw std::invalid_argument("expand_depth: the coarse image is not the subsampled size of " +
+                                std::to_string(width) + "x" + std::to_string(height));
   cv::Mat out(height, width, CV_16UC1);
   for (int y = 0; y < height; ++y) {
     const auto* src = coarse.ptr<std::uint16_t>(y / subsample);

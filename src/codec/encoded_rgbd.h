@@ -22,10 +22,10 @@ struct EncodedRgbd {
 // Decodes both images to exactly width x height (BGR8, raw depth16). Throws InputError naming
 // `source` on corrupt or truncated bytes.
 inline std::pair<cv::Mat, cv::Mat> decode_rgbd(const EncodedRgbd& e, int width, int height, const std::string& source) {
-  cv::Mat bgr = decode_rgb(e.rgb_codec, reinterpret_cast<const std::uint8_t*>(e.rgb.data()), e.rgb.size(), width, height,
-                           source + " rgb");
-  cv::Mat depth = decode_depth(e.depth_codec, reinterpret_cast<const std::uint8_t*>(e.depth.data()), e.depth.size(), width,
-                               height, source + " depth");
+  cv::Mat bgr = decode_rgb(e.rgb_codec, reinterpret_cast<const std::uint8_t*>(e.rgb.data()), e.rgb.size(), width,
+                           height, source + " rgb");
+  cv::Mat depth = decode_depth(e.depth_codec, reinterpret_cast<const std::uint8_t*>(e.depth.data()), e.depth.size(),
+                               width, height, source + " depth");
   return {std::move(bgr), std::move(depth)};
 }
 

@@ -33,8 +33,8 @@ void check_png_header(const std::uint8_t* d, std::size_t size, int width, int he
     throw InputError(source, "not a PNG image");
   const std::uint32_t w = be32(d + 16), h = be32(d + 20);
   if (w != std::uint32_t(width) || h != std::uint32_t(height))
-    throw InputError(source, "PNG is " + std::to_string(w) + "x" + std::to_string(h) + ", expected " +
-                                 size_text(width, height));
+    throw InputError(
+        source, "PNG is " + std::to_string(w) + "x" + std::to_string(h) + ", expected " + size_text(width, height));
   const int bit_depth = d[24], color_type = d[25];
   if (depth16 && (bit_depth != 16 || color_type != 0)) throw InputError(source, "depth PNG must be 16-bit grey");
 }
@@ -133,19 +133,26 @@ void CodecOptions::validate() const {
 
 const char* to_string(RgbCodec codec) {
   switch (codec) {
-    case RgbCodec::kRaw: return "raw";
-    case RgbCodec::kJpeg: return "jpeg";
-    case RgbCodec::kPng: return "png";
+    case RgbCodec::kRaw:
+      return "raw";
+    case RgbCodec::kJpeg:
+      return "jpeg";
+    case RgbCodec::kPng:
+      return "png";
   }
   return "unknown";
 }
 
 const char* to_string(DepthCodec codec) {
   switch (codec) {
-    case DepthCodec::kRaw: return "raw";
-    case DepthCodec::kPng: return "png";
-    case DepthCodec::kRvl: return "rvl";
-    case DepthCodec::kZstdDelta: return "zstd";
+    case DepthCodec::kRaw:
+      return "raw";
+    case DepthCodec::kPng:
+      return "png";
+    case DepthCodec::kRvl:
+      return "rvl";
+    case DepthCodec::kZstdDelta:
+      return "zstd";
   }
   return "unknown";
 }
@@ -165,9 +172,12 @@ DepthCodec parse_depth_codec(const std::string& name) {
 Bytes encode_rgb(const cv::Mat& bgr, const CodecOptions& options) {
   if (bgr.type() != CV_8UC3 || bgr.empty()) throw std::invalid_argument("encode_rgb: expected a CV_8UC3 image");
   switch (options.rgb) {
-    case RgbCodec::kRaw: return raw_bytes(bgr);
-    case RgbCodec::kJpeg: return imencode_checked(".jpg", bgr, {cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality});
-    case RgbCodec::kPng: return imencode_checked(".png", bgr, {cv::IMWRITE_PNG_COMPRESSION, options.png_compression});
+    case RgbCodec::kRaw:
+      return raw_bytes(bgr);
+    case RgbCodec::kJpeg:
+      return imencode_checked(".jpg", bgr, {cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality});
+    case RgbCodec::kPng:
+      return imencode_checked(".png", bgr, {cv::IMWRITE_PNG_COMPRESSION, options.png_compression});
   }
   throw std::invalid_argument("encode_rgb: unknown codec");
 }
@@ -176,10 +186,14 @@ Bytes encode_depth(const cv::Mat& depth, const CodecOptions& options) {
   if (depth.type() != CV_16UC1 || depth.empty()) throw std::invalid_argument("encode_depth: expected a CV_16UC1 image");
   const cv::Mat d = depth.isContinuous() ? depth : depth.clone();
   switch (options.depth) {
-    case DepthCodec::kRaw: return raw_bytes(d);
-    case DepthCodec::kPng: return imencode_checked(".png", d, {cv::IMWRITE_PNG_COMPRESSION, options.png_compression});
-    case DepthCodec::kRvl: return depth_codec::rvl_encode(d.ptr<std::uint16_t>(), d.total());
-    case DepthCodec::kZstdDelta: return depth_codec::zstd_delta_encode(d.ptr<std::uint16_t>(), d.cols, d.rows, options.zstd_level);
+    case DepthCodec::kRaw:
+      return raw_bytes(d);
+    case DepthCodec::kPng:
+      return imencode_checked(".png", d, {cv::IMWRITE_PNG_COMPRESSION, options.png_compression});
+    case DepthCodec::kRvl:
+      return depth_codec::rvl_encode(d.ptr<std::uint16_t>(), d.total());
+    case DepthCodec::kZstdDelta:
+      return depth_codec::zstd_delta_encode(d.ptr<std::uint16_t>(), d.cols, d.rows, options.zstd_level);
   }
   throw std::invalid_argument("encode_depth: unknown codec");
 }
@@ -190,7 +204,8 @@ cv::Mat decode_rgb(RgbCodec codec, const std::uint8_t* data, std::size_t size, i
   switch (codec) {
     case RgbCodec::kRaw: {
       if (size != std::size_t(width) * height * 3)
-        throw InputError(source, "raw RGB has " + std::to_string(size) + " bytes, expected " + size_text(width, height) + "x3");
+        throw InputError(source,
+                         "raw RGB has " + std::to_string(size) + " bytes, expected " + size_text(width, height) + "x3");
       cv::Mat out(height, width, CV_8UC3);
       std::memcpy(out.data, data, size);
       return out;
@@ -212,7 +227,8 @@ cv::Mat decode_depth(DepthCodec codec, const std::uint8_t* data, std::size_t siz
   switch (codec) {
     case DepthCodec::kRaw: {
       if (size != std::size_t(width) * height * 2)
-        throw InputError(source, "raw depth has " + std::to_string(size) + " bytes, expected " + size_text(width, height) + "x2");
+        throw InputError(
+            source, "raw depth has " + std::to_string(size) + " bytes, expected " + size_text(width, height) + "x2");
       cv::Mat out(height, width, CV_16UC1);
       std::memcpy(out.data, data, size);
       return out;

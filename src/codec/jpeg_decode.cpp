@@ -33,7 +33,8 @@ TjHandle& thread_handle() {
 tjhandle thread_decompressor() {
   TjHandle& handle = thread_handle();
   if (!handle) handle.reset(tjInitDecompress());
-  if (!handle) throw std::runtime_error(std::string("TurboJPEG: cannot create a decompressor: ") + tjGetErrorStr2(nullptr));
+  if (!handle)
+    throw std::runtime_error(std::string("TurboJPEG: cannot create a decompressor: ") + tjGetErrorStr2(nullptr));
   return handle.get();
 }
 
@@ -52,8 +53,7 @@ bool looks_like_jpeg(const std::uint8_t* data, std::size_t size) {
   return size >= 3 && data[0] == 0xff && data[1] == 0xd8 && data[2] == 0xff;
 }
 
-cv::Mat decode_jpeg_bgr(const std::uint8_t* data, std::size_t size, const std::string& source, int width,
-                        int height) {
+cv::Mat decode_jpeg_bgr(const std::uint8_t* data, std::size_t size, const std::string& source, int width, int height) {
   if (!looks_like_jpeg(data, size)) throw InputError(source, "not a JPEG image");
   if (size > std::size_t(ULONG_MAX)) throw InputError(source, "JPEG too large");
   tjhandle tj = thread_decompressor();

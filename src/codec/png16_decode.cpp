@@ -63,11 +63,20 @@ void unfilter_rows_scalar(std::uint8_t* rows, int width, int height, cv::Mat& ou
   for (int y = 0; y < height; ++y) {
     std::uint8_t* cur = rows + std::size_t(y) * (n + 1) + 1;
     switch (cur[-1]) {
-      case 1: unfilter_sub(cur, n); break;
-      case 2: unfilter_up(cur, prev, n); break;
-      case 3: unfilter_average(cur, prev, n); break;
-      case 4: unfilter_paeth(cur, prev, n); break;
-      default: break;
+      case 1:
+        unfilter_sub(cur, n);
+        break;
+      case 2:
+        unfilter_up(cur, prev, n);
+        break;
+      case 3:
+        unfilter_average(cur, prev, n);
+        break;
+      case 4:
+        unfilter_paeth(cur, prev, n);
+        break;
+      default:
+        break;
     }
     std::uint16_t* dst = out.ptr<std::uint16_t>(y);
     for (int x = 0; x < width; ++x) dst[x] = std::uint16_t((cur[2 * x] << 8) | cur[2 * x + 1]);
@@ -117,8 +126,9 @@ inline void band_step(const Band& band, int s, __m128i& res, __m128i& prev_b) {
   const __m128i lo_or_c = _mm_blendv_epi8(lo, c, _mm_cmpgt_epi16(hi, t));
   const __m128i paeth = _mm_blendv_epi8(hi, lo_or_c, _mm_cmpgt_epi16(t, lo));
   const __m128i average = _mm_srli_epi16(_mm_add_epi16(a, b), 1);
-  const __m128i pred = _mm_or_si128(_mm_or_si128(_mm_and_si128(a, band.sub), _mm_and_si128(b, band.up)),
-                                    _mm_or_si128(_mm_and_si128(average, band.average), _mm_and_si128(paeth, band.paeth)));
+  const __m128i pred =
+      _mm_or_si128(_mm_or_si128(_mm_and_si128(a, band.sub), _mm_and_si128(b, band.up)),
+                   _mm_or_si128(_mm_and_si128(average, band.average), _mm_and_si128(paeth, band.paeth)));
   res = _mm_and_si128(_mm_add_epi16(x, pred), _mm_set1_epi16(0xff));
   if (kMasked)
     res = _mm_and_si128(res, _mm_set_epi16(short(-valid(3)), short(-valid(3)), short(-valid(2)), short(-valid(2)),

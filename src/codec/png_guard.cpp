@@ -18,21 +18,33 @@ std::uint32_t be32(const std::uint8_t* p) {
 
 int channels_of(int color_type) {
   switch (color_type) {
-    case 0: return 1;  // grey
-    case 2: return 3;  // RGB
-    case 3: return 1;  // palette
-    case 4: return 2;  // grey + alpha
-    case 6: return 4;  // RGBA
-    default: return 0;
+    case 0:
+      return 1;  // grey
+    case 2:
+      return 3;  // RGB
+    case 3:
+      return 1;  // palette
+    case 4:
+      return 2;  // grey + alpha
+    case 6:
+      return 4;  // RGBA
+    default:
+      return 0;
   }
 }
 
 bool valid_depth(int color_type, int bit_depth) {
   switch (color_type) {
-    case 0: return bit_depth == 1 || bit_depth == 2 || bit_depth == 4 || bit_depth == 8 || bit_depth == 16;
-    case 3: return bit_depth == 1 || bit_depth == 2 || bit_depth == 4 || bit_depth == 8;
-    case 2: case 4: case 6: return bit_depth == 8 || bit_depth == 16;
-    default: return false;
+    case 0:
+      return bit_depth == 1 || bit_depth == 2 || bit_depth == 4 || bit_depth == 8 || bit_depth == 16;
+    case 3:
+      return bit_depth == 1 || bit_depth == 2 || bit_depth == 4 || bit_depth == 8;
+    case 2:
+    case 4:
+    case 6:
+      return bit_depth == 8 || bit_depth == 16;
+    default:
+      return false;
   }
 }
 
@@ -43,8 +55,8 @@ std::size_t pass_bytes(std::size_t w, std::size_t h, int bits_per_pixel) {
 
 // Chunk types a plain image may carry; everything compressed (zTXt, iTXt, iCCP) is refused.
 bool allowed_chunk(const char* type) {
-  static const char* kAllowed[] = {"IHDR", "PLTE", "IDAT", "IEND", "tRNS", "gAMA", "cHRM", "sRGB", "sBIT",
-                                   "bKGD", "pHYs", "tIME", "tEXt", "hIST", "sPLT", "eXIf"};
+  static const char* kAllowed[] = {"IHDR", "PLTE", "IDAT", "IEND", "tRNS", "gAMA", "cHRM", "sRGB",
+                                   "sBIT", "bKGD", "pHYs", "tIME", "tEXt", "hIST", "sPLT", "eXIf"};
   for (const char* a : kAllowed)
     if (std::memcmp(type, a, 4) == 0) return true;
   return false;
@@ -79,7 +91,8 @@ void check_png_stream(const std::uint8_t* d, std::size_t size, const PngLimits& 
   const int bit_depth = d[24], color_type = d[25], compression = d[26], filter = d[27], interlace = d[28];
   if (!valid_depth(color_type, bit_depth) || compression != 0 || filter != 0 || interlace > 1)
     throw InputError(source, "PNG header is invalid");
-  if (limits.depth16_grey && (bit_depth != 16 || color_type != 0)) throw InputError(source, "depth PNG must be 16-bit grey");
+  if (limits.depth16_grey && (bit_depth != 16 || color_type != 0))
+    throw InputError(source, "depth PNG must be 16-bit grey");
   const std::size_t expected = png_inflated_size(limits.width, limits.height, bit_depth, color_type, interlace == 1);
 
   z_stream z{};
@@ -126,7 +139,8 @@ void check_png_stream(const std::uint8_t* d, std::size_t size, const PngLimits& 
   }
   if (!seen_iend) throw InputError(source, "PNG truncated (no IEND)");
   if (!stream_end || produced != expected)
-    throw InputError(source, "PNG image data is " + std::to_string(produced) + " bytes, expected " + std::to_string(expected));
+    throw InputError(source,
+                     "PNG image data is " + std::to_string(produced) + " bytes, expected " + std::to_string(expected));
 }
 
 }  // namespace cslam

@@ -13,8 +13,8 @@
 namespace cslam {
 
 struct PngLimits {
-  int width = 0, height = 0;     // the image size the caller expects (the header must agree)
-  bool depth16_grey = false;     // require a 16-bit grey image (depth)
+  int width = 0, height = 0;  // the image size the caller expects (the header must agree)
+  bool depth16_grey = false;  // require a 16-bit grey image (depth)
   // Inflating for more than this much of the thread's CPU time is an error (0: no budget). CPU
   // time, not wall clock: on a loaded machine a good image that waits for a core is not refused.
   double time_budget_ms = 250;

@@ -69,8 +69,7 @@ InflatedPng::~InflatedPng() {
   if (st.idat.capacity() > kKeepScratchBytes) std::vector<std::uint8_t>().swap(st.idat);
 }
 
-bool inflate_png(const std::uint8_t* d, std::size_t size, const PngFormat& format, InflatedPng& png,
-                 std::string* why) {
+bool inflate_png(const std::uint8_t* d, std::size_t size, const PngFormat& format, InflatedPng& png, std::string* why) {
   static const std::uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   if (d == nullptr || size < 8 || std::memcmp(d, kSignature, 8) != 0) return fail(why, "not a PNG");
   // IHDR: first, 13 bytes, its CRC right.

@@ -12,7 +12,7 @@ namespace cslam::png_detail {
 // The one pixel format a decoder handles (always non-interlaced).
 struct PngFormat {
   int bit_depth;
-  int colour_type;          // PNG colour type: 0 grey, 2 RGB
+  int colour_type;  // PNG colour type: 0 grey, 2 RGB
   int bytes_per_pixel;
   const char* description;  // for `why`, e.g. "16-bit greyscale"
 };

@@ -78,7 +78,8 @@ void unfilter_row_scalar(int filter, const std::uint8_t* __restrict in, const st
       }
       break;
     }
-    default: break;
+    default:
+      break;
   }
 }
 
@@ -177,8 +178,9 @@ inline void band_step(const Band& band, int s, __m128i (&res)[kGroups], __m128i 
     const __m128i average =
         _mm_sub_epi8(_mm_avg_epu8(a, b[g]), _mm_and_si128(_mm_xor_si128(a, b[g]), _mm_set1_epi8(1)));  // floor
     const __m128i paeth = paeth_u8(a, b[g], c);
-    const __m128i pred = _mm_or_si128(_mm_or_si128(_mm_and_si128(a, band.sub[g]), _mm_and_si128(b[g], band.up[g])),
-                                      _mm_or_si128(_mm_and_si128(average, band.average[g]), _mm_and_si128(paeth, band.paeth[g])));
+    const __m128i pred =
+        _mm_or_si128(_mm_or_si128(_mm_and_si128(a, band.sub[g]), _mm_and_si128(b[g], band.up[g])),
+                     _mm_or_si128(_mm_and_si128(average, band.average[g]), _mm_and_si128(paeth, band.paeth[g])));
     res[g] = _mm_add_epi8(x, pred);
     if (kMasked) {
       const __m128i keep = _mm_setr_epi32(-int(valid(r)), -int(valid(r + 1)), -int(valid(r + 2)), -int(valid(r + 3)));

@@ -109,8 +109,8 @@ void H264Options::validate() const {
   if (crf < 0 || crf > 51) throw ConfigError("h264 crf " + std::to_string(crf) + " out of range 0..51");
   if (std::none_of(std::begin(kPresets), std::end(kPresets), [&](const char* p) { return preset == p; }))
     throw ConfigError("unknown h264 preset '" + preset + "' (ultrafast .. placebo)");
-  static const char* const kTunes[] = {"zerolatency", "film", "animation", "grain", "stillimage", "psnr", "ssim",
-                                       "fastdecode"};
+  static const char* const kTunes[] = {"zerolatency", "film", "animation", "grain",
+                                       "stillimage",  "psnr", "ssim",      "fastdecode"};
   bool zerolatency = false;
   for (std::size_t p = 0; p <= tune.size();) {
     const std::size_t c = std::min(tune.find(',', p), tune.size());
@@ -155,7 +155,7 @@ H264Encoder::H264Encoder(int width, int height, H264Options options)
   c->width = width;
   c->height = height;
   c->pix_fmt = AV_PIX_FMT_YUV420P;
-  c->color_range = AVCOL_RANGE_MPEG;     // cv::cvtColor's I420 is BT.601 limited range
+  c->color_range = AVCOL_RANGE_MPEG;  // cv::cvtColor's I420 is BT.601 limited range
   c->colorspace = AVCOL_SPC_SMPTE170M;
   c->time_base = AVRational{1, options.frame_rate};
   c->framerate = AVRational{options.frame_rate, 1};
@@ -174,7 +174,8 @@ H264Encoder::H264Encoder(int width, int height, H264Options options)
   std::unique_ptr<AVDictionary, DictDeleter> unused(raw_opts);
   if (err < 0) throw std::runtime_error("libx264: cannot open the encoder: " + av_error_text(err));
   if (av_dict_count(unused.get()) > 0)
-    throw std::runtime_error(std::string("libx264 ignored option '") + av_dict_get(unused.get(), "", nullptr, AV_DICT_IGNORE_SUFFIX)->key + "'");
+    throw std::runtime_error(std::string("libx264 ignored option '") +
+                             av_dict_get(unused.get(), "", nullptr, AV_DICT_IGNORE_SUFFIX)->key + "'");
   AVFrame* f = state_->frame.get();
   f->format = AV_PIX_FMT_YUV420P;
   f->width = width;
@@ -200,7 +201,8 @@ Bytes H264Encoder::encode(const cv::Mat& bgr, bool force_key) {
       std::memcpy(f->data[p] + std::ptrdiff_t(y) * f->linesize[p], src, std::size_t(plane_w[p]));
   f->pts = next_index_;
   f->pict_type = force_key ? AV_PICTURE_TYPE_I : AV_PICTURE_TYPE_NONE;
-  if ((err = avcodec_send_frame(s.ctx.get(), f)) < 0) throw std::runtime_error("libx264: send_frame: " + av_error_text(err));
+  if ((err = avcodec_send_frame(s.ctx.get(), f)) < 0)
+    throw std::runtime_error("libx264: send_frame: " + av_error_text(err));
   AVPacket* pkt = s.packet.get();
   if ((err = avcodec_receive_packet(s.ctx.get(), pkt)) < 0)  // zerolatency: never EAGAIN
     throw std::runtime_error("libx264: no packet for the frame: " + av_error_text(err));
@@ -231,8 +233,7 @@ struct H264Decoder::State {
   cv::Mat i420;
 };
 
-H264Decoder::H264Decoder(int width, int height)
-    : state_(std::make_unique<State>()), width_(width), height_(height) {
+H264Decoder::H264Decoder(int width, int height) : state_(std::make_unique<State>()), width_(width), height_(height) {
   check_size(width, height);
   install_av_log();
   const AVCodec* codec = avcodec_find_decoder(AV_CODEC_ID_H264);
@@ -270,15 +271,16 @@ void H264Decoder::fail_corrupt(const std::string& source, const std::string& mes
 
 cv::Mat H264Decoder::decode(const std::uint8_t* data, std::size_t size, const std::string& source) {
   if (size < kH264HeaderBytes)
-    fail_corrupt(source, "truncated: " + std::to_string(size) + " bytes, header is " + std::to_string(kH264HeaderBytes));
+    fail_corrupt(source,
+                 "truncated: " + std::to_string(size) + " bytes, header is " + std::to_string(kH264HeaderBytes));
   if (data[0] != kMagic0 || data[1] != kMagic1) fail_corrupt(source, "bad magic");
   if (data[2] != kVersion) fail_corrupt(source, "unsupported version " + std::to_string(data[2]));
   if (data[3] & ~kFlagKey) fail_corrupt(source, "unknown flags " + std::to_string(data[3]));
   const bool key = (data[3] & kFlagKey) != 0;
   const std::uint32_t index = get_le32(data + 4), length = get_le32(data + 8);
   if (length > max_bitstream_bytes(width_, height_))
-    fail_corrupt(source, "bitstream length " + std::to_string(length) + " exceeds the limit for " +
-                             size_text(width_, height_));
+    fail_corrupt(source,
+                 "bitstream length " + std::to_string(length) + " exceeds the limit for " + size_text(width_, height_));
   if (std::size_t(length) != size - kH264HeaderBytes)
     fail_corrupt(source, "bitstream length " + std::to_string(length) + " but " +
                              std::to_string(size - kH264HeaderBytes) + " bytes follow the header");

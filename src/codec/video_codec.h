@@ -38,15 +38,15 @@ struct H264Options {
   // tum_fr1_rpy: the largest CRF whose PSNR (36.9 / 37.4 dB) stays within 0.3 dB of JPEG q75's
   // (37.0 / 37.7 dB) and which keeps as many ORB features (86.7 / 85.1 % vs 86.6 / 84.8 %), at
   // 20.1 / 19.2 KB per frame against JPEG q75's 36.5 / 33.5 KB.
-  int crf = 17;                        // 0..51 (x264 constant rate factor; lower = better, larger)
-  std::string preset = "veryfast";     // x264 preset: ultrafast .. placebo
+  int crf = 17;                     // 0..51 (x264 constant rate factor; lower = better, larger)
+  std::string preset = "veryfast";  // x264 preset: ultrafast .. placebo
   // x264 tune list; must include zerolatency (no B-frames, no lookahead, no frame delay). At most
   // one of film, animation, grain, stillimage, psnr, ssim may be added (x264 checks this). psnr
   // turns off x264's psychovisual tuning, which adds texture the camera never saw: at equal size
   // +1 dB and more ORB features kept than zerolatency alone (same benchmark).
   std::string tune = "zerolatency,psnr";
-  int key_interval = 300;              // frames between automatic IDR frames, 1..100000
-  int frame_rate = 30;                 // 1..1000; x264's rate control weighs frames by duration
+  int key_interval = 300;  // frames between automatic IDR frames, 1..100000
+  int frame_rate = 30;     // 1..1000; x264's rate control weighs frames by duration
   // Throws ConfigError on an out-of-range value or an unknown preset or tune.
   void validate() const;
 };

@@ -7,7 +7,8 @@
 
 namespace cslam {
 
-CliArgs::CliArgs(std::string program, std::string summary) : program_(std::move(program)), summary_(std::move(summary)) {}
+CliArgs::CliArgs(std::string program, std::string summary)
+    : program_(std::move(program)), summary_(std::move(summary)) {}
 
 CliArgs& CliArgs::option(const std::string& name, const std::string& help, std::optional<std::string> def) {
   Spec s;
@@ -83,9 +84,11 @@ bool CliArgs::parse(int argc, char** argv, int first) {
     if (s.required && !s.is_flag && !s.is_multi && !values_.count(name))
       throw ConfigError(program_ + ": missing required option --" + name + " (see --help)");
   if (positional_values_.size() < positional_specs_.size())
-    throw ConfigError(program_ + ": missing argument " + positional_specs_[positional_values_.size()].first + " (see --help)");
+    throw ConfigError(program_ + ": missing argument " + positional_specs_[positional_values_.size()].first +
+                      " (see --help)");
   if (positional_values_.size() > positional_specs_.size())
-    throw ConfigError(program_ + ": unexpected argument '" + positional_values_[positional_specs_.size()] + "' (see --help)");
+    throw ConfigError(program_ + ": unexpected argument '" + positional_values_[positional_specs_.size()] +
+                      "' (see --help)");
   return true;
 }
 
@@ -149,8 +152,10 @@ std::string CliArgs::help() const {
   for (const auto& name : order_) {
     const Spec& s = specs_.at(name);
     os << "  --" << name << (s.is_flag ? "" : (s.is_multi ? " V..." : " V"));
-    if (s.required) os << "   (required)";
-    else if (s.default_value && !s.default_value->empty()) os << "   (default: " << *s.default_value << ")";
+    if (s.required)
+      os << "   (required)";
+    else if (s.default_value && !s.default_value->empty())
+      os << "   (default: " << *s.default_value << ")";
     os << "\n      " << s.help << "\n";
   }
   os << "  --help\n      Show this help.\n";

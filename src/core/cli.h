@@ -13,7 +13,8 @@ class CliArgs {
   CliArgs(std::string program, std::string summary);
 
   // Declares --name VALUE (with a default, or required if default is nullopt) or a --flag.
-  CliArgs& option(const std::string& name, const std::string& help, std::optional<std::string> default_value = std::nullopt);
+  CliArgs& option(const std::string& name, const std::string& help,
+                  std::optional<std::string> default_value = std::nullopt);
   CliArgs& multi_option(const std::string& name, const std::string& help);  // --name V1 V2 ... (until next --)
   CliArgs& flag(const std::string& name, const std::string& help);
   CliArgs& positional(const std::string& name, const std::string& help);

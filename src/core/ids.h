@@ -26,9 +26,15 @@ struct ClientSeqId {
   }
 };
 
-struct KeyFrameTag { static constexpr const char* prefix = "kf"; };
-struct MapPointTag { static constexpr const char* prefix = "mp"; };
-struct FrameTag { static constexpr const char* prefix = "f"; };
+struct KeyFrameTag {
+  static constexpr const char* prefix = "kf";
+};
+struct MapPointTag {
+  static constexpr const char* prefix = "mp";
+};
+struct FrameTag {
+  static constexpr const char* prefix = "f";
+};
 
 // Orders objects held by pointer (keyframes, map points) by their id, never by address: iteration
 // order, and every result that depends on it, is then the same in every run of the same input.
@@ -72,8 +78,6 @@ struct hash<cslam::GroupId> {
 };
 template <typename Tag>
 struct hash<cslam::ClientSeqId<Tag>> {
-  size_t operator()(cslam::ClientSeqId<Tag> id) const noexcept {
-    return std::hash<std::uint64_t>()(id.packed());
-  }
+  size_t operator()(cslam::ClientSeqId<Tag> id) const noexcept { return std::hash<std::uint64_t>()(id.packed()); }
 };
 }  // namespace std

@@ -14,9 +14,9 @@
 namespace cslam {
 
 struct ProgressOptions {
-  double interval_s = 2.0;    // between plain lines (not a terminal)
-  double redraw_s = 0.2;      // between redraws on a terminal
-  int terminal = -1;          // 1: redraw in place, 0: plain lines, -1: isatty(out)
+  double interval_s = 2.0;  // between plain lines (not a terminal)
+  double redraw_s = 0.2;    // between redraws on a terminal
+  int terminal = -1;        // 1: redraw in place, 0: plain lines, -1: isatty(out)
 };
 
 class Progress {

@@ -25,7 +25,8 @@ RayTable::RayTable(const PinholeCamera& camera) : camera_(camera) {
 PixelProjector::PixelProjector(const RayTable& rays) {
   const PinholeCamera& c = rays.camera();
   fx_ = float(c.fx), fy_ = float(c.fy), cx_ = float(c.cx), cy_ = float(c.cy);
-  k1_ = float(c.dist[0]), k2_ = float(c.dist[1]), p1_ = float(c.dist[2]), p2_ = float(c.dist[3]), k3_ = float(c.dist[4]);
+  k1_ = float(c.dist[0]), k2_ = float(c.dist[1]), p1_ = float(c.dist[2]), p2_ = float(c.dist[3]),
+  k3_ = float(c.dist[4]);
   max_r2_ = rays.max_radius2() * 1.0001f;
   distorted_ = c.has_distortion();
   width_ = c.width;

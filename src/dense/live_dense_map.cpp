@@ -25,7 +25,8 @@ void LiveDenseMap::set_camera(ClientId client, const PinholeCamera& camera) {
   if (!table || !table->matches(camera)) table = std::make_unique<RayTable>(camera);
 }
 
-void LiveDenseMap::add_keyframe(KeyFrameId id, std::optional<DenseImages> images, double now_s, const SE3& T_cam_depthcam) {
+void LiveDenseMap::add_keyframe(KeyFrameId id, std::optional<DenseImages> images, double now_s,
+                                const SE3& T_cam_depthcam) {
   pending_.push_back({id, now_s, std::move(images), T_cam_depthcam});
   // Bounded: beyond max_pending_images the oldest waiting keyframes let go of their images (the
   // loader finds them again when their turn comes).
@@ -34,8 +35,8 @@ void LiveDenseMap::add_keyframe(KeyFrameId id, std::optional<DenseImages> images
     if (it->images && ++with_images > config_.max_pending_images) it->images.reset();
 }
 
-DenseStepResult LiveDenseMap::step(const std::vector<KeyframePose>& poses, double now_s,
-                                   const DenseImageLoader& loader, const DenseStepBudget& budget) {
+DenseStepResult LiveDenseMap::step(const std::vector<KeyframePose>& poses, double now_s, const DenseImageLoader& loader,
+                                   const DenseStepBudget& budget) {
   return run_step(poses, now_s, false, loader, budget);
 }
 
@@ -100,7 +101,8 @@ void LiveDenseMap::find_culled(const PoseIndex& poses, DenseStepResult& r) {
       r.culled.push_back(id);
     }
     if (s.members().empty()) {  // nothing left that can place it
-      if (open_.count(submap_client(s.id())) && open_.at(submap_client(s.id())) == s.id()) open_.erase(submap_client(s.id()));
+      if (open_.count(submap_client(s.id())) && open_.at(submap_client(s.id())) == s.id())
+        open_.erase(submap_client(s.id()));
       last_mesh_s_.erase(s.id());
       it = submaps_.erase(it);
       ++r.removed;
@@ -185,10 +187,9 @@ bool LiveDenseMap::integrate_one(const KeyframePose& pose, const DenseImages& im
   if (const auto it = open_.find(client); it != open_.end()) {
     DenseSubmap& s = *submaps_.at(it->second);
     const SE3 d = s.T_world_first().inverse() * pose.T_world_cam;
-    const bool fits = s.map() == pose.map && s.group() == pose.group &&
-                      int(s.members().size()) < config_.keyframes_per_submap &&
-                      d.translation().norm() <= config_.submap_max_distance &&
-                      angle_of(d) <= config_.submap_max_angle_deg * kDegree;
+    const bool fits =
+        s.map() == pose.map && s.group() == pose.group && int(s.members().size()) < config_.keyframes_per_submap &&
+        d.translation().norm() <= config_.submap_max_distance && angle_of(d) <= config_.submap_max_angle_deg * kDegree;
     if (fits) {
       open = &s;
     } else {  // the window is complete

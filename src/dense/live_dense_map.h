@@ -26,7 +26,7 @@
 namespace cslam {
 
 struct DenseMapView {
-  std::uint64_t version = 0;  // increases with every change a reader can see
+  std::uint64_t version = 0;             // increases with every change a reader can see
   std::vector<DenseSubmapView> submaps;  // sorted by id
   std::size_t keyframes_integrated = 0, keyframes_pending = 0;
   std::size_t mesh_bytes = 0, volume_bytes = 0;  // summed over the submaps
@@ -41,13 +41,13 @@ struct DenseStepBudget {
 };
 
 struct DenseStepResult {
-  int moved = 0;            // submaps whose pose changed
-  int integrated = 0;       // keyframes fused
-  int reintegrated = 0;     // submaps rebuilt
+  int moved = 0;         // submaps whose pose changed
+  int integrated = 0;    // keyframes fused
+  int reintegrated = 0;  // submaps rebuilt
   int remeshed = 0;
-  int removed = 0;          // submaps left without keyframes
-  int missing_images = 0;   // keyframes without images (skipped, counted)
-  std::vector<KeyFrameId> culled;  // keyframes gone from the maps since the last step
+  int removed = 0;                   // submaps left without keyframes
+  int missing_images = 0;            // keyframes without images (skipped, counted)
+  std::vector<KeyFrameId> culled;    // keyframes gone from the maps since the last step
   std::vector<double> integrate_ms;  // per keyframe fused
   double max_deviation_m = 0;        // worst relative keyframe motion found in a submap
 };
@@ -89,7 +89,8 @@ class LiveDenseMap {
   // Returns how many due keyframes were left for a later step (over the budget).
   int integrate_pending(const PoseIndex& poses, double now_s, bool all, const DenseImageLoader& loader, int budget,
                         DenseStepResult& r);
-  bool integrate_one(const KeyframePose& pose, const DenseImages& images, const SE3& T_cam_depthcam, DenseStepResult& r);
+  bool integrate_one(const KeyframePose& pose, const DenseImages& images, const SE3& T_cam_depthcam,
+                     DenseStepResult& r);
   void reintegrate(DenseSubmap& submap, const PoseIndex& poses, const DenseImageLoader& loader, DenseStepResult& r);
   void remesh_due(double now_s, bool all, DenseStepResult& r);
   void publish();
@@ -97,10 +98,10 @@ class LiveDenseMap {
   LiveDenseConfig config_;
   std::map<ClientId, std::unique_ptr<RayTable>> rays_;
   std::map<SubmapId, std::unique_ptr<DenseSubmap>> submaps_;
-  std::map<ClientId, SubmapId> open_;           // each client's submap taking keyframes
+  std::map<ClientId, SubmapId> open_;  // each client's submap taking keyframes
   std::map<ClientId, std::uint32_t> next_index_;
   std::map<SubmapId, double> last_mesh_s_;
-  std::vector<Pending> pending_;                // by id
+  std::vector<Pending> pending_;                     // by id
   std::map<ClientId, std::uint32_t> newest_listed_;  // newest keyframe seq seen in the poses per client
   std::size_t integrated_ = 0;
   std::uint64_t version_ = 0;

@@ -21,24 +21,42 @@ namespace cslam {
 
 const char* to_string(SkipReason r) {
   switch (r) {
-    case SkipReason::kNone: return "used";
-    case SkipReason::kNoImage: return "no image within the time gap";
-    case SkipReason::kBadPose: return "non-finite pose";
-    case SkipReason::kBadImage: return "empty, unreadable or wrong-type image";
-    case SkipReason::kWrongImageSize: return "image size differs from the camera";
-    case SkipReason::kNoValidDepth: return "no valid depth";
+    case SkipReason::kNone:
+      return "used";
+    case SkipReason::kNoImage:
+      return "no image within the time gap";
+    case SkipReason::kBadPose:
+      return "non-finite pose";
+    case SkipReason::kBadImage:
+      return "empty, unreadable or wrong-type image";
+    case SkipReason::kWrongImageSize:
+      return "image size differs from the camera";
+    case SkipReason::kNoValidDepth:
+      return "no valid depth";
   }
   return "?";
 }
 
 void DenseCounts::add(SkipReason r) {
   switch (r) {
-    case SkipReason::kNone: ++used; break;
-    case SkipReason::kNoImage: ++no_image; break;
-    case SkipReason::kBadPose: ++bad_pose; break;
-    case SkipReason::kBadImage: ++bad_image; break;
-    case SkipReason::kWrongImageSize: ++wrong_size; break;
-    case SkipReason::kNoValidDepth: ++no_valid_depth; break;
+    case SkipReason::kNone:
+      ++used;
+      break;
+    case SkipReason::kNoImage:
+      ++no_image;
+      break;
+    case SkipReason::kBadPose:
+      ++bad_pose;
+      break;
+    case SkipReason::kBadImage:
+      ++bad_image;
+      break;
+    case SkipReason::kWrongImageSize:
+      ++wrong_size;
+      break;
+    case SkipReason::kNoValidDepth:
+      ++no_valid_depth;
+      break;
   }
 }
 
@@ -113,14 +131,16 @@ struct DenseReconstructor::Impl {
   }
 
   void reserve_chunk(const PinholeCamera& camera) {
-    const size_t per_frame = size_t((camera.width + config.stride - 1) / config.stride) * size_t((camera.height + config.stride - 1) / config.stride);
+    const size_t per_frame = size_t((camera.width + config.stride - 1) / config.stride) *
+                             size_t((camera.height + config.stride - 1) / config.stride);
     const size_t need = chunk.size() + per_frame;
     if (chunk.points.capacity() < need) chunk.reserve(std::max(need, per_frame * size_t(config.chunk_frames)));
   }
 
   void skip(SkipReason r) {
     counts.add(r);
-    if (warned.insert(r).second) logger("dense")->warn("skipping frame: {} (further ones are only counted)", to_string(r));
+    if (warned.insert(r).second)
+      logger("dense")->warn("skipping frame: {} (further ones are only counted)", to_string(r));
   }
 };
 
@@ -135,7 +155,7 @@ void DenseReconstructor::count_skipped(SkipReason reason) { impl_->skip(reason);
 void DenseReconstructor::add_load_time(double ms) { impl_->timing.load += ms; }
 
 IntegrateResult DenseReconstructor::integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16,
-                                           const PinholeCamera& camera, const std::optional<SE3>& T_world_depthcam) {
+                                              const PinholeCamera& camera, const std::optional<SE3>& T_world_depthcam) {
   Impl& m = *impl_;
   if (m.finished) throw std::logic_error("DenseReconstructor::integrate after finish()");
   IntegrateResult out;
@@ -144,13 +164,16 @@ IntegrateResult DenseReconstructor::integrate(const SE3& T_world_cam, const cv::
     out.reason = r;
     return out;
   };
-  if (!T_world_cam.is_finite() || (T_world_depthcam && !T_world_depthcam->is_finite())) return reject(SkipReason::kBadPose);
+  if (!T_world_cam.is_finite() || (T_world_depthcam && !T_world_depthcam->is_finite()))
+    return reject(SkipReason::kBadPose);
   const SE3& T_world_depth = T_world_depthcam ? *T_world_depthcam : T_world_cam;
   std::optional<SE3> T_colourcam_depthcam;
   if (T_world_depthcam) T_colourcam_depthcam = T_world_cam.inverse() * *T_world_depthcam;
   const SE3* colour_from_depth = T_colourcam_depthcam ? &*T_colourcam_depthcam : nullptr;
-  if (bgr.empty() || depth16.empty() || bgr.type() != CV_8UC3 || depth16.type() != CV_16UC1) return reject(SkipReason::kBadImage);
-  if (bgr.cols != camera.width || bgr.rows != camera.height || depth16.cols != camera.width || depth16.rows != camera.height)
+  if (bgr.empty() || depth16.empty() || bgr.type() != CV_8UC3 || depth16.type() != CV_16UC1)
+    return reject(SkipReason::kBadImage);
+  if (bgr.cols != camera.width || bgr.rows != camera.height || depth16.cols != camera.width ||
+      depth16.rows != camera.height)
     return reject(SkipReason::kWrongImageSize);
 
   Stopwatch sw;

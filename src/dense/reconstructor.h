@@ -37,7 +37,7 @@ struct DenseCounts {
   void add(SkipReason reason);
 };
 
-struct DenseTiming {  // milliseconds
+struct DenseTiming {       // milliseconds
   double load = 0;         // image decoding (reconstruct_from_* only; on the loader thread)
   double backproject = 0;  // main thread
   double filter = 0;       // voxel filtering (filter thread when threads >= 2)
@@ -45,11 +45,11 @@ struct DenseTiming {  // milliseconds
 };
 
 struct DenseResult {
-  ColoredCloud cloud;   // voxel-filtered, coloured, in the poses' world frame
-  TriangleMesh mesh;    // empty unless config.build_mesh
+  ColoredCloud cloud;  // voxel-filtered, coloured, in the poses' world frame
+  TriangleMesh mesh;   // empty unless config.build_mesh
   DenseCounts counts;
-  std::size_t raw_points = 0;             // points back-projected before filtering
-  std::size_t peak_buffered_points = 0;   // most points held at once by the filter stage
+  std::size_t raw_points = 0;            // points back-projected before filtering
+  std::size_t peak_buffered_points = 0;  // most points held at once by the filter stage
   std::size_t tsdf_blocks = 0, tsdf_bytes = 0;
   DenseTiming timing;
 };
@@ -66,8 +66,8 @@ class DenseReconstructor {
   // camera's path (another instant), T_world_depthcam places it and colours are looked up where
   // its points project in the colour image. Bad frames are skipped and counted, never thrown.
   // Throws std::logic_error after finish().
-  IntegrateResult integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16, const PinholeCamera& camera,
-                         const std::optional<SE3>& T_world_depthcam = std::nullopt);
+  IntegrateResult integrate(const SE3& T_world_cam, const cv::Mat& bgr, const cv::Mat& depth16,
+                            const PinholeCamera& camera, const std::optional<SE3>& T_world_depthcam = std::nullopt);
   // Records a frame skipped by the caller (e.g. a pose without image, an unreadable file).
   void count_skipped(SkipReason reason);
   void add_load_time(double ms);

@@ -30,7 +30,8 @@ double median_depth(const cv::Mat& depth, double scale, double min_depth, double
 void LiveDenseConfig::validate() const {
   auto check_tsdf = [](const TsdfConfig& c, const char* what) {
     if (!(c.voxel_size > 0) || !(c.truncation >= c.voxel_size) || !(c.max_weight >= 1) || c.stride < 1)
-      throw ConfigError(std::string("dense map: ") + what + " needs voxel > 0, truncation >= voxel, weight cap >= 1, stride >= 1");
+      throw ConfigError(std::string("dense map: ") + what +
+                        " needs voxel > 0, truncation >= voxel, weight cap >= 1, stride >= 1");
   };
   check_tsdf(tsdf, "mesh volume");
   check_tsdf(nav, "navigation volume");
@@ -44,8 +45,13 @@ void LiveDenseConfig::validate() const {
 }
 
 DenseSubmap::DenseSubmap(SubmapId id, int group, int map, const SE3& T_world_submap, const LiveDenseConfig& config)
-    : id_(id), group_(group), map_(map), config_(config), T_world_submap_(T_world_submap),
-      T_world_first_(T_world_submap), fine_(std::make_unique<TsdfVolume>(config.tsdf)),
+    : id_(id),
+      group_(group),
+      map_(map),
+      config_(config),
+      T_world_submap_(T_world_submap),
+      T_world_first_(T_world_submap),
+      fine_(std::make_unique<TsdfVolume>(config.tsdf)),
       nav_(std::make_shared<TsdfVolume>(config.nav)) {}
 
 void DenseSubmap::integrate(KeyFrameId id, const SE3& T_world_cam, const DenseImages& images, const RayTable& rays,

@@ -18,7 +18,9 @@ namespace cslam {
 
 // Carries its client: client << 16 | index of the client's submaps.
 using SubmapId = std::uint32_t;
-inline SubmapId make_submap_id(ClientId client, std::uint32_t index) { return (SubmapId(client) << 16) | (index & 0xFFFF); }
+inline SubmapId make_submap_id(ClientId client, std::uint32_t index) {
+  return (SubmapId(client) << 16) | (index & 0xFFFF);
+}
 inline ClientId submap_client(SubmapId id) { return ClientId(id >> 16); }
 
 // Decoded images of one keyframe, ready to integrate.
@@ -28,17 +30,18 @@ struct DenseImages {
 };
 
 struct LiveDenseConfig {
-  TsdfConfig tsdf{0.02f, 0.08f, 64.0f, 4, 1, 1};  // the meshed volume: voxel, truncation, weight cap, block-search stride
-  TsdfConfig nav{0.05f, 0.15f, 64.0f, 4, 1, 1};   // coarse volume kept for navigation maps
-  double min_depth = 0.3, max_depth = 4.0;         // metres
+  TsdfConfig tsdf{0.02f, 0.08f, 64.0f,
+                  4,     1,     1};  // the meshed volume: voxel, truncation, weight cap, block-search stride
+  TsdfConfig nav{0.05f, 0.15f, 64.0f, 4, 1, 1};  // coarse volume kept for navigation maps
+  double min_depth = 0.3, max_depth = 4.0;       // metres
   int keyframes_per_submap = 8;
-  double submap_max_distance = 1.0;     // a keyframe farther than this from the submap's first one opens a new submap (m)
-  double submap_max_angle_deg = 45.0;   // ... or turned further than this
+  double submap_max_distance = 1.0;  // a keyframe farther than this from the submap's first one opens a new submap (m)
+  double submap_max_angle_deg = 45.0;  // ... or turned further than this
   // A submap is re-integrated when one of its keyframes moved relative to it so that the surface
   // it saw moved by more than this (m): translation + rotation angle x the keyframe's median depth.
   double reintegrate_displacement = 0.01;
-  double integration_delay_s = 1.0;  // a keyframe waits this long for local BA before it is integrated
-  double mesh_interval_s = 3.0;      // an open submap is re-meshed at most this often
+  double integration_delay_s = 1.0;     // a keyframe waits this long for local BA before it is integrated
+  double mesh_interval_s = 3.0;         // an open submap is re-meshed at most this often
   std::size_t max_pending_images = 16;  // decoded images held for keyframes waiting to be integrated
   // Throws ConfigError naming the bad value.
   void validate() const;
@@ -53,18 +56,18 @@ struct DenseSubmapView {
   std::uint64_t pose_version = 0;  // pose alone (corrections)
   SE3 T_world_submap;
   std::vector<KeyFrameId> keyframes;
-  std::shared_ptr<const TriangleMesh> mesh;       // submap frame
-  std::shared_ptr<const TsdfVolume> nav_volume;   // submap frame, coarse
+  std::shared_ptr<const TriangleMesh> mesh;      // submap frame
+  std::shared_ptr<const TsdfVolume> nav_volume;  // submap frame, coarse
   float voxel_size = 0;
-  std::size_t mesh_bytes = 0, volume_bytes = 0;    // held by this submap (fine volume while open, nav volume)
+  std::size_t mesh_bytes = 0, volume_bytes = 0;  // held by this submap (fine volume while open, nav volume)
 };
 
 class DenseSubmap {
  public:
   struct Member {
     KeyFrameId id;
-    SE3 T_submap_kf;     // where its colour image was integrated, in the submap frame
-    SE3 T_cam_depthcam;  // where its depth image was taken, from the colour image's pose
+    SE3 T_submap_kf;          // where its colour image was integrated, in the submap frame
+    SE3 T_cam_depthcam;       // where its depth image was taken, from the colour image's pose
     double median_depth = 0;  // of its depth image (m): how far a rotation moves what it saw
   };
 

@@ -100,7 +100,8 @@ PoseFrameMatch match_poses_to_frames(Trajectory poses, const std::vector<double>
   pose_times.reserve(poses.size());
   for (const auto& p : poses) pose_times.push_back(p.timestamp);
   PoseFrameMatch out;
-  for (const auto& [i, j] : associate_timestamps(pose_times, frame_times, max_dt)) out.matches.emplace_back(poses[size_t(i)], j);
+  for (const auto& [i, j] : associate_timestamps(pose_times, frame_times, max_dt))
+    out.matches.emplace_back(poses[size_t(i)], j);
   std::sort(out.matches.begin(), out.matches.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
   out.unmatched_poses = int(poses.size() - out.matches.size());
   return out;
@@ -110,7 +111,8 @@ namespace {
 
 // The camera when a depth image `offset` seconds after the colour image of `pose` was taken:
 // `poses` (sorted) interpolated there; nullopt if not asked for, no offset, or no poses around it.
-std::optional<SE3> depth_pose(const Trajectory& poses, const StampedPose& pose, double offset, const DenseConfig& config) {
+std::optional<SE3> depth_pose(const Trajectory& poses, const StampedPose& pose, double offset,
+                              const DenseConfig& config) {
   if (!config.depth_time_compensation || offset == 0) return std::nullopt;
   return interpolate_pose(poses, pose.timestamp + offset);
 }
@@ -157,7 +159,9 @@ DenseResult reconstruct_from_frames(const std::vector<FramePoses>& sources, cons
     // Frames sorted by time (indices into the caller's list).
     std::vector<int> order(src.frames->size());
     for (size_t i = 0; i < order.size(); ++i) order[i] = int(i);
-    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return (*src.frames)[size_t(a)].timestamp < (*src.frames)[size_t(b)].timestamp; });
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+      return (*src.frames)[size_t(a)].timestamp < (*src.frames)[size_t(b)].timestamp;
+    });
     std::vector<double> times;
     for (int i : order) times.push_back((*src.frames)[size_t(i)].timestamp);
     Trajectory sorted = src.poses;

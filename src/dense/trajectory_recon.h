@@ -38,7 +38,7 @@ DenseResult reconstruct_from_trajectories(const std::vector<DatasetPoses>& sourc
 struct TimedRgbd {
   double timestamp = 0;          // the colour image's
   double depth_time_offset = 0;  // the depth image's time minus the colour image's (s)
-  cv::Mat bgr, depth;  // CV_8UC3, CV_16UC1
+  cv::Mat bgr, depth;            // CV_8UC3, CV_16UC1
 };
 struct FramePoses {
   const std::vector<TimedRgbd>* frames = nullptr;

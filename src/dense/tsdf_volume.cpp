@@ -33,7 +33,8 @@ TsdfVolume::TsdfVolume(TsdfConfig config) : config_(config) {
   if (!(config_.voxel_size > 0)) throw ConfigError("tsdf: voxel_size must be positive");
   if (!(config_.truncation >= config_.voxel_size)) throw ConfigError("tsdf: truncation must be at least one voxel");
   if (!(config_.max_weight >= 1)) throw ConfigError("tsdf: max_weight must be >= 1");
-  if (config_.stride < 1 || config_.every < 1 || config_.threads < 1) throw ConfigError("tsdf: stride, every and threads must be >= 1");
+  if (config_.stride < 1 || config_.every < 1 || config_.threads < 1)
+    throw ConfigError("tsdf: stride, every and threads must be >= 1");
 }
 
 Eigen::Vector3i TsdfVolume::block_origin(std::uint64_t key) { return key_to_block(key) * kB; }
@@ -127,7 +128,8 @@ TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& dept
   };
   const int threads = std::max(1, std::min<int>(config_.threads, int(work.size() / 64) + 1));
   std::vector<std::thread> pool;
-  for (int k = 1; k < threads; ++k) pool.emplace_back(update, work.size() * k / threads, work.size() * (k + 1) / threads);
+  for (int k = 1; k < threads; ++k)
+    pool.emplace_back(update, work.size() * k / threads, work.size() * (k + 1) / threads);
   update(0, work.size() / threads);
   for (auto& th : pool) th.join();
   return stats;
@@ -183,7 +185,8 @@ TriangleMesh TsdfVolume::extract_mesh() const {
               const int e = tri[size_t(k)];
               const int ca = mc_edge_corner(e, 0), cb = mc_edge_corner(e, 1), axis = mc_edge_axis(e);
               const Eigen::Vector3i ga = g + Eigen::Vector3i(ca & 1, (ca >> 1) & 1, (ca >> 2) & 1);
-              const auto [it, inserted] = vertex_of_edge.try_emplace(edge_key(ga, axis), std::uint32_t(mesh.vertices.size()));
+              const auto [it, inserted] =
+                  vertex_of_edge.try_emplace(edge_key(ga, axis), std::uint32_t(mesh.vertices.size()));
               if (inserted) {
                 const TsdfVoxel& a = *c[size_t(ca)];
                 const TsdfVoxel& b = *c[size_t(cb)];
@@ -191,7 +194,9 @@ TriangleMesh TsdfVolume::extract_mesh() const {
                 Eigen::Vector3f p = (ga.cast<float>() + Eigen::Vector3f::Constant(0.5f)) * voxel;
                 p[axis] += s * voxel;
                 mesh.vertices.push_back(p);
-                auto mix = [s](std::uint8_t u, std::uint8_t w) { return std::uint8_t(u + s * (float(w) - float(u)) + 0.5f); };
+                auto mix = [s](std::uint8_t u, std::uint8_t w) {
+                  return std::uint8_t(u + s * (float(w) - float(u)) + 0.5f);
+                };
                 mesh.colors.push_back({mix(a.r, b.r), mix(a.g, b.g), mix(a.b, b.b)});
               }
               idx[size_t(k)] = it->second;

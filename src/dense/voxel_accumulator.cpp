@@ -51,7 +51,8 @@ ColoredCloud VoxelAccumulator::finish() {
   for (const Cell& c : cells_) {
     out.points.push_back(c.sum / float(c.count));
     if (colors_)
-      out.colors.push_back({std::uint8_t((c.rgb[0] + c.count / 2) / c.count), std::uint8_t((c.rgb[1] + c.count / 2) / c.count),
+      out.colors.push_back({std::uint8_t((c.rgb[0] + c.count / 2) / c.count),
+                            std::uint8_t((c.rgb[1] + c.count / 2) / c.count),
                             std::uint8_t((c.rgb[2] + c.count / 2) / c.count)});
   }
   cells_ = {};

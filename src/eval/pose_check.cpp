@@ -62,8 +62,9 @@ TimeOffsetResult estimate_time_offset(const Trajectory& ground_truth, const Traj
   TimeOffsetResult r;
   int used = 0;
   r.median_rotation_deg_at_zero = median_error(0, used);
-  if (used < 10) throw InputError("time offset", "only " + std::to_string(used) + " pose pairs " +
-                                                     std::to_string(config.window_s) + " s apart have ground truth (need >= 10)");
+  if (used < 10)
+    throw InputError("time offset", "only " + std::to_string(used) + " pose pairs " + std::to_string(config.window_s) +
+                                        " s apart have ground truth (need >= 10)");
   r.median_rotation_deg = r.median_rotation_deg_at_zero;
   r.pairs = used;
   const int steps = int(std::lround(config.search_s / config.step_s));

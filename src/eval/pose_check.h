@@ -23,12 +23,12 @@ RelativePoseError relative_pose_error(const Trajectory& gt_query, double query_t
 struct TimeOffsetConfig {
   double search_s = 0.05;  // offsets tried in [-search, +search]
   double step_s = 0.001;
-  double window_s = 0.5;   // pose pairs this far apart are compared
+  double window_s = 0.5;  // pose pairs this far apart are compared
 };
 struct TimeOffsetResult {
   bool ok = false;
-  double offset_s = 0;              // add to the estimate's timestamps to read ground truth
-  double median_rotation_deg = 0;   // relative-rotation error at the best offset
+  double offset_s = 0;             // add to the estimate's timestamps to read ground truth
+  double median_rotation_deg = 0;  // relative-rotation error at the best offset
   double median_rotation_deg_at_zero = 0;
   int pairs = 0;
 };

@@ -11,8 +11,11 @@ namespace cslam {
 
 SplitResult split_sequence(int n, int k, double eta) {
   if (k < 1) throw std::invalid_argument("split: need at least 1 client");
-  if (n < k) throw std::invalid_argument("split: " + std::to_string(n) + " frames cannot be split into " + std::to_string(k) + " clients");
-  if (!(eta >= 0.0 && eta < 1.0)) throw std::invalid_argument("split: overlap rate must be in [0, 1), e.g. 0.05 for 5%");
+  if (n < k)
+    throw std::invalid_argument("split: " + std::to_string(n) + " frames cannot be split into " + std::to_string(k) +
+                                " clients");
+  if (!(eta >= 0.0 && eta < 1.0))
+    throw std::invalid_argument("split: overlap rate must be in [0, 1), e.g. 0.05 for 5%");
   const double N = n, K = k;
   const double L = N / K;
   SplitResult r;

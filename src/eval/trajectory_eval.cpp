@@ -43,7 +43,8 @@ AteResult compute_ate_joint(const std::vector<std::pair<Trajectory, Trajectory>>
   std::vector<double> times;
   for (const auto& [gt, est] : trajectory_pairs) {
     auto pairs = associate_trajectories(gt, est, max_dt);
-    std::sort(pairs.begin(), pairs.end(), [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
+    std::sort(pairs.begin(), pairs.end(),
+              [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
     for (const auto& [i, j] : pairs) {
       dst.push_back(gt[i].T_world_cam.translation());
       src.push_back(est[j].T_world_cam.translation());
@@ -51,8 +52,9 @@ AteResult compute_ate_joint(const std::vector<std::pair<Trajectory, Trajectory>>
     }
   }
   if (src.size() < 3)
-    throw InputError("ATE", "only " + std::to_string(src.size()) +
-                                " poses associate between ground truth and estimate (need >= 3; check timestamps and --max-dt)");
+    throw InputError(
+        "ATE", "only " + std::to_string(src.size()) +
+                   " poses associate between ground truth and estimate (need >= 3; check timestamps and --max-dt)");
   AteResult r;
   if (align != Alignment::kNone) {
     const auto u = umeyama(src, dst, align == Alignment::kSim3);
@@ -69,7 +71,8 @@ AteResult compute_ate_joint(const std::vector<std::pair<Trajectory, Trajectory>>
 
 RpeResult compute_rpe(const Trajectory& gt, const Trajectory& est, double delta_s, double max_dt) {
   auto pairs = associate_trajectories(gt, est, max_dt);
-  std::sort(pairs.begin(), pairs.end(), [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
+  std::sort(pairs.begin(), pairs.end(),
+            [&](auto x, auto y) { return est[x.second].timestamp < est[y.second].timestamp; });
   std::vector<double> terr, rerr;
   size_t j = 0;
   for (size_t i = 0; i < pairs.size(); ++i) {
@@ -88,7 +91,8 @@ RpeResult compute_rpe(const Trajectory& gt, const Trajectory& est, double delta_
     terr.push_back(err.translation().norm());
     rerr.push_back(err.rotation_angle() * 180.0 / M_PI);
   }
-  if (terr.empty()) throw InputError("RPE", "no pose pairs " + std::to_string(delta_s) + " s apart associate with ground truth");
+  if (terr.empty())
+    throw InputError("RPE", "no pose pairs " + std::to_string(delta_s) + " s apart associate with ground truth");
   return {compute_stats(terr), compute_stats(rerr)};
 }
 

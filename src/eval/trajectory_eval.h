@@ -19,9 +19,9 @@ std::vector<std::pair<int, int>> associate_trajectories(const Trajectory& gt, co
 
 struct AteResult {
   ErrorStats stats;
-  Sim3 T_gt_est;                        // alignment applied to the estimate
-  std::vector<double> timestamps;       // estimate's timestamps of associated poses
-  std::vector<double> errors;           // per associated pose, metres
+  Sim3 T_gt_est;                   // alignment applied to the estimate
+  std::vector<double> timestamps;  // estimate's timestamps of associated poses
+  std::vector<double> errors;      // per associated pose, metres
 };
 // Throws InputError (source "ATE") if fewer than 3 poses associate.
 AteResult compute_ate(const Trajectory& gt, const Trajectory& est, Alignment align, double max_dt = 0.02);

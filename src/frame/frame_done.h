@@ -14,10 +14,10 @@ struct FrameDone {
   std::uint64_t seq = 0;
   double timestamp = 0;
   FrameFate fate = FrameFate::kRejected;
-  bool has_pose = false;     // only for kTracked: never a stale pose
-  SE3 T_world_cam;           // camera-to-world in the frame of `group` (the tracked map's frame)
-  GroupId group;             // fused group of the map the frame was tracked in
-  int map = 0;               // index of the client's map the frame was tracked in
+  bool has_pose = false;             // only for kTracked: never a stale pose
+  SE3 T_world_cam;                   // camera-to-world in the frame of `group` (the tracked map's frame)
+  GroupId group;                     // fused group of the map the frame was tracked in
+  int map = 0;                       // index of the client's map the frame was tracked in
   std::uint64_t map_epoch = 0;       // bumps when a fusion, group BA or loop correction may move maps
   std::uint64_t frames_skipped = 0;  // live frames of this client skipped so far
   double server_ms = 0;              // submit() to done, milliseconds

@@ -8,11 +8,16 @@ enum class FrameFate { kNotInitialized, kTracked, kLost, kSkipped, kRejected };
 
 inline const char* to_string(FrameFate f) {
   switch (f) {
-    case FrameFate::kNotInitialized: return "not_initialized";
-    case FrameFate::kTracked: return "tracked";
-    case FrameFate::kLost: return "lost";
-    case FrameFate::kSkipped: return "skipped";
-    case FrameFate::kRejected: return "rejected";
+    case FrameFate::kNotInitialized:
+      return "not_initialized";
+    case FrameFate::kTracked:
+      return "tracked";
+    case FrameFate::kLost:
+      return "lost";
+    case FrameFate::kSkipped:
+      return "skipped";
+    case FrameFate::kRejected:
+      return "rejected";
   }
   return "unknown";
 }

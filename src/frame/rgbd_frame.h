@@ -24,14 +24,14 @@ inline constexpr double kMaxDepthTimeOffset = 0.1;
 
 struct RgbdFrame {
   ClientId client = 0;
-  std::uint64_t seq = 0;   // sender's sequence number
-  double timestamp = 0;    // seconds, when the colour image was captured
+  std::uint64_t seq = 0;  // sender's sequence number
+  double timestamp = 0;   // seconds, when the colour image was captured
   // When the depth image was captured, relative to the colour image (seconds; 0: together).
   // With RgbdParams::depth_time_compensation, tracking reads each keypoint's depth where the
   // camera's predicted motion over this gap carried it.
   double depth_time_offset = 0;  // |offset| <= kMaxDepthTimeOffset, else the frame is rejected
-  cv::Mat bgr;             // CV_8UC3
-  cv::Mat depth;           // CV_16UC1, raw units (camera.depth_factor per metre)
+  cv::Mat bgr;                   // CV_8UC3
+  cv::Mat depth;                 // CV_16UC1, raw units (camera.depth_factor per metre)
   // 1: the depth image as the camera took it. S > 1: every S-th pixel of every S-th row was sent
   // and `depth` holds them spread back to full size (each sample over its S x S block): good for
   // tracking, not for a keyframe (the map and the dense model need every pixel).

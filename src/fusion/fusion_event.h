@@ -11,14 +11,14 @@ namespace cslam {
 struct FusionEvent {
   double wall_time_s = 0;  // seconds since the system started
   ClientId client_a = 0, client_b = 0;
-  GroupId group;           // the group after the fusion
+  GroupId group;  // the group after the fusion
   int inliers = 0;
   double duration_ms = 0;  // detection hit to fused map
   std::string kind = "fusion";
   double query_timestamp = 0, candidate_timestamp = 0;  // frame times of the two keyframes
-  SE3 T_query_candidate;  // verified camera-to-camera transform (p_query = T * p_candidate)
-  int seam_points = 0;     // points found in both maps and linked (estimated as one)
-  int seam_edges = 0;      // cross-map covisibility edges (keyframe pairs sharing >= 15 points)
+  SE3 T_query_candidate;                        // verified camera-to-camera transform (p_query = T * p_candidate)
+  int seam_points = 0;                          // points found in both maps and linked (estimated as one)
+  int seam_edges = 0;                           // cross-map covisibility edges (keyframe pairs sharing >= 15 points)
   int keyframes_moved = 0, keyframes_kept = 0;  // keyframes of the moved and the kept group
 };
 

@@ -194,8 +194,9 @@ std::vector<KeyFrameId> FusionManager::consistent_candidates(const Pending& p, M
   return it->second.update(groups);
 }
 
-std::optional<FusionManager::Verified> FusionManager::verified_candidate(const Pending& p, Map& other, ClientId other_client,
-                                                                        const BowVector& bow, double min_score) {
+std::optional<FusionManager::Verified> FusionManager::verified_candidate(const Pending& p, Map& other,
+                                                                         ClientId other_client, const BowVector& bow,
+                                                                         double min_score) {
   const std::vector<KeyFrameId> consistent = consistent_candidates(p, other, bow, min_score);
   if (consistent.empty()) return std::nullopt;
   Verified out;
@@ -218,7 +219,8 @@ std::optional<FusionManager::Verified> FusionManager::verified_candidate(const P
   return std::nullopt;
 }
 
-bool FusionManager::try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score) {
+bool FusionManager::try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow,
+                             double min_score) {
   for (const auto& other_reg : others) {
     auto other = other_reg.map.lock();
     if (!other) continue;
@@ -262,8 +264,10 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     if (gq == gc) return;
     for (const auto& r : registry_)
       if (auto m = r.map.lock()) {
-        if (group_.at(m.get()) == gq) group_q.push_back(m);
-        else if (group_.at(m.get()) == gc) group_c.push_back(m);
+        if (group_.at(m.get()) == gq)
+          group_q.push_back(m);
+        else if (group_.at(m.get()) == gc)
+          group_c.push_back(m);
       }
   }
   auto keyframes_of = [](const std::vector<std::shared_ptr<Map>>& g) {
@@ -303,12 +307,12 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     last_link_[{kept_map.get(), moved_map.get()}] = keyframes_seen_[kept_map.get()];
     last_link_[{moved_map.get(), kept_map.get()}] = keyframes_seen_[moved_map.get()];
   }
-  logger("fusion")->info("fused client {} with client {} into group {} ({} keyframes moved onto {}): {} inliers, {} "
-                         "projection matches, window fit {} inliers over {} keyframes, {} seam points, {} cross-map "
-                         "covisibility edges, {:.1f} ms",
-                         p.client, other_client, kept.value(), e.keyframes_moved, e.keyframes_kept, v.final_inliers,
-                         v.projection_matches, v.window_inliers, v.window_keyframes, e.seam_points, e.seam_edges,
-                         e.duration_ms);
+  logger("fusion")->info(
+      "fused client {} with client {} into group {} ({} keyframes moved onto {}): {} inliers, {} "
+      "projection matches, window fit {} inliers over {} keyframes, {} seam points, {} cross-map "
+      "covisibility edges, {:.1f} ms",
+      p.client, other_client, kept.value(), e.keyframes_moved, e.keyframes_kept, v.final_inliers, v.projection_matches,
+      v.window_inliers, v.window_keyframes, e.seam_points, e.seam_edges, e.duration_ms);
   start_group_ba(kept);
 }
 
@@ -359,7 +363,8 @@ bool FusionManager::run_group_ba_of(GroupId group) {
   GlobalBa gba;
   {
     auto locks = lock_maps<std::shared_lock<std::shared_mutex>>(maps);
-    std::stable_sort(maps.begin(), maps.end(), [](const Map* a, const Map* b) { return a->num_keyframes() > b->num_keyframes(); });
+    std::stable_sort(maps.begin(), maps.end(),
+                     [](const Map* a, const Map* b) { return a->num_keyframes() > b->num_keyframes(); });
     gba.snapshot(maps, links);
   }
   const BaResult r = gba.solve(config_.group_ba_iterations, &group_ba_abort_);
@@ -369,16 +374,18 @@ bool FusionManager::run_group_ba_of(GroupId group) {
     applied = gba.apply(r);
   }
   std::lock_guard<std::mutex> lock(state_mutex_);
-  if (applied) group_ba_pending_.erase(group);
-  else if (!r.aborted) group_ba_pending_.insert(group);  // a map moved meanwhile: again at the next keyframe
+  if (applied)
+    group_ba_pending_.erase(group);
+  else if (!r.aborted)
+    group_ba_pending_.insert(group);  // a map moved meanwhile: again at the next keyframe
   if (applied) {
     ++group_ba_stats_.completed;
     group_ba_stats_.ms.push_back(sw.ms());
     group_ba_stats_.last_keyframes = int(gba.num_keyframes());
     group_ba_stats_.last_points = int(gba.num_points());
     group_ba_stats_.last_linked_points = int(links.size());
-    logger("fusion")->info("group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms", group.value(),
-                           maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms());
+    logger("fusion")->info("group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms",
+                           group.value(), maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms());
   } else {
     ++group_ba_stats_.discarded;
   }

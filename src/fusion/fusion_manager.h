@@ -42,9 +42,9 @@ struct FusionConfig {
   std::size_t queue_capacity = 512;  // pending keyframes (oldest dropped beyond)
   OverlapVerifyConfig verify;
   SeamConfig seam;
-  bool group_ba = true;              // global BA over a fused group after each fusion
+  bool group_ba = true;  // global BA over a fused group after each fusion
   int group_ba_iterations = 10;
-  ReencounterConfig reencounter;     // place pairs between maps already in one group
+  ReencounterConfig reencounter;  // place pairs between maps already in one group
 };
 
 // Moves a whole map by T_new_old (keyframe poses and points); requires no lock held by the caller.
@@ -91,8 +91,9 @@ class FusionManager {
   void process(const Pending& p);
   void fuse(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const KeyFramePtr& candidate,
             const SE3& T_wq_wc, const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
-  void reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client, const KeyFramePtr& candidate,
-                   const OverlapVerifyResult& v, std::chrono::steady_clock::time_point hit);
+  void reencounter(const Pending& p, const std::shared_ptr<Map>& other, ClientId other_client,
+                   const KeyFramePtr& candidate, const OverlapVerifyResult& v,
+                   std::chrono::steady_clock::time_point hit);
   // The event of a link (fusion or re-encounter) between the query keyframe and `candidate`; the
   // caller adds which keyframes moved and which stayed.
   FusionEvent link_event(const char* kind, const Pending& p, ClientId other_client, GroupId group,
@@ -101,7 +102,8 @@ class FusionManager {
   // Fusion, then re-encounters, with the maps of the other groups / of the query's own group.
   // Each true if it linked the query's map (and started the group BA).
   bool try_fuse(const Pending& p, const std::vector<Registered>& others, const BowVector& bow, double min_score);
-  bool try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow, double min_score);
+  bool try_reencounter(const Pending& p, const std::vector<Registered>& same_group, const BowVector& bow,
+                       double min_score);
   // The first of `other`'s consistent candidates (at most config_.max_candidates tried) that
   // verify_overlap accepts against the query keyframe, with T_wq_wc = the query map's world from
   // the candidate map's. Both maps are held shared only while one candidate is verified.
@@ -142,9 +144,9 @@ class FusionManager {
   std::map<std::pair<const Map*, const Map*>, ConsistencyChecker> consistency_;
   std::vector<FusionEvent> events_;
   std::vector<StoredSeam> seams_;
-  std::map<const Map*, int> keyframes_seen_;  // keyframes processed per map (fusion thread)
+  std::map<const Map*, int> keyframes_seen_;        // keyframes processed per map (fusion thread)
   std::map<const Map*, std::uint64_t> loops_seen_;  // Map::loops_closed() when last processed
-  std::set<GroupId> group_ba_pending_;  // groups whose last group BA was discarded (a map moved meanwhile)
+  std::set<GroupId> group_ba_pending_;              // groups whose last group BA was discarded (a map moved meanwhile)
   // keyframes_seen_ of the query map when the pair (query, other) last fused or re-encountered
   std::map<std::pair<const Map*, const Map*>, int> last_link_;
   GroupBaStats group_ba_stats_;

@@ -19,7 +19,8 @@ bool FusionManager::try_reencounter(const Pending& p, const std::vector<Register
       // Not again right after the last link of this pair: those places are tied already.
       std::lock_guard<std::mutex> lock(state_mutex_);
       auto it = last_link_.find({p.map.get(), other.get()});
-      if (it != last_link_.end() && keyframes_seen_[p.map.get()] - it->second < config_.reencounter.min_keyframe_gap) continue;
+      if (it != last_link_.end() && keyframes_seen_[p.map.get()] - it->second < config_.reencounter.min_keyframe_gap)
+        continue;
     }
     const auto found = verified_candidate(p, *other, other_reg.client, bow, min_score);
     if (!found) continue;
@@ -68,12 +69,13 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     last_link_[{p.map.get(), other.get()}] = keyframes_seen_[p.map.get()];
     consistency_.erase({p.map.get(), other.get()});
   }
-  logger("fusion")->info("client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
-                         "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
-                         "locked {:.1f} ms, {:.1f} ms from detection",
-                         p.client, other_client, group.value(), v.final_inliers, 100 * c.T_correction.translation().norm(),
-                         Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors,
-                         c.pose_graph_ms, e.seam_points, locked_ms, e.duration_ms);
+  logger("fusion")->info(
+      "client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
+      "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
+      "locked {:.1f} ms, {:.1f} ms from detection",
+      p.client, other_client, group.value(), v.final_inliers, 100 * c.T_correction.translation().norm(),
+      Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors, c.pose_graph_ms,
+      e.seam_points, locked_ms, e.duration_ms);
   start_group_ba(group);
 }
 

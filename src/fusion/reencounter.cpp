@@ -10,7 +10,8 @@
 namespace cslam {
 
 ReencounterCorrection correct_reencounter(Map& query_map, KeyFrame& kf, const SE3& T_kf_world_measured,
-                                          const std::vector<MapPointPtr>& anchor_points, const ReencounterConfig& config) {
+                                          const std::vector<MapPointPtr>& anchor_points,
+                                          const ReencounterConfig& config) {
   ReencounterCorrection out;
   const SE3 T_world_kf_old = kf.T_world_cam();
   out.T_correction = T_kf_world_measured.inverse() * kf.T_cam_world;

@@ -24,9 +24,9 @@ struct ReencounterConfig {
 };
 
 struct ReencounterCorrection {
-  SE3 T_correction;         // corrected^-1 * old pose of the query keyframe (identity: no drift)
-  int rigid = 0;            // keyframes moved rigidly with the query keyframe
-  int anchors = 0;          // keyframes held where they were (linked to the group before)
+  SE3 T_correction;  // corrected^-1 * old pose of the query keyframe (identity: no drift)
+  int rigid = 0;     // keyframes moved rigidly with the query keyframe
+  int anchors = 0;   // keyframes held where they were (linked to the group before)
   int graph_edges = 0;
   bool pose_graph_converged = false;
   double pose_graph_ms = 0;
@@ -37,6 +37,7 @@ struct ReencounterCorrection {
 // candidate (whose map is in the same frame): S_query_candidate * T_candidate_world.
 // anchor_points: points of the query map linked across maps by earlier seams.
 ReencounterCorrection correct_reencounter(Map& query_map, KeyFrame& kf, const SE3& T_kf_world_measured,
-                                          const std::vector<MapPointPtr>& anchor_points, const ReencounterConfig& config);
+                                          const std::vector<MapPointPtr>& anchor_points,
+                                          const ReencounterConfig& config);
 
 }  // namespace cslam

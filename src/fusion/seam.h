@@ -11,9 +11,9 @@
 namespace cslam {
 
 struct SeamConfig {
-  int neighbours = 10;      // covisible keyframes taken on each side of the match
-  double radius = 3.0;      // projection search radius (pixels at level 0)
-  int min_edge_weight = 15; // shared points for a cross-map covisibility edge
+  int neighbours = 10;       // covisible keyframes taken on each side of the match
+  double radius = 3.0;       // projection search radius (pixels at level 0)
+  int min_edge_weight = 15;  // shared points for a cross-map covisibility edge
 };
 
 struct SeamLink {

@@ -40,7 +40,8 @@ UmeyamaResult umeyama(const Eigen::Vector3d* src, const Eigen::Vector3d* dst, in
   return r;
 }
 
-UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst, bool with_scale) {
+UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                      bool with_scale) {
   if (src.size() != dst.size()) return {};
   return umeyama(src.data(), dst.data(), int(src.size()), with_scale);
 }

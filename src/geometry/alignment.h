@@ -15,7 +15,8 @@ struct UmeyamaResult {
   Sim3 T_dst_src;
   double rmse = 0;
 };
-UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst, bool with_scale);
+UmeyamaResult umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                      bool with_scale);
 
 // Same, on n points given by pointers (no allocation; used in RANSAC inner loops). rmse is filled.
 UmeyamaResult umeyama(const Eigen::Vector3d* src, const Eigen::Vector3d* dst, int n, bool with_scale);

@@ -28,17 +28,18 @@ void PinholeCamera::validate() const {
   if (!std::isfinite(cx) || !std::isfinite(cy)) throw ConfigError(what + "principal point is not finite");
   if (width <= 0 || height <= 0) throw ConfigError(what + "image size must be positive");
   if (width < kMinCameraSide || height < kMinCameraSide)
-    throw ConfigError(what + "image " + std::to_string(width) + "x" + std::to_string(height) + " is below the minimum " +
-                      std::to_string(kMinCameraSide) + "x" + std::to_string(kMinCameraSide) +
+    throw ConfigError(what + "image " + std::to_string(width) + "x" + std::to_string(height) +
+                      " is below the minimum " + std::to_string(kMinCameraSide) + "x" + std::to_string(kMinCameraSide) +
                       " (the feature detector finds nothing in a smaller image)");
   if (!(cx >= 0 && cx <= width) || !(cy >= 0 && cy <= height))
-    throw ConfigError(what + "principal point (" + num(cx) + ", " + num(cy) + ") is outside the " + std::to_string(width) +
-                      "x" + std::to_string(height) + " image");
+    throw ConfigError(what + "principal point (" + num(cx) + ", " + num(cy) + ") is outside the " +
+                      std::to_string(width) + "x" + std::to_string(height) + " image");
   auto focal_ok = [](double f, int side) { return f >= kMinFocalPerSide * side && f <= kMaxFocalPerSide * side; };
   if (!focal_ok(fx, width) || !focal_ok(fy, height))
-    throw ConfigError(what + "focal lengths fx = " + num(fx) + ", fy = " + num(fy) + " are outside [" + num(kMinFocalPerSide) +
-                      ", " + num(kMaxFocalPerSide) + "] x the image size " + std::to_string(width) + "x" +
-                      std::to_string(height) + " (a field of view between 157 and 5.7 degrees)");
+    throw ConfigError(what + "focal lengths fx = " + num(fx) + ", fy = " + num(fy) + " are outside [" +
+                      num(kMinFocalPerSide) + ", " + num(kMaxFocalPerSide) + "] x the image size " +
+                      std::to_string(width) + "x" + std::to_string(height) +
+                      " (a field of view between 157 and 5.7 degrees)");
   if (!finite_pos(depth_factor)) throw ConfigError(what + "depth_factor must be positive");
   if (!finite_pos(depth_scale_correction)) throw ConfigError(what + "depth_scale_correction must be positive");
   for (double d : dist)
@@ -68,7 +69,10 @@ Eigen::Vector2d PinholeCamera::distort_pixel(const Eigen::Vector2d& undistorted)
 PinholeCamera camera_tum_fr1() {
   PinholeCamera c;
   c.name = "tum1";
-  c.fx = 517.306408; c.fy = 516.469215; c.cx = 318.643040; c.cy = 255.313989;
+  c.fx = 517.306408;
+  c.fy = 516.469215;
+  c.cx = 318.643040;
+  c.cy = 255.313989;
   c.dist = {0.262383, -0.953104, -0.005358, 0.002628, 1.163314};
   c.readout_time = kTumReadoutTime;
   return c;
@@ -77,7 +81,10 @@ PinholeCamera camera_tum_fr1() {
 PinholeCamera camera_tum_fr2(bool depth_correction) {
   PinholeCamera c;
   c.name = depth_correction ? "tum2-corrected" : "tum2";
-  c.fx = 520.908620; c.fy = 521.007327; c.cx = 325.141442; c.cy = 249.701764;
+  c.fx = 520.908620;
+  c.fy = 521.007327;
+  c.cx = 325.141442;
+  c.cy = 249.701764;
   c.dist = {0.231222, -0.784899, -0.003257, -0.000105, 0.917205};
   c.readout_time = kTumReadoutTime;
   if (depth_correction) c.depth_scale_correction = 1.031;
@@ -87,7 +94,10 @@ PinholeCamera camera_tum_fr2(bool depth_correction) {
 PinholeCamera camera_tum_fr3() {
   PinholeCamera c;
   c.name = "tum3";
-  c.fx = 535.4; c.fy = 539.2; c.cx = 320.1; c.cy = 247.6;
+  c.fx = 535.4;
+  c.fy = 539.2;
+  c.cx = 320.1;
+  c.cy = 247.6;
   c.readout_time = kTumReadoutTime;
   return c;
 }

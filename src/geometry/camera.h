@@ -49,7 +49,9 @@ struct PinholeCamera {
     return u >= border && v >= border && u < width - border && v < height - border;
   }
   // Metric depth from a raw 16-bit depth value (0 = no measurement -> 0).
-  double depth_from_raw(std::uint16_t raw) const { return raw == 0 ? 0.0 : raw / depth_factor * depth_scale_correction; }
+  double depth_from_raw(std::uint16_t raw) const {
+    return raw == 0 ? 0.0 : raw / depth_factor * depth_scale_correction;
+  }
 
   // Applies the distortion model to an undistorted pixel (for rendering / tests).
   Eigen::Vector2d distort_pixel(const Eigen::Vector2d& undistorted) const;

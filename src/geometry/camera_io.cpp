@@ -11,8 +11,10 @@ namespace cslam {
 
 namespace {
 const std::set<std::string> kRequired = {"fx", "fy", "cx", "cy", "width", "height"};
-const std::set<std::string> kKnown = {"name", "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3",
-                                      "width", "height", "depth_factor", "depth_scale_correction", "readout_time"};
+const std::set<std::string> kKnown = {
+    "name",        "fx", "fy", "cx",    "cy",     "k1",           "k2",
+    "p1",          "p2", "k3", "width", "height", "depth_factor", "depth_scale_correction",
+    "readout_time"};
 }  // namespace
 
 PinholeCamera load_camera_file(const std::string& path) {
@@ -29,7 +31,8 @@ PinholeCamera load_camera_file(const std::string& path) {
   for (const auto& node : root) {
     const std::string key = node.name();
     if (!kKnown.count(key)) throw InputError(path, "unknown camera key '" + key + "'");
-    if (key != "name" && !node.isReal() && !node.isInt()) throw InputError(path, "camera key '" + key + "' must be a number");
+    if (key != "name" && !node.isReal() && !node.isInt())
+      throw InputError(path, "camera key '" + key + "' must be a number");
     seen.insert(key);
   }
   for (const auto& key : kRequired)
@@ -37,7 +40,10 @@ PinholeCamera load_camera_file(const std::string& path) {
   PinholeCamera c;
   c.name = seen.count("name") ? std::string(root["name"]) : std::filesystem::path(path).stem().string();
   auto num = [&](const char* key, double fallback) { return seen.count(key) ? double(root[key]) : fallback; };
-  c.fx = num("fx", c.fx); c.fy = num("fy", c.fy); c.cx = num("cx", c.cx); c.cy = num("cy", c.cy);
+  c.fx = num("fx", c.fx);
+  c.fy = num("fy", c.fy);
+  c.cx = num("cx", c.cx);
+  c.cy = num("cy", c.cy);
   c.dist = {num("k1", 0), num("k2", 0), num("p1", 0), num("p2", 0), num("k3", 0)};
   c.width = int(num("width", c.width));
   c.height = int(num("height", c.height));

@@ -32,7 +32,8 @@ Eigen::Vector2d PinholeCamera::undistort_pixel(const Eigen::Vector2d& distorted)
 
 std::array<double, 4> PinholeCamera::undistorted_bounds() const {
   if (!has_distortion()) return {0.0, double(width), 0.0, double(height)};
-  std::vector<Eigen::Vector2d> corners{{0, 0}, {double(width), 0}, {0, double(height)}, {double(width), double(height)}};
+  std::vector<Eigen::Vector2d> corners{
+      {0, 0}, {double(width), 0}, {0, double(height)}, {double(width), double(height)}};
   undistort_pixels(corners);
   return {std::min(corners[0].x(), corners[2].x()), std::max(corners[1].x(), corners[3].x()),
           std::min(corners[0].y(), corners[1].y()), std::max(corners[2].y(), corners[3].y())};

@@ -19,7 +19,9 @@ class SE3 {
   SE3(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) : q_(q.normalized()), t_(t) {}
   SE3(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) : q_(Eigen::Quaterniond(R).normalized()), t_(t) {}
   static SE3 identity() { return SE3(); }
-  static SE3 from_matrix(const Eigen::Matrix4d& m) { return SE3(Eigen::Matrix3d(m.topLeftCorner<3, 3>()), Eigen::Vector3d(m.topRightCorner<3, 1>())); }
+  static SE3 from_matrix(const Eigen::Matrix4d& m) {
+    return SE3(Eigen::Matrix3d(m.topLeftCorner<3, 3>()), Eigen::Vector3d(m.topRightCorner<3, 1>()));
+  }
 
   const Eigen::Quaterniond& rotation() const { return q_; }
   Eigen::Matrix3d R() const { return q_.toRotationMatrix(); }
@@ -43,8 +45,8 @@ class SE3 {
   static SE3 exp_small(const Eigen::Matrix<double, 6, 1>& xi) {
     Eigen::Vector3d phi = xi.tail<3>();
     double angle = phi.norm();
-    Eigen::Quaterniond q = angle < 1e-12 ? Eigen::Quaterniond::Identity()
-                                          : Eigen::Quaterniond(Eigen::AngleAxisd(angle, phi / angle));
+    Eigen::Quaterniond q =
+        angle < 1e-12 ? Eigen::Quaterniond::Identity() : Eigen::Quaterniond(Eigen::AngleAxisd(angle, phi / angle));
     return SE3(q, xi.head<3>());
   }
 

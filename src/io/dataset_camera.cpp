@@ -18,7 +18,9 @@ namespace cslam {
 
 namespace {
 
-bool word_boundary(const std::string& s, std::size_t i) { return i == 0 || !std::isalnum(static_cast<unsigned char>(s[i - 1])); }
+bool word_boundary(const std::string& s, std::size_t i) {
+  return i == 0 || !std::isalnum(static_cast<unsigned char>(s[i - 1]));
+}
 
 // The TUM camera a single path component names, or "".
 std::string preset_in(std::string name) {
@@ -76,7 +78,8 @@ std::optional<PinholeCamera> calibration_txt(const std::string& dataset_dir, con
   c.cx = v[2];
   c.cy = v[3];
   const TumDataset ds = open_tum_dataset(dataset_dir);
-  if (ds.rgb.empty()) throw InputError(dataset_dir + "/rgb.txt", "no colour image listed: cannot size the camera of " + path);
+  if (ds.rgb.empty())
+    throw InputError(dataset_dir + "/rgb.txt", "no colour image listed: cannot size the camera of " + path);
   const cv::Mat first = cv::imread(ds.rgb.front().path, cv::IMREAD_UNCHANGED);
   if (first.empty()) throw InputError(ds.rgb.front().path, "cannot read the first colour image");
   c.width = first.cols;
@@ -113,7 +116,8 @@ DatasetCamera choose(const std::string& dataset_dir, const std::string& choice) 
     return out;
   }
   out.camera = camera_preset("tum1");
-  out.source = "default: no camera.yaml, no calibration.txt and no TUM camera (freiburg1..3) in the folder name; pass --camera";
+  out.source =
+      "default: no camera.yaml, no calibration.txt and no TUM camera (freiburg1..3) in the folder name; pass --camera";
   out.guessed = true;
   return out;
 }
@@ -122,8 +126,10 @@ DatasetCamera choose(const std::string& dataset_dir, const std::string& choice) 
 
 DatasetCamera dataset_camera(const std::string& dataset_dir, const std::string& choice) {
   DatasetCamera out = choose(dataset_dir, choice);
-  if (out.guessed) logger("io")->warn("{}: camera {} ({})", dataset_dir, out.camera.name, out.source);
-  else logger("io")->info("{}: camera {} ({})", dataset_dir, out.camera.name, out.source);
+  if (out.guessed)
+    logger("io")->warn("{}: camera {} ({})", dataset_dir, out.camera.name, out.source);
+  else
+    logger("io")->info("{}: camera {} ({})", dataset_dir, out.camera.name, out.source);
   return out;
 }
 

@@ -14,7 +14,7 @@ namespace cslam {
 
 struct DatasetCamera {
   PinholeCamera camera;
-  std::string source;  // why this one: "--camera tum2", "camera.yaml", "folder name ...", "default"
+  std::string source;    // why this one: "--camera tum2", "camera.yaml", "folder name ...", "default"
   bool guessed = false;  // neither named, nor a camera.yaml, nor a TUM folder name: tum1 by default
 };
 

@@ -8,8 +8,7 @@
 
 namespace cslam {
 
-void for_each_text_row(const std::string& path,
-                       const std::function<void(int, const std::vector<std::string>&)>& fn) {
+void for_each_text_row(const std::string& path, const std::function<void(int, const std::vector<std::string>&)>& fn) {
   std::ifstream in(path);
   if (!in) throw InputError(path, "cannot open file");
   std::string line;

@@ -16,7 +16,8 @@ Trajectory read_tum_trajectory(const std::string& path) {
   Trajectory out;
   for_each_text_row(path, [&](int line, const std::vector<std::string>& tok) {
     if (tok.size() != 8)
-      throw InputError(path, line, "expected 8 values 'timestamp x y z qx qy qz qw', got " + std::to_string(tok.size()));
+      throw InputError(path, line,
+                       "expected 8 values 'timestamp x y z qx qy qz qw', got " + std::to_string(tok.size()));
     double v[8];
     static const char* names[8] = {"timestamp", "x", "y", "z", "qx", "qy", "qz", "qw"};
     for (int i = 0; i < 8; ++i) v[i] = parse_double(tok[i], path, line, names[i]);
@@ -34,8 +35,8 @@ std::string format_tum_line(const StampedPose& p) {
   const auto& q = p.T_world_cam.rotation();
   const double stamp = tum_stamp_ok(p.timestamp) ? p.timestamp : std::nan("");
   char buf[256];
-  std::snprintf(buf, sizeof(buf), "%.6f %.6f %.6f %.6f %.7f %.7f %.7f %.7f", stamp, t.x(), t.y(), t.z(), q.x(),
-                q.y(), q.z(), q.w());
+  std::snprintf(buf, sizeof(buf), "%.6f %.6f %.6f %.6f %.7f %.7f %.7f %.7f", stamp, t.x(), t.y(), t.z(), q.x(), q.y(),
+                q.z(), q.w());
   return buf;
 }
 
@@ -43,7 +44,8 @@ void write_tum_trajectory(const std::string& path, const Trajectory& trajectory,
   std::size_t bad_stamps = 0;
   for (const auto& p : trajectory) {
     if (!p.T_world_cam.is_finite())
-      throw std::invalid_argument("write_tum_trajectory(" + path + "): non-finite pose at t=" + std::to_string(p.timestamp));
+      throw std::invalid_argument("write_tum_trajectory(" + path +
+                                  "): non-finite pose at t=" + std::to_string(p.timestamp));
     bad_stamps += !tum_stamp_ok(p.timestamp);
   }
   const std::string tmp = path + ".tmp";

@@ -37,12 +37,12 @@ std::vector<TimedFile> read_file_list(const std::string& root, const std::string
   const std::string path = (fs::path(root) / name).string();
   std::vector<TimedFile> out;
   for_each_text_row(path, [&](int line, const std::vector<std::string>& tok) {
-    if (tok.size() != 2) throw InputError(path, line, "expected 'timestamp path', got " + std::to_string(tok.size()) + " values");
+    if (tok.size() != 2)
+      throw InputError(path, line, "expected 'timestamp path', got " + std::to_string(tok.size()) + " values");
     TimedFile f;
     f.timestamp = parse_double(tok[0], path, line, "timestamp");
     f.path = (fs::path(root) / tok[1]).string();
-    if (!out.empty() && f.timestamp <= out.back().timestamp)
-      throw InputError(path, line, "timestamps must increase");
+    if (!out.empty() && f.timestamp <= out.back().timestamp) throw InputError(path, line, "timestamps must increase");
     out.push_back(f);
   });
   return out;
@@ -54,12 +54,16 @@ std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>&
                                                       double max_dt) {
   // Candidate pairs within max_dt, accepted greedily by increasing |dt|; both lists are sorted,
   // so a window scan finds the candidates.
-  struct Cand { double dt; int i, j; };
+  struct Cand {
+    double dt;
+    int i, j;
+  };
   std::vector<Cand> cands;
   size_t start = 0;
   for (int i = 0; i < int(a.size()); ++i) {
     while (start < b.size() && b[start] < a[i] - max_dt) ++start;
-    for (size_t j = start; j < b.size() && b[j] <= a[i] + max_dt; ++j) cands.push_back({std::abs(a[i] - b[j]), i, int(j)});
+    for (size_t j = start; j < b.size() && b[j] <= a[i] + max_dt; ++j)
+      cands.push_back({std::abs(a[i] - b[j]), i, int(j)});
   }
   std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) {
     return x.dt != y.dt ? x.dt < y.dt : (x.i != y.i ? x.i < y.i : x.j < y.j);
@@ -108,7 +112,8 @@ TumDataset open_tum_dataset(const std::string& root, double max_dt, Association 
   std::vector<double> ta, tb;
   for (const auto& f : ds.rgb) ta.push_back(f.timestamp);
   for (const auto& f : ds.depth) tb.push_back(f.timestamp);
-  const auto pairs = association == Association::kNearest ? associate_nearest(ta, tb, max_dt) : associate_timestamps(ta, tb, max_dt);
+  const auto pairs =
+      association == Association::kNearest ? associate_nearest(ta, tb, max_dt) : associate_timestamps(ta, tb, max_dt);
   for (const auto& [i, j] : pairs) {
     RgbdPair p;
     p.rgb_time = ds.rgb[i].timestamp;

@@ -26,7 +26,7 @@ struct RgbdPair {
 struct TumDataset {
   std::string root;
   std::vector<TimedFile> rgb, depth;
-  std::vector<RgbdPair> pairs;         // associated RGB-D pairs, time-ordered
+  std::vector<RgbdPair> pairs;            // associated RGB-D pairs, time-ordered
   std::optional<Trajectory> groundtruth;  // if groundtruth.txt exists
 };
 
@@ -45,7 +45,8 @@ Association parse_association(const std::string& text);
 
 // Reads the lists and associates RGB and depth by timestamp. Throws InputError on a missing
 // folder/file or a malformed line.
-TumDataset open_tum_dataset(const std::string& root, double max_dt = 0.02, Association association = Association::kNearest);
+TumDataset open_tum_dataset(const std::string& root, double max_dt = 0.02,
+                            Association association = Association::kNearest);
 
 // Associates two timestamp lists one to one; returns index pairs (i in a, j in b), sorted by a's time.
 std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>& a, const std::vector<double>& b,

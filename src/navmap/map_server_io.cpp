@@ -31,12 +31,14 @@ std::string num(double v) {
 std::string quoted(const std::string& s) {
   std::string out = "\"";
   for (unsigned char ch : s) {
-    if (ch == '"' || ch == '\\') out += '\\', out += char(ch);
+    if (ch == '"' || ch == '\\')
+      out += '\\', out += char(ch);
     else if (ch < 0x20) {
       char buf[8];
       std::snprintf(buf, sizeof buf, "\\x%02x", ch);
       out += buf;
-    } else out += char(ch);
+    } else
+      out += char(ch);
   }
   return out + "\"";
 }

@@ -21,12 +21,12 @@ struct NavMapStats {
 };
 
 struct NavMaps {
-  OccupancyGrid2D grid;     // empty if nothing observed or refused (grid_error)
-  std::string octomap_bt;   // empty if off, nothing observed or refused (octomap_error)
+  OccupancyGrid2D grid;    // empty if nothing observed or refused (grid_error)
+  std::string octomap_bt;  // empty if off, nothing observed or refused (octomap_error)
   Eigen::Vector3d up{0, 0, 1};
-  double floor = 0;         // height of the floor along up (world frame)
+  double floor = 0;  // height of the floor along up (world frame)
   bool up_estimated = false, floor_estimated = false;
-  std::string floor_rule;   // "given", "peak", "percentile" or "none" (no surface: no maps)
+  std::string floor_rule;  // "given", "peak", "percentile" or "none" (no surface: no maps)
   std::string grid_error, octomap_error;
   NavMapStats stats;
 };

@@ -13,7 +13,9 @@ namespace {
 
 constexpr std::int64_t kBias = std::int64_t(1) << 30;
 
-std::uint64_t cell_key(std::int64_t i, std::int64_t j) { return std::uint64_t(i + kBias) << 32 | std::uint64_t(j + kBias); }
+std::uint64_t cell_key(std::int64_t i, std::int64_t j) {
+  return std::uint64_t(i + kBias) << 32 | std::uint64_t(j + kBias);
+}
 std::int64_t key_i(std::uint64_t k) { return std::int64_t(k >> 32) - kBias; }
 std::int64_t key_j(std::uint64_t k) { return std::int64_t(k & 0xFFFFFFFFu) - kBias; }
 
@@ -150,7 +152,8 @@ GridResult build_occupancy_grid(const SubmapViews& views, const Eigen::Vector3d&
   g.width = int(W);
   g.height = int(H);
   g.resolution = c.resolution;
-  const Eigen::Vector3d origin = double(i0) * c.resolution * R.col(0) + double(j0) * c.resolution * R.col(1) + floor * up;
+  const Eigen::Vector3d origin =
+      double(i0) * c.resolution * R.col(0) + double(j0) * c.resolution * R.col(1) + floor * up;
   g.T_world_grid = SE3(R, origin);
   g.cells.assign(std::size_t(W * H), OccupancyGrid2D::kUnknown);
   for (const auto& [key, L] : log_odds) {
@@ -158,9 +161,12 @@ GridResult build_occupancy_grid(const SubmapViews& views, const Eigen::Vector3d&
     cell = L > 0 ? OccupancyGrid2D::kOccupied : L < 0 ? OccupancyGrid2D::kFree : OccupancyGrid2D::kUnknown;
   }
   for (std::int8_t v : g.cells) {
-    if (v == OccupancyGrid2D::kOccupied) ++out.stats.occupied;
-    else if (v == OccupancyGrid2D::kFree) ++out.stats.free;
-    else ++out.stats.unknown;
+    if (v == OccupancyGrid2D::kOccupied)
+      ++out.stats.occupied;
+    else if (v == OccupancyGrid2D::kFree)
+      ++out.stats.free;
+    else
+      ++out.stats.unknown;
   }
   return out;
 }

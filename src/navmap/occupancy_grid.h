@@ -29,16 +29,16 @@ struct OccupancyGrid2D {
 };
 
 struct GridStats {
-  std::size_t occupied = 0, free = 0, unknown = 0;       // cells
-  std::size_t submaps_used = 0, submaps_skipped = 0;     // skipped: no volume or non-finite pose
-  std::size_t band_voxels = 0, floor_samples = 0;        // evidence read
-  std::size_t voxels_out_of_range = 0;                   // beyond +-2^30 cells: ignored
+  std::size_t occupied = 0, free = 0, unknown = 0;    // cells
+  std::size_t submaps_used = 0, submaps_skipped = 0;  // skipped: no volume or non-finite pose
+  std::size_t band_voxels = 0, floor_samples = 0;     // evidence read
+  std::size_t voxels_out_of_range = 0;                // beyond +-2^30 cells: ignored
 };
 
 struct GridResult {
   OccupancyGrid2D grid;  // empty when refused (error says why) or nothing was observed
   GridStats stats;
-  std::string error;     // non-empty: the grid was refused (e.g. beyond config.max_cells)
+  std::string error;  // non-empty: the grid was refused (e.g. beyond config.max_cells)
 };
 
 // Orientation of the grid frame for a given up (unit): x is the world z axis (the first

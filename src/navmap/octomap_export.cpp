@@ -80,6 +80,8 @@ OctomapResult build_octomap(const SubmapViews& views, const NavMapConfig& c) {
   return out;
 }
 
-std::string to_octomap_bt(const SubmapViews& views, const NavMapConfig& config) { return build_octomap(views, config).bt; }
+std::string to_octomap_bt(const SubmapViews& views, const NavMapConfig& config) {
+  return build_octomap(views, config).bt;
+}
 
 }  // namespace cslam

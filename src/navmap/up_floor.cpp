@@ -10,7 +10,8 @@
 namespace cslam {
 
 UpEstimate estimate_up(const std::vector<SE3>& T_world_cams, const Eigen::Vector3d& default_up) {
-  if (!default_up.allFinite() || default_up.norm() < 1e-9) throw ConfigError("navmap: default_up must be a finite non-zero vector");
+  if (!default_up.allFinite() || default_up.norm() < 1e-9)
+    throw ConfigError("navmap: default_up must be a finite non-zero vector");
   UpEstimate out;
   out.up = default_up.normalized();
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
@@ -30,7 +31,8 @@ UpEstimate estimate_up(const std::vector<SE3>& T_world_cams, const Eigen::Vector
   return out;
 }
 
-std::optional<double> floor_from_heights(std::vector<double> h, double bin, double min_share, std::size_t* peak_samples) {
+std::optional<double> floor_from_heights(std::vector<double> h, double bin, double min_share,
+                                         std::size_t* peak_samples) {
   h.erase(std::remove_if(h.begin(), h.end(), [](double x) { return !std::isfinite(x); }), h.end());
   if (h.empty()) return std::nullopt;
   std::sort(h.begin(), h.end());

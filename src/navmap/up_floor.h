@@ -24,10 +24,10 @@ struct UpEstimate {
 UpEstimate estimate_up(const std::vector<SE3>& T_world_cams, const Eigen::Vector3d& default_up);
 
 struct FloorEstimate {
-  double height = 0;          // along up, world frame (metres)
-  bool found = false;         // false: no observed surface at all (height meaningless)
-  std::string rule;           // "peak", "percentile" or "none"
-  std::size_t samples = 0;    // upward-facing surface samples (peak rule) or surface voxels
+  double height = 0;        // along up, world frame (metres)
+  bool found = false;       // false: no observed surface at all (height meaningless)
+  std::string rule;         // "peak", "percentile" or "none"
+  std::size_t samples = 0;  // upward-facing surface samples (peak rule) or surface voxels
   std::size_t peak_samples = 0;
 };
 

@@ -51,7 +51,8 @@ BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::at
     for (size_t c = 0; c < cams.size(); ++c) cams[c].T_cam_world = from_param(poses[c].data());
     for (size_t i = 0; i < prob.observations.size(); ++i) {
       const auto& o = prob.observations[i];
-      res.inlier[i] = ba_observation_chi2(cams[o.camera], pts[o.point], o) <= (o.u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono);
+      res.inlier[i] =
+          ba_observation_chi2(cams[o.camera], pts[o.point], o) <= (o.u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono);
     }
   };
 

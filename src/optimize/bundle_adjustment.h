@@ -42,9 +42,9 @@ struct BaConfig {
 };
 
 struct BaResult {
-  std::vector<SE3> T_cam_world;             // per camera
-  std::vector<Eigen::Vector3d> points;      // per point
-  std::vector<char> inlier;                 // per observation
+  std::vector<SE3> T_cam_world;         // per camera
+  std::vector<Eigen::Vector3d> points;  // per point
+  std::vector<char> inlier;             // per observation
   double initial_cost = 0, final_cost = 0;
   int iterations = 0;
   bool converged = false, aborted = false;

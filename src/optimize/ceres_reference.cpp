@@ -43,7 +43,9 @@ PoseOptimizationResult optimize_pose_ceres(const SE3& initial, const std::vector
       const auto& o = obs[i];
       const double w = std::sqrt(o.inv_sigma2);
       const bool stereo = o.u_right >= 0;
-      ceres::LossFunction* loss = round < cfg.robust_rounds ? new ceres::HuberLoss(std::sqrt(stereo ? cfg.chi2_stereo : cfg.chi2_mono)) : nullptr;
+      ceres::LossFunction* loss = round < cfg.robust_rounds
+                                      ? new ceres::HuberLoss(std::sqrt(stereo ? cfg.chi2_stereo : cfg.chi2_mono))
+                                      : nullptr;
       ceres::CostFunction* cost =
           stereo ? static_cast<ceres::CostFunction*>(new ceres::AutoDiffCostFunction<PoseOnlyReprojectionCost<3>, 3, 6>(
                        new PoseOnlyReprojectionCost<3>(k, o.p_world, o.uv.x(), o.uv.y(), o.u_right, w)))

@@ -12,10 +12,13 @@
 namespace cslam {
 
 // Pose-only optimisation, one Ceres problem (DENSE_QR, autodiff) per round.
-PoseOptimizationResult optimize_pose_ceres(const SE3& T_cam_world_initial, const std::vector<PoseObservation>& observations,
-                                           const StereoIntrinsics& intrinsics, const PoseOptimizationConfig& config = {});
+PoseOptimizationResult optimize_pose_ceres(const SE3& T_cam_world_initial,
+                                           const std::vector<PoseObservation>& observations,
+                                           const StereoIntrinsics& intrinsics,
+                                           const PoseOptimizationConfig& config = {});
 
 // Bundle adjustment with autodiff residuals, SPARSE_SCHUR and Ceres' own elimination ordering.
-BaResult bundle_adjust_ceres(const BaProblem& problem, const BaConfig& config = {}, const std::atomic<bool>* abort = nullptr);
+BaResult bundle_adjust_ceres(const BaProblem& problem, const BaConfig& config = {},
+                             const std::atomic<bool>* abort = nullptr);
 
 }  // namespace cslam

@@ -67,7 +67,8 @@ LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<
   int invalid_steps = 0;
   for (int iteration = 1; iteration <= max_iterations; ++iteration) {
     double step_norm = 0, model_cost_change = 0;
-    const bool valid = p.solve(radius, step_norm, model_cost_change) && model_cost_change > 0 && std::isfinite(step_norm);
+    const bool valid =
+        p.solve(radius, step_norm, model_cost_change) && model_cost_change > 0 && std::isfinite(step_norm);
     if (!valid) {
       if (++invalid_steps >= kMaxConsecutiveInvalidSteps) {
         out.usable = false;

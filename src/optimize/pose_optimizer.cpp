@@ -28,10 +28,15 @@ struct Linearization {
 
 class PoseProblem {
  public:
-  PoseProblem(const std::vector<PoseObservation>& obs, const std::vector<char>& inlier, const StereoIntrinsics& k, bool robust,
-              const PoseOptimizationConfig& cfg, std::array<double, 6>& x)
-      : obs_(obs), inlier_(inlier), k_(k), robust_(robust), delta_mono_(std::sqrt(cfg.chi2_mono)),
-        delta_stereo_(std::sqrt(cfg.chi2_stereo)), x_(x) {}
+  PoseProblem(const std::vector<PoseObservation>& obs, const std::vector<char>& inlier, const StereoIntrinsics& k,
+              bool robust, const PoseOptimizationConfig& cfg, std::array<double, 6>& x)
+      : obs_(obs),
+        inlier_(inlier),
+        k_(k),
+        robust_(robust),
+        delta_mono_(std::sqrt(cfg.chi2_mono)),
+        delta_stereo_(std::sqrt(cfg.chi2_stereo)),
+        x_(x) {}
 
   bool linearize() { return linearize_at(x_.data(), cur_); }
   double cost() const { return cur_.cost; }
@@ -68,7 +73,9 @@ class PoseProblem {
     for (size_t i = 0; i < obs_.size(); ++i) {
       if (!inlier_[i]) continue;
       const PoseObservation& o = obs_[i];
-      cost += weighted_residual(project_point(k_, T, o.p_world), o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_).cost;
+      cost += weighted_residual(project_point(k_, T, o.p_world), o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_,
+                                delta_stereo_)
+                  .cost;
     }
     return 0.5 * cost;
   }
@@ -86,7 +93,8 @@ class PoseProblem {
       if (!inlier_[i]) continue;
       const PoseObservation& o = obs_[i];
       project_with_jacobians(k_, T, o.p_world, uvr, J, J_point);
-      const WeightedResidual wr = weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
+      const WeightedResidual wr =
+          weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
       const bool stereo = wr.stereo;
       const Eigen::Vector3d& r = wr.r;
       const double w = wr.weight;
@@ -115,7 +123,8 @@ class PoseProblem {
   Linearization cur_, next_;
 };
 
-double chi2_at(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const PoseObservation& o, const StereoIntrinsics& k) {
+double chi2_at(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const PoseObservation& o,
+               const StereoIntrinsics& k) {
   return reprojection_chi2(k, R * o.p_world + t, o.uv, o.u_right, o.inv_sigma2);
 }
 
@@ -125,8 +134,8 @@ double observation_chi2(const SE3& T, const PoseObservation& o, const StereoIntr
   return chi2_at(T.R(), T.translation(), o, k);
 }
 
-PoseOptimizationResult optimize_pose(const SE3& initial, const std::vector<PoseObservation>& obs, const StereoIntrinsics& k,
-                                     const PoseOptimizationConfig& cfg) {
+PoseOptimizationResult optimize_pose(const SE3& initial, const std::vector<PoseObservation>& obs,
+                                     const StereoIntrinsics& k, const PoseOptimizationConfig& cfg) {
   PoseOptimizationResult res;
   res.T_cam_world = initial;
   res.inlier.assign(obs.size(), 1);

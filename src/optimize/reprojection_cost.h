@@ -47,7 +47,8 @@ struct ReprojectionCost {
 // Same residual with the point held fixed (pose-only optimisation).
 template <int kResiduals>
 struct PoseOnlyReprojectionCost {
-  PoseOnlyReprojectionCost(const StereoIntrinsics& k, const Eigen::Vector3d& p, double u, double v, double ur, double sqrt_info)
+  PoseOnlyReprojectionCost(const StereoIntrinsics& k, const Eigen::Vector3d& p, double u, double v, double ur,
+                           double sqrt_info)
       : inner(k, u, v, ur, sqrt_info), p(p) {}
   template <typename T>
   bool operator()(const T* pose, T* r) const {

@@ -41,8 +41,12 @@ class SchurBaProblem {
  public:
   SchurBaProblem(const BaProblem& prob, const std::vector<char>& active, bool robust, const BaConfig& cfg,
                  std::vector<std::array<double, 6>>& poses, std::vector<Eigen::Vector3d>& points)
-      : prob_(prob), robust_(robust), delta_mono_(std::sqrt(cfg.chi2_mono)), delta_stereo_(std::sqrt(cfg.chi2_stereo)),
-        poses_(poses), points_(points) {
+      : prob_(prob),
+        robust_(robust),
+        delta_mono_(std::sqrt(cfg.chi2_mono)),
+        delta_stereo_(std::sqrt(cfg.chi2_stereo)),
+        poses_(poses),
+        points_(points) {
     const int num_cams = int(prob.cameras.size()), num_points = int(prob.points.size());
     std::vector<int> count(num_points, 0), cam_var(num_cams, -2);  // -2: not observed in this stage
     for (size_t i = 0; i < prob.observations.size(); ++i) {
@@ -167,7 +171,8 @@ class SchurBaProblem {
     // on every accepted step.
     for (size_t v = 0; v < cam_vars_.size(); ++v)
       for (int d = 0; d < 6; ++d) candidate_poses_[cam_vars_[v]][d] = poses_[cam_vars_[v]][d] + dc_(6 * v + d);
-    for (size_t p = 0; p < point_vars_.size(); ++p) candidate_points_[point_vars_[p]] = points_[point_vars_[p]] + dp_[p];
+    for (size_t p = 0; p < point_vars_.size(); ++p)
+      candidate_points_[point_vars_[p]] = points_[point_vars_[p]] + dp_[p];
     const double c = cost_at(candidate_poses_, candidate_points_);
     return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
   }
@@ -201,7 +206,8 @@ class SchurBaProblem {
     return 0.5 * cost;
   }
 
-  bool linearize_at(const std::vector<std::array<double, 6>>& poses, const std::vector<Eigen::Vector3d>& points, Linearization& L) {
+  bool linearize_at(const std::vector<std::array<double, 6>>& poses, const std::vector<Eigen::Vector3d>& points,
+                    Linearization& L) {
     for (int c : cams_used_) lp_[c].set(poses[c].data());
     for (auto& m : L.U) m.setZero();
     for (auto& g : L.gc) g.setZero();
@@ -216,9 +222,12 @@ class SchurBaProblem {
       for (int e = point_start_[p]; e < point_start_[p + 1]; ++e) {
         const BaObservation& o = prob_.observations[entries_[e].obs];
         const int v = entries_[e].cam_var;
-        if (v >= 0) project_with_jacobians(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jc, Jp);
-        else project_with_point_jacobian(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jp);
-        const WeightedResidual wr = weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
+        if (v >= 0)
+          project_with_jacobians(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jc, Jp);
+        else
+          project_with_point_jacobian(prob_.cameras[o.camera].intrinsics, lp_[o.camera], X, uvr, Jp);
+        const WeightedResidual wr =
+            weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
         cost += wr.cost;
         // The rows of the observation's residual only (2 for a monocular one).
         auto accumulate = [&](auto num_rows) {
@@ -236,8 +245,10 @@ class SchurBaProblem {
             L.W[e].noalias() = wJcT * Jp_r;
           }
         };
-        if (wr.stereo) accumulate(std::integral_constant<int, 3>{});
-        else accumulate(std::integral_constant<int, 2>{});
+        if (wr.stereo)
+          accumulate(std::integral_constant<int, 3>{});
+        else
+          accumulate(std::integral_constant<int, 2>{});
       }
       L.V[p] = V;
       L.gp[p] = gp;

@@ -32,7 +32,7 @@ void pair_products_portable(const double* const* T, const double* const* W, cons
 // Block column c gets -= T(:,0) W(c,0) + T(:,1) W(c,1) + T(:,2) W(c,2): rows 0-3 in one 256-bit
 // register, rows 4-5 in one 128-bit register, three fused multiply-subtracts each.
 __attribute__((target("avx2,fma"))) void pair_products_avx2(const double* const* T, const double* const* W,
-                                                             const int* cam, int m, double* S, std::ptrdiff_t ld) {
+                                                            const int* cam, int m, double* S, std::ptrdiff_t ld) {
   for (int i = 0; i < m; ++i) {
     const double* t = T[i];
     const __m256d t0 = _mm256_loadu_pd(t), t1 = _mm256_loadu_pd(t + 6), t2 = _mm256_loadu_pd(t + 12);
@@ -42,7 +42,8 @@ __attribute__((target("avx2,fma"))) void pair_products_avx2(const double* const*
       const double* w = W[j];
       double* col = S + 6 * (cam[j] * ld + cam[i]);
       for (int c = 0; c < 6; ++c, col += ld) {
-        const __m256d w0 = _mm256_broadcast_sd(w + c), w1 = _mm256_broadcast_sd(w + 6 + c), w2 = _mm256_broadcast_sd(w + 12 + c);
+        const __m256d w0 = _mm256_broadcast_sd(w + c), w1 = _mm256_broadcast_sd(w + 6 + c),
+                      w2 = _mm256_broadcast_sd(w + 12 + c);
         __m256d lo = _mm256_loadu_pd(col);
         lo = _mm256_fnmadd_pd(t0, w0, lo);
         lo = _mm256_fnmadd_pd(t1, w1, lo);

@@ -26,7 +26,8 @@ inline Eigen::Matrix3d so3_right_jacobian(const Eigen::Vector3d& w) {
   const Eigen::Matrix3d W = skew(w);
   if (theta2 < 1e-10) return Eigen::Matrix3d::Identity() - 0.5 * W + (1.0 / 6.0) * W * W;
   const double theta = std::sqrt(theta2);
-  return Eigen::Matrix3d::Identity() - (1.0 - std::cos(theta)) / theta2 * W + (theta - std::sin(theta)) / (theta2 * theta) * W * W;
+  return Eigen::Matrix3d::Identity() - (1.0 - std::cos(theta)) / theta2 * W +
+         (theta - std::sin(theta)) / (theta2 * theta) * W * W;
 }
 
 // Everything about one camera pose the per-observation derivatives need (computed once per
@@ -57,7 +58,8 @@ inline Eigen::Vector3d project_camera_point(const StereoIntrinsics& k, const Eig
 
 // (u, v, u_right) of p_world seen from the pose (R and t of T set), the same values as the
 // projections with derivatives below.
-inline Eigen::Vector3d project_point(const StereoIntrinsics& k, const PoseLinearizationPoint& T, const Eigen::Vector3d& pw) {
+inline Eigen::Vector3d project_point(const StereoIntrinsics& k, const PoseLinearizationPoint& T,
+                                     const Eigen::Vector3d& pw) {
   const Eigen::Vector3d pc = T.R * pw + T.t;
   return project_camera_point(k, pc, 1.0 / pc.z());
 }
@@ -66,7 +68,8 @@ inline Eigen::Vector3d project_point(const StereoIntrinsics& k, const PoseLinear
 // the derivative of (u, v, u_right) w.r.t. the point in camera coordinates, which the pose
 // Jacobian needs. Alone it serves observations from cameras held fixed.
 inline Eigen::Matrix3d project_with_point_jacobian(const StereoIntrinsics& k, const PoseLinearizationPoint& T,
-                                                   const Eigen::Vector3d& pw, Eigen::Vector3d& uvr, Eigen::Matrix3d& J_point) {
+                                                   const Eigen::Vector3d& pw, Eigen::Vector3d& uvr,
+                                                   Eigen::Matrix3d& J_point) {
   const Eigen::Vector3d pc = T.R * pw + T.t;
   const double iz = 1.0 / pc.z(), iz2 = iz * iz;
   uvr = project_camera_point(k, pc, iz);
@@ -81,8 +84,9 @@ inline Eigen::Matrix3d project_with_point_jacobian(const StereoIntrinsics& k, co
 // (u, v, u_right) of p_world seen from the pose, and its derivatives w.r.t. the pose
 // parameters (3x6) and the point (3x3). Rows beyond the observation's residual count are
 // ignored by the callers.
-inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLinearizationPoint& T, const Eigen::Vector3d& pw,
-                                   Eigen::Vector3d& uvr, Matrix36d& J_pose, Eigen::Matrix3d& J_point) {
+inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLinearizationPoint& T,
+                                   const Eigen::Vector3d& pw, Eigen::Vector3d& uvr, Matrix36d& J_pose,
+                                   Eigen::Matrix3d& J_point) {
   const Eigen::Matrix3d d_pc = project_with_point_jacobian(k, T, pw, uvr, J_point);
   // Row b of J_point times -[pw]x is (pw x b)^T.
   Eigen::Matrix3d C;

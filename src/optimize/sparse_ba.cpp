@@ -67,16 +67,20 @@ class AnalyticReprojectionCost : public ceres::SizedCostFunction<kResiduals, 6, 
 
 ceres::LinearSolverType to_ceres(SparseBaLinearSolver s) {
   switch (s) {
-    case SparseBaLinearSolver::kDenseSchur: return ceres::DENSE_SCHUR;
-    case SparseBaLinearSolver::kIterativeSchur: return ceres::ITERATIVE_SCHUR;
-    case SparseBaLinearSolver::kSparseSchur: break;
+    case SparseBaLinearSolver::kDenseSchur:
+      return ceres::DENSE_SCHUR;
+    case SparseBaLinearSolver::kIterativeSchur:
+      return ceres::ITERATIVE_SCHUR;
+    case SparseBaLinearSolver::kSparseSchur:
+      break;
   }
   return ceres::SPARSE_SCHUR;
 }
 
 }  // namespace
 
-BaResult bundle_adjust_sparse(const BaProblem& prob, const BaConfig& cfg, const std::atomic<bool>* abort, SparseBaLinearSolver solver) {
+BaResult bundle_adjust_sparse(const BaProblem& prob, const BaConfig& cfg, const std::atomic<bool>* abort,
+                              SparseBaLinearSolver solver) {
   BaResult res;
   std::vector<std::array<double, 6>> poses;
   poses.reserve(prob.cameras.size());
@@ -101,9 +105,11 @@ BaResult bundle_adjust_sparse(const BaProblem& prob, const BaConfig& cfg, const 
     const auto& o = prob.observations[i];
     const auto& k = prob.cameras[o.camera].intrinsics;
     const bool stereo = o.u_right >= 0;
-    ceres::CostFunction* cost = stereo ? static_cast<ceres::CostFunction*>(new AnalyticReprojectionCost<3>(cache, o.camera, k, o))
-                                       : new AnalyticReprojectionCost<2>(cache, o.camera, k, o);
-    blocks[i] = problem.AddResidualBlock(cost, stereo ? &loss_stereo : &loss_mono, poses[o.camera].data(), pts[o.point].data());
+    ceres::CostFunction* cost =
+        stereo ? static_cast<ceres::CostFunction*>(new AnalyticReprojectionCost<3>(cache, o.camera, k, o))
+               : new AnalyticReprojectionCost<2>(cache, o.camera, k, o);
+    blocks[i] =
+        problem.AddResidualBlock(cost, stereo ? &loss_stereo : &loss_mono, poses[o.camera].data(), pts[o.point].data());
     ++point_residuals[o.point];
   }
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();

@@ -13,7 +13,8 @@ namespace cslam {
 
 enum class SparseBaLinearSolver { kSparseSchur, kDenseSchur, kIterativeSchur };
 
-BaResult bundle_adjust_sparse(const BaProblem& problem, const BaConfig& config = {}, const std::atomic<bool>* abort = nullptr,
+BaResult bundle_adjust_sparse(const BaProblem& problem, const BaConfig& config = {},
+                              const std::atomic<bool>* abort = nullptr,
                               SparseBaLinearSolver solver = SparseBaLinearSolver::kSparseSchur);
 
 }  // namespace cslam

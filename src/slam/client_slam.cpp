@@ -57,10 +57,13 @@ void ClientSlam::start_new_map() {
     std::lock_guard<std::mutex> lock(mutex_);
     maps_.push_back(map);
   }
-  if (tracker_) tracker_->reset(map, mapper.get());
-  else tracker_ = std::make_unique<Tracker>(config_.tracker, map, mapper.get());
+  if (tracker_)
+    tracker_->reset(map, mapper.get());
+  else
+    tracker_ = std::make_unique<Tracker>(config_.tracker, map, mapper.get());
   mapper_ = std::move(mapper);
-  if (maps_.size() > 1) logger("slam")->warn("client {}: tracking lost for long, started map {}", info_.id, maps_.size() - 1);
+  if (maps_.size() > 1)
+    logger("slam")->warn("client {}: tracking lost for long, started map {}", info_.id, maps_.size() - 1);
 }
 
 ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
@@ -75,16 +78,18 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   };
   assert(frame_problem(frame, info_.camera).empty());  // checked where the frame was built (frame/frame_check.h)
   if (finished_) return reject("worker finished");
-  if (frame.timestamp <= last_timestamp_) return reject("timestamp " + std::to_string(frame.timestamp) + " does not increase");
+  if (frame.timestamp <= last_timestamp_)
+    return reject("timestamp " + std::to_string(frame.timestamp) + " does not increase");
   last_timestamp_ = frame.timestamp;
 
   Stopwatch sw;
   // Where the camera moved between the colour and the depth image (none known: read in place).
-  const std::optional<SE3> T_depthcam_motion =
-      frame.depth_time_offset != 0 && !frame.depth.empty() ? tracker_->predicted_motion(frame.depth_time_offset) : std::nullopt;
-  const std::optional<SE3> T_depthcam_cam =
-      config_.rgbd.depth_time_compensation && frame.depth_time_offset != 0 ? tracker_->predicted_motion(frame.depth_time_offset)
-                                                                             : std::nullopt;
+  const std::optional<SE3> T_depthcam_motion = frame.depth_time_offset != 0 && !frame.depth.empty()
+                                                   ? tracker_->predicted_motion(frame.depth_time_offset)
+                                                   : std::nullopt;
+  const std::optional<SE3> T_depthcam_cam = config_.rgbd.depth_time_compensation && frame.depth_time_offset != 0
+                                                ? tracker_->predicted_motion(frame.depth_time_offset)
+                                                : std::nullopt;
   // A rolling-shutter camera's last row, half the readout after the middle one (none known: as is).
   const std::optional<SE3> T_lastrow_cam =
       cam.readout_time > 0 ? tracker_->predicted_motion(0.5 * cam.readout_time) : std::nullopt;
@@ -98,11 +103,12 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
     cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
     FlowPyramid pyramid = build_flow_pyramid(gray, fc);
     const int max_run = load == WorkerLoad::kOverloaded ? fc.max_run_overloaded : fc.max_run;
-    const std::optional<FlowSeeds> seeds = flow_pyramid_.empty() ? std::nullopt : tracker_->flow_seeds(frame.timestamp, max_run);
+    const std::optional<FlowSeeds> seeds =
+        flow_pyramid_.empty() ? std::nullopt : tracker_->flow_seeds(frame.timestamp, max_run);
     if (seeds) {
-      const FlowFrame ff = make_flow_frame(id, frame.timestamp, frame.bgr, frame.depth, *tracker_->last_frame()->data, flow_pyramid_,
-                                           pyramid, *seeds, fc, vocabulary_, bow_levels_up, T_depthcam_cam,
-                                           T_lastrow_cam, frame.keyframe_eligible());
+      const FlowFrame ff = make_flow_frame(id, frame.timestamp, frame.bgr, frame.depth, *tracker_->last_frame()->data,
+                                           flow_pyramid_, pyramid, *seeds, fc, vocabulary_, bow_levels_up,
+                                           T_depthcam_cam, T_lastrow_cam, frame.keyframe_eligible());
       r.features = int(ff.data->size());
       flowed = tracker_->track_flow(ff);
     }
@@ -115,8 +121,9 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
     t = *flowed;
     r.extract_ms = sw.ms();  // flow and pose together
   } else {
-    auto data = make_frame_data(id, frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_, pyramid_, vocabulary_,
-                                bow_levels_up, T_depthcam_cam, T_lastrow_cam, frame.keyframe_eligible(), gray);
+    auto data =
+        make_frame_data(id, frame.timestamp, frame.bgr, frame.depth, cam, config_.rgbd, extractor_, pyramid_,
+                        vocabulary_, bow_levels_up, T_depthcam_cam, T_lastrow_cam, frame.keyframe_eligible(), gray);
     r.extract_ms = sw.ms();
     r.features = int(data->size());
     sw.reset();
@@ -135,7 +142,9 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   r.keyframe = t.keyframe;
   if (T_depthcam_motion) r.T_cam_depthcam = T_depthcam_motion->inverse();
   r.inliers = t.inliers;
-  r.fate = t.ok ? FrameFate::kTracked : t.state == FrameFate::kNotInitialized ? FrameFate::kNotInitialized : FrameFate::kLost;
+  r.fate = t.ok                                    ? FrameFate::kTracked
+           : t.state == FrameFate::kNotInitialized ? FrameFate::kNotInitialized
+                                                   : FrameFate::kLost;
 
   // Long loss: start a new map (merged later by map fusion); never stop processing.
   if (t.ok) {

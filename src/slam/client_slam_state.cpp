@@ -36,7 +36,8 @@ ClientSlamState ClientSlam::export_state() const {
   s.last_timestamp = records.empty() ? 0.0 : records.back().timestamp;
   std::vector<std::vector<std::size_t>> by_map(maps.size());
   for (std::size_t i = 0; i < records.size(); ++i)
-    if (records[i].map_index >= 0 && std::size_t(records[i].map_index) < maps.size()) by_map[records[i].map_index].push_back(i);
+    if (records[i].map_index >= 0 && std::size_t(records[i].map_index) < maps.size())
+      by_map[records[i].map_index].push_back(i);
   std::vector<std::optional<FrameRecordState>> resolved(records.size());
   for (std::size_t m = 0; m < maps.size(); ++m) {
     // Each map in one shared-lock hold, which steps aside while the tracker (or local mapping)
@@ -60,7 +61,8 @@ ClientSlamState ClientSlam::export_state() const {
 
 void ClientSlam::restore_state(const ClientSlamState& s, const std::string& source) {
   if (s.info.id != info_.id)
-    throw InputError(source, "state of client " + std::to_string(s.info.id) + " given to client " + std::to_string(info_.id));
+    throw InputError(source,
+                     "state of client " + std::to_string(s.info.id) + " given to client " + std::to_string(info_.id));
   if (s.maps.empty()) throw InputError(source, "client " + std::to_string(info_.id) + " has no map");
   if (s.current_map < 0 || std::size_t(s.current_map) >= s.maps.size())
     throw InputError(source, "client " + std::to_string(info_.id) + ": current map out of range");

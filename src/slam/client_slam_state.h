@@ -21,9 +21,9 @@ struct FrameRecordState {
 
 struct ClientSlamState {
   ClientInfo info;
-  std::uint64_t last_seq = 0;  // sender's seq of the last frame processed
-  double last_timestamp = 0;   // of that frame
-  int current_map = 0;         // the map tracking was in
+  std::uint64_t last_seq = 0;                      // sender's seq of the last frame processed
+  double last_timestamp = 0;                       // of that frame
+  int current_map = 0;                             // the map tracking was in
   std::array<std::uint32_t, 3> next_ids{0, 0, 0};  // next keyframe, map point and frame sequence numbers
   std::uint64_t frames_processed = 0, frames_tracked = 0, frames_lost = 0, frames_rejected = 0;
   std::vector<MapState> maps;  // maps[i].index == i

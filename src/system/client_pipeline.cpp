@@ -19,10 +19,12 @@ double percentile(std::vector<double> v, double p) {
 
 }  // namespace
 
-ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
-                               KeyFrameListener listener, std::function<GroupId(const Map*)> group_of)
+ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config,
+                               std::shared_ptr<const Vocabulary> vocabulary, KeyFrameListener listener,
+                               std::function<GroupId(const Map*)> group_of)
     : info_(info), config_(config), group_of_(std::move(group_of)), queue_(config.client_queue_capacity) {
-  if (config_.run_slam) slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
+  if (config_.run_slam)
+    slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = GroupId::from_value(info_.id);  // until the first frame reports its group
@@ -80,7 +82,8 @@ void ClientPipeline::run() {
     // overloaded. Each holds for a while (config), so that the cheaper frames that let the worker
     // catch up do not switch themselves off at once.
     const auto now = std::chrono::steady_clock::now();
-    const auto hold = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(config_.behind_hold_s));
+    const auto hold = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(config_.behind_hold_s));
     if (frame->live && skipped_any && now < behind_until) overloaded_until = now + hold;
     if (frame->live && (skipped_any || queue_.size() > 0)) behind_until = now + hold;
     const WorkerLoad load = !frame->live || now >= behind_until ? WorkerLoad::kKeepingUp
@@ -140,7 +143,8 @@ void ClientPipeline::report(FrameDone done, const RgbdFrame& frame) {
       std::shared_lock<std::shared_mutex> map_lock(m->mutex);
       done.map_epoch += m->big_change_index();
     }
-    const GroupId g = done.map >= 0 && std::size_t(done.map) < maps.size() && group_of_ ? group_of_(maps[done.map].get()) : GroupId();
+    const GroupId g =
+        done.map >= 0 && std::size_t(done.map) < maps.size() && group_of_ ? group_of_(maps[done.map].get()) : GroupId();
     done.group = g.valid() ? g : GroupId::of_map(info_.id, 0);
   } else {
     done.group = GroupId::from_value(info_.id);  // counting-only pipeline
@@ -149,8 +153,10 @@ void ClientPipeline::report(FrameDone done, const RgbdFrame& frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     done.frames_skipped = counters_.frames_skipped;
     if (done.fate != FrameFate::kSkipped) {
-      if (latency_ms_.size() < kLatencyWindow) latency_ms_.push_back(done.server_ms);
-      else latency_ms_[latency_next_] = done.server_ms;
+      if (latency_ms_.size() < kLatencyWindow)
+        latency_ms_.push_back(done.server_ms);
+      else
+        latency_ms_[latency_next_] = done.server_ms;
       latency_next_ = (latency_next_ + 1) % kLatencyWindow;
       counters_.pose_latency_last_ms = done.server_ms;
     }
@@ -189,7 +195,9 @@ Trajectory ClientPipeline::trajectory() const {
   return counted_trajectory_;
 }
 
-Trajectory ClientPipeline::keyframe_trajectory() const { return slam_ ? slam_->keyframe_trajectory(group_of_) : Trajectory{}; }
+Trajectory ClientPipeline::keyframe_trajectory() const {
+  return slam_ ? slam_->keyframe_trajectory(group_of_) : Trajectory{};
+}
 
 ClientSlamTimings ClientPipeline::timings() const { return slam_ ? slam_->timings() : ClientSlamTimings{}; }
 

@@ -21,9 +21,7 @@
 
 namespace cslam {
 
-const char* tracking_label(FrameFate state) {
-  return state == FrameFate::kTracked ? "tracking" : to_string(state);
-}
+const char* tracking_label(FrameFate state) { return state == FrameFate::kTracked ? "tracking" : to_string(state); }
 
 struct CollaborativeSystem::Impl {
   SystemConfig config;
@@ -103,7 +101,8 @@ bool CollaborativeSystem::submit(RgbdFrame frame) {
   }
   // The frame's builder checked it (frame/frame_check.h); a malformed one here is a programming error.
   if (const std::string why = frame_problem(frame, pipeline->info().camera); !why.empty())
-    throw std::invalid_argument("frame " + std::to_string(frame.seq) + " of client " + std::to_string(frame.client) + ": " + why);
+    throw std::invalid_argument("frame " + std::to_string(frame.seq) + " of client " + std::to_string(frame.client) +
+                                ": " + why);
   // Pipelines are only destroyed in the destructor, after finish(): the pointer stays valid.
   return pipeline->submit(std::move(frame));
 }
@@ -130,12 +129,19 @@ bool CollaborativeSystem::retire_client(ClientId id, const std::string& dir) {
   const std::string name = std::to_string(id);
   write_tum_trajectory(dir + "/client_" + name + ".txt", pipeline->trajectory(), "client " + name + " (reclaimed)");
   if (pipeline->slam())
-    write_tum_trajectory(dir + "/keyframes_" + name + ".txt", pipeline->keyframe_trajectory(), "client " + name + " keyframes");
+    write_tum_trajectory(dir + "/keyframes_" + name + ".txt", pipeline->keyframe_trajectory(),
+                         "client " + name + " keyframes");
   const ClientSnapshot c = pipeline->snapshot();
-  nlohmann::json j = {{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
-                      {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
-                      {"frames_lost", c.frames_lost}, {"keyframes", c.keyframes}, {"map_points", c.map_points},
-                      {"maps", c.maps}, {"reclaimed", true}};
+  nlohmann::json j = {{"id", c.id},
+                      {"name", c.name},
+                      {"frames_submitted", c.frames_submitted},
+                      {"frames_processed", c.frames_processed},
+                      {"frames_rejected", c.frames_rejected},
+                      {"frames_lost", c.frames_lost},
+                      {"keyframes", c.keyframes},
+                      {"map_points", c.map_points},
+                      {"maps", c.maps},
+                      {"reclaimed", true}};
   std::ofstream(dir + "/stats.json") << j.dump(2) << "\n";
   logger("system")->info("client {} retired: outputs in {}", id, dir);
   return true;
@@ -277,16 +283,25 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
   stats["clients"] = nlohmann::json::array();
   for (const auto& c : snap.clients) {
     const std::string id = std::to_string(c.id);
-    write_tum_trajectory(dir + "/client_" + id + ".txt", trajs.at(c.id), "client " + id + ", frame of group " + std::to_string(c.group.value()));
-    nlohmann::json cj = {{"id", c.id}, {"name", c.name}, {"frames_submitted", c.frames_submitted},
-                         {"frames_processed", c.frames_processed}, {"frames_rejected", c.frames_rejected},
-                         {"frames_lost", c.frames_lost}, {"frames_skipped", c.frames_skipped},
-                         {"frames_flow", c.frames_flow},
-                         {"pose_latency_ms", {{"p50", c.pose_latency_p50_ms}, {"p99", c.pose_latency_p99_ms},
-                                              {"samples", c.pose_latency_samples}}},
-                         {"trajectory_poses", trajs.at(c.id).size()},
-                         {"keyframes", c.keyframes}, {"map_points", c.map_points}, {"maps", c.maps}, {"group", c.group},
-                         {"tracking", tracking_label(c.tracking)}};
+    write_tum_trajectory(dir + "/client_" + id + ".txt", trajs.at(c.id),
+                         "client " + id + ", frame of group " + std::to_string(c.group.value()));
+    nlohmann::json cj = {
+        {"id", c.id},
+        {"name", c.name},
+        {"frames_submitted", c.frames_submitted},
+        {"frames_processed", c.frames_processed},
+        {"frames_rejected", c.frames_rejected},
+        {"frames_lost", c.frames_lost},
+        {"frames_skipped", c.frames_skipped},
+        {"frames_flow", c.frames_flow},
+        {"pose_latency_ms",
+         {{"p50", c.pose_latency_p50_ms}, {"p99", c.pose_latency_p99_ms}, {"samples", c.pose_latency_samples}}},
+        {"trajectory_poses", trajs.at(c.id).size()},
+        {"keyframes", c.keyframes},
+        {"map_points", c.map_points},
+        {"maps", c.maps},
+        {"group", c.group},
+        {"tracking", tracking_label(c.tracking)}};
     std::lock_guard<std::mutex> lock(impl_->mutex);
     const auto& p = impl_->clients.at(c.id);
     if (impl_->config.run_slam) {
@@ -309,19 +324,27 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
     Trajectory combined;
     for (ClientId c : members) combined.insert(combined.end(), trajs.at(c).begin(), trajs.at(c).end());
     sort_by_time(combined);
-    write_tum_trajectory(dir + "/fused_" + std::to_string(g.value()) + ".txt", combined, "fused group " + std::to_string(g.value()));
+    write_tum_trajectory(dir + "/fused_" + std::to_string(g.value()) + ".txt", combined,
+                         "fused group " + std::to_string(g.value()));
   }
   for (auto& cj : stats["clients"]) {
     cj["fused"] = group_members.at(cj["group"].get<GroupId>()).size() > 1;
   }
   stats["fusion_events"] = nlohmann::json::array();
   for (const auto& e : snap.events)
-    stats["fusion_events"].push_back({{"time_s", e.wall_time_s}, {"client_a", e.client_a}, {"client_b", e.client_b},
-                                      {"group", e.group}, {"inliers", e.inliers}, {"duration_ms", e.duration_ms},
-                                      {"kind", e.kind}, {"query_timestamp", e.query_timestamp},
+    stats["fusion_events"].push_back({{"time_s", e.wall_time_s},
+                                      {"client_a", e.client_a},
+                                      {"client_b", e.client_b},
+                                      {"group", e.group},
+                                      {"inliers", e.inliers},
+                                      {"duration_ms", e.duration_ms},
+                                      {"kind", e.kind},
+                                      {"query_timestamp", e.query_timestamp},
                                       {"candidate_timestamp", e.candidate_timestamp},
-                                      {"seam_points", e.seam_points}, {"seam_edges", e.seam_edges},
-                                      {"keyframes_moved", e.keyframes_moved}, {"keyframes_kept", e.keyframes_kept},
+                                      {"seam_points", e.seam_points},
+                                      {"seam_edges", e.seam_edges},
+                                      {"keyframes_moved", e.keyframes_moved},
+                                      {"keyframes_kept", e.keyframes_kept},
                                       {"T_query_candidate", format_tum_line({0.0, e.T_query_candidate})}});
   stats["group_ba"] = {{"started", snap.group_ba.started},
                        {"completed", snap.group_ba.completed},
@@ -345,14 +368,16 @@ SystemState CollaborativeSystem::export_state() const {
     ClientSlamState cs = p->slam()->export_state();
     const auto maps = p->slam()->maps();
     for (auto& ms : cs.maps)
-      if (impl_->fusion && std::size_t(ms.index) < maps.size()) ms.group = impl_->fusion->group_of(maps[ms.index].get()).value();
+      if (impl_->fusion && std::size_t(ms.index) < maps.size())
+        ms.group = impl_->fusion->group_of(maps[ms.index].get()).value();
     state.clients.push_back(std::move(cs));
   }
   return state;
 }
 
 void CollaborativeSystem::restore_state(const SystemState& state, const std::string& source) {
-  if (!impl_->config.run_slam) throw ConfigError(source + ": loading a snapshot needs SLAM (not --no-slam; --state-reset starts empty)");
+  if (!impl_->config.run_slam)
+    throw ConfigError(source + ": loading a snapshot needs SLAM (not --no-slam; --state-reset starts empty)");
   auto check_new = [&](ClientId id) {  // under impl_->mutex
     if (impl_->finished) throw std::logic_error("restore_state after finish()");
     if (impl_->clients.count(id)) throw InputError(source, "client " + std::to_string(id) + " is already registered");
@@ -368,14 +393,17 @@ void CollaborativeSystem::restore_state(const SystemState& state, const std::str
     KeyFrameListener listener;
     FusionManager* fusion = impl_->fusion.get();
     if (fusion)
-      listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion->notify(c, m, kf); };
+      listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) {
+        fusion->notify(c, m, kf);
+      };
     auto pipeline = std::make_unique<ClientPipeline>(cs.info, impl_->config, impl_->vocabulary, std::move(listener));
     pipeline->slam()->restore_state(cs, source);
     // Groups first: the maps are registered with fusion before any of their keyframes can be.
     // (A failed insert below leaves only expired weak entries behind.)
     const auto maps = pipeline->slam()->maps();
     if (fusion)
-      for (std::size_t i = 0; i < maps.size() && i < cs.maps.size(); ++i) fusion->restore_group(cs.info.id, maps[i], GroupId::from_value(cs.maps[i].group));
+      for (std::size_t i = 0; i < maps.size() && i < cs.maps.size(); ++i)
+        fusion->restore_group(cs.info.id, maps[i], GroupId::from_value(cs.maps[i].group));
     {
       std::lock_guard<std::mutex> lock(impl_->mutex);
       check_new(cs.info.id);

@@ -33,7 +33,7 @@ struct ClientSnapshot {
   int maps = 1;
   std::size_t queue_depth = 0;
   int keyframes = 0, map_points = 0;
-  GroupId group;  // fused group (clients in one group share a frame); its first map's if unfused
+  GroupId group;    // fused group (clients in one group share a frame); its first map's if unfused
   SE3 T_world_cam;  // current pose in the group frame
   double last_timestamp = 0;
 };

@@ -15,8 +15,11 @@ namespace cslam {
 inline nlohmann::json loop_events_json(const LoopClosingStats& s) {
   nlohmann::json loops = nlohmann::json::array();
   for (const auto& l : s.loops)
-    loops.push_back({{"query_timestamp", l.query_timestamp}, {"candidate_timestamp", l.candidate_timestamp},
-                     {"inliers", l.inliers}, {"correction_ms", l.correction_ms}, {"pose_graph_ms", l.pose_graph_ms},
+    loops.push_back({{"query_timestamp", l.query_timestamp},
+                     {"candidate_timestamp", l.candidate_timestamp},
+                     {"inliers", l.inliers},
+                     {"correction_ms", l.correction_ms},
+                     {"pose_graph_ms", l.pose_graph_ms},
                      {"correction_translation_m", l.T_correction.translation().norm()},
                      {"correction_rotation_deg", l.T_correction.rotation_angle() * 180.0 / M_PI},
                      {"T_query_candidate", format_tum_line({0.0, l.T_query_candidate})}});

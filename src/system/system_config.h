@@ -41,7 +41,8 @@ struct SystemConfig {
   // keyframe too), with that frame and where its depth image was taken (ProcessResult::T_cam_depthcam):
   // the dense map keeps its images. Must be cheap (queue and
   // return) and must not call back into the system.
-  std::function<void(const ClientInfo& client, const KeyFrameId& keyframe, const RgbdFrame& frame, const SE3& T_cam_depthcam)>
+  std::function<void(const ClientInfo& client, const KeyFrameId& keyframe, const RgbdFrame& frame,
+                     const SE3& T_cam_depthcam)>
       on_keyframe;
 };
 

@@ -8,7 +8,8 @@
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::printf("usage: %s ENDPOINT KEYFILE (links cslam_client_lib only; connects nowhere without arguments)\n", argv[0]);
+    std::printf("usage: %s ENDPOINT KEYFILE (links cslam_client_lib only; connects nowhere without arguments)\n",
+                argv[0]);
     return 0;
   }
   cslam::client::SenderConfig config;

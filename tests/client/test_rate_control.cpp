@@ -30,7 +30,8 @@ Clock::time_point feed(RateController& r, Clock::time_point t, int acks, F laten
 
 TEST(RateControl, ACalmLinkKeepsTheConfiguredStream) {
   RateController r(on(), 1);
-  feed(r, Clock::time_point{} + milliseconds(1), 600, [](int i) { return 20.0 + (i % 7); });  // jitter well under the margin
+  feed(r, Clock::time_point{} + milliseconds(1), 600,
+       [](int i) { return 20.0 + (i % 7); });  // jitter well under the margin
   EXPECT_EQ(r.depth_every(), 1);
   EXPECT_EQ(r.steps_down(), 0u);
 }
@@ -40,7 +41,7 @@ TEST(RateControl, AQueueStepsDownOncePerHoldAndCalmStepsBackUp) {
   auto t = feed(r, Clock::time_point{} + milliseconds(1), 60, [](int) { return 20.0; });
   // A queue builds: latency climbs 10 ms per ack above the 20 ms base.
   t = feed(r, t, 15, [](int i) { return 20.0 + 10.0 * (i + 1); });  // 0.5 s
-  EXPECT_EQ(r.depth_every(), 2);  // one step: the hold (0.5 s) keeps a second one out
+  EXPECT_EQ(r.depth_every(), 2);                                    // one step: the hold (0.5 s) keeps a second one out
   EXPECT_EQ(r.steps_down(), 1u);
   t = feed(r, t, 30, [](int) { return 300.0; });  // still queued after the hold: further down
   EXPECT_GE(r.steps_down(), 2u);

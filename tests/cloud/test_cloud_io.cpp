@@ -53,7 +53,8 @@ TEST(PlyIo, ReadsSceneLayoutWithNormalsAfterColours) {
   const std::string path = temp_path("scene.ply");
   {
     std::ofstream f(path, std::ios::binary);
-    f << "ply\nformat binary_little_endian 1.0\ncomment synthetic\nelement vertex 2\nproperty float x\nproperty float y\n"
+    f << "ply\nformat binary_little_endian 1.0\ncomment synthetic\nelement vertex 2\nproperty float x\nproperty float "
+         "y\n"
          "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\n"
          "property float ny\nproperty float nz\nend_header\n";
     const float xyz[2][3] = {{1, 2, 3}, {-4, 5.5f, 6}};
@@ -115,7 +116,8 @@ TEST(PlyIo, RefusesEmptyAndRejectsMalformed) {
   EXPECT_THROW(read_ply(bad), InputError);
   {
     std::ofstream f(bad, std::ios::binary);
-    f << "ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    f << "ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float "
+         "z\nend_header\n";
     const float xyz[3] = {1, 2, 3};
     f.write(reinterpret_cast<const char*>(xyz), 12);  // 1 of 5 vertices
   }

@@ -37,7 +37,8 @@ TEST(CloudMetrics, FarQueriesAreExactToo) {
   // (coarse cells + member scan) must agree with brute force.
   std::vector<Eigen::Vector3f> targets;
   for (int x = 0; x < 120; ++x)
-    for (int y = 0; y < 80; ++y) targets.emplace_back(0.01f * x, 0.01f * y, 0.05f * std::sin(0.1f * x) * std::cos(0.07f * y));
+    for (int y = 0; y < 80; ++y)
+      targets.emplace_back(0.01f * x, 0.01f * y, 0.05f * std::sin(0.1f * x) * std::cos(0.07f * y));
   std::vector<Eigen::Vector3f> queries;
   for (int i = 0; i < 400; ++i)
     queries.emplace_back(-1.0f + 0.0091f * i, 0.4f + std::sin(0.3f * i), 2.0f * std::cos(0.11f * i));

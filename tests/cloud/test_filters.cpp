@@ -13,11 +13,13 @@ namespace {
 ColoredCloud voxel_block(int nx, int ny, int nz, Eigen::Vector3i origin = {0, 0, 0}) {
   ColoredCloud c;
   const float v = 0.01f;
-  const Eigen::Vector3f offs[4] = {{0.002f, 0.002f, 0}, {-0.002f, -0.002f, 0}, {0, 0.003f, -0.001f}, {0, -0.003f, 0.001f}};
+  const Eigen::Vector3f offs[4] = {
+      {0.002f, 0.002f, 0}, {-0.002f, -0.002f, 0}, {0, 0.003f, -0.001f}, {0, -0.003f, 0.001f}};
   for (int x = 0; x < nx; ++x)
     for (int y = 0; y < ny; ++y)
       for (int z = 0; z < nz; ++z) {
-        const Eigen::Vector3f centre = (Eigen::Vector3i(x, y, z) + origin).cast<float>() * v + Eigen::Vector3f::Constant(v / 2);
+        const Eigen::Vector3f centre =
+            (Eigen::Vector3i(x, y, z) + origin).cast<float>() * v + Eigen::Vector3f::Constant(v / 2);
         for (int k = 0; k < 4; ++k) {
           c.points.push_back(centre + offs[k]);
           c.colors.push_back({std::uint8_t(k * 10), 100, std::uint8_t(x)});

@@ -32,7 +32,8 @@ inline cv::Mat synthetic_depth(int w, int h, const std::string& kind, unsigned s
   } else {
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x)
-        im.at<std::uint16_t>(y, x) = std::uint16_t(5000 + 37 * x + 11 * y + int(rng.uniform(0, 8)) + (x > w / 2 ? 9000 : 0));
+        im.at<std::uint16_t>(y, x) =
+            std::uint16_t(5000 + 37 * x + 11 * y + int(rng.uniform(0, 8)) + (x > w / 2 ? 9000 : 0));
     cv::circle(im, cv::Point(w / 3, h / 2), std::max(1, h / 4), cv::Scalar(0), cv::FILLED);
   }
   return im;
@@ -114,14 +115,15 @@ inline Bytes filter_rows_rgb8(const cv::Mat& bgr, const std::vector<int>& filter
   std::vector<Bytes> raw(std::size_t(bgr.rows), Bytes(3 * std::size_t(bgr.cols)));
   for (int y = 0; y < bgr.rows; ++y)
     for (int x = 0; x < bgr.cols; ++x)
-      for (int k = 0; k < 3; ++k) raw[std::size_t(y)][3 * std::size_t(x) + std::size_t(k)] = bgr.at<cv::Vec3b>(y, x)[2 - k];
+      for (int k = 0; k < 3; ++k)
+        raw[std::size_t(y)][3 * std::size_t(x) + std::size_t(k)] = bgr.at<cv::Vec3b>(y, x)[2 - k];
   return filter_raw_rows(raw, 3, filters);
 }
 
 // A PNG: signature, IHDR, `before` chunks, the zlib stream in IDATs of `idat_chunk` bytes, `after` chunks, IEND.
 using Chunks = std::vector<std::pair<std::string, Bytes>>;
 inline Bytes build_png(const Bytes& header, const Bytes& zlib, std::size_t idat_chunk, const Chunks& before = {},
-                const Chunks& after = {}) {
+                       const Chunks& after = {}) {
   Bytes png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   add_chunk(png, "IHDR", header);
   for (const auto& [type, body] : before) add_chunk(png, type.c_str(), body);
@@ -133,7 +135,7 @@ inline Bytes build_png(const Bytes& header, const Bytes& zlib, std::size_t idat_
 }
 
 inline Bytes hand_png(const cv::Mat& im, const std::vector<int>& filters, int level = 6, std::size_t idat_chunk = 8192,
-               const Chunks& before = {}, const Chunks& after = {}) {
+                      const Chunks& before = {}, const Chunks& after = {}) {
   return build_png(ihdr(im.cols, im.rows), zlib_compress(filter_rows(im, filters), level), idat_chunk, before, after);
 }
 

@@ -21,8 +21,12 @@ Bytes mutate(Bytes bytes, std::mt19937& rng) {
       for (int k = 0; k < 1 + int(rng() % 8); ++k) bytes[pos(rng)] = std::uint8_t(byte(rng));
       break;
     }
-    case 1: bytes.resize(rng() % bytes.size()); break;          // truncate
-    case 2: bytes.insert(bytes.end(), 1 + rng() % 64, 0x55); break;  // trailing junk
+    case 1:
+      bytes.resize(rng() % bytes.size());
+      break;  // truncate
+    case 2:
+      bytes.insert(bytes.end(), 1 + rng() % 64, 0x55);
+      break;    // trailing junk
     default: {  // splice a random block
       std::uniform_int_distribution<std::size_t> pos(0, bytes.size() - 1);
       const std::size_t at = pos(rng);
@@ -56,7 +60,8 @@ TEST(CodecFuzz, MutatedAndRandomBytesNeverCrashAnyDecoder) {
     const Bytes valid = encode_rgb(bgr, o);
     for (int i = 0; i < 600; ++i, ++iterations) {
       Bytes b = (i % 5 == 0) ? Bytes(rng() % 2000) : mutate(valid, rng);
-      if (i % 5 == 0) for (auto& x : b) x = std::uint8_t(rng());
+      if (i % 5 == 0)
+        for (auto& x : b) x = std::uint8_t(rng());
       try {
         decode_rgb(c, b.data(), b.size(), kW, kH, "fuzz");
       } catch (const InputError&) {
@@ -70,7 +75,8 @@ TEST(CodecFuzz, MutatedAndRandomBytesNeverCrashAnyDecoder) {
     const Bytes valid = encode_depth(depth, o);
     for (int i = 0; i < 1000; ++i, ++iterations) {
       Bytes b = (i % 5 == 0) ? Bytes(rng() % 4000) : mutate(valid, rng);
-      if (i % 5 == 0) for (auto& x : b) x = std::uint8_t(rng());
+      if (i % 5 == 0)
+        for (auto& x : b) x = std::uint8_t(rng());
       expect_sane_or_input_error([&] { return decode_depth(c, b.data(), b.size(), kW, kH, "fuzz"); }, CV_16UC1);
       try {
         decode_depth(c, b.data(), b.size(), kW, kH, "fuzz");

@@ -35,7 +35,10 @@ cv::Mat random_depth(int w, int h, unsigned seed) {
   return d;
 }
 
-struct RgbCase { RgbCodec codec; bool lossless; };
+struct RgbCase {
+  RgbCodec codec;
+  bool lossless;
+};
 class RgbCodecTest : public ::testing::TestWithParam<RgbCase> {};
 
 TEST_P(RgbCodecTest, RoundTripKeepsSizeAndContent) {
@@ -148,7 +151,8 @@ TEST_P(DepthCodecTest, TruncatedDataIsRejected) {
 }
 
 INSTANTIATE_TEST_SUITE_P(AllDepth, DepthCodecTest,
-                         ::testing::Values(DepthCodec::kRaw, DepthCodec::kPng, DepthCodec::kRvl, DepthCodec::kZstdDelta),
+                         ::testing::Values(DepthCodec::kRaw, DepthCodec::kPng, DepthCodec::kRvl,
+                                           DepthCodec::kZstdDelta),
                          [](const auto& info) { return std::string(to_string(info.param)); });
 
 TEST(CodecNames, ParseAndPrintRoundTrip) {
@@ -174,7 +178,8 @@ TEST(CodecDefaults, DepthIsLosslessByDefault) {
   EXPECT_NE(o.depth, DepthCodec::kRaw);  // compressed...
   const cv::Mat d = random_depth(64, 48, 9);
   const Bytes bytes = encode_depth(d, o);
-  EXPECT_EQ(cv::norm(d, decode_depth(o.depth, bytes.data(), bytes.size(), 64, 48, "t"), cv::NORM_INF), 0.0);  // ...and lossless
+  EXPECT_EQ(cv::norm(d, decode_depth(o.depth, bytes.data(), bytes.size(), 64, 48, "t"), cv::NORM_INF),
+            0.0);  // ...and lossless
 }
 
 TEST(EncodeRejectsWrongTypes, ThrowsInvalidArgument) {

@@ -102,8 +102,10 @@ TEST(Png16Decode, EveryFilterTypeDecodesIdentically) {
 
 TEST(Png16Decode, IgnorableChunksAndOddChunkingDecodeIdentically) {
   const cv::Mat im = synthetic_depth(37, 21, "smooth", 8);
-  const Chunks meta = {{"gAMA", {0, 0, 0xb1, 0x8f}}, {"pHYs", {0, 0, 0x0b, 0x13, 0, 0, 0x0b, 0x13, 1}},
-                       {"tEXt", {'K', 'e', 'y', 0, 'v'}}, {"sBIT", {12}}};
+  const Chunks meta = {{"gAMA", {0, 0, 0xb1, 0x8f}},
+                       {"pHYs", {0, 0, 0x0b, 0x13, 0, 0, 0x0b, 0x13, 1}},
+                       {"tEXt", {'K', 'e', 'y', 0, 'v'}},
+                       {"sBIT", {12}}};
   for (const Bytes& png : {hand_png(im, {4, 1}, 6, 1, meta, {{"tEXt", {'a', 0, 'b'}}}),  // one-byte IDATs
                            hand_png(im, {2}, 6, 100000, {{"tIME", {7, 0xe9, 1, 2, 3, 4, 5}}})}) {
     cv::Mat got;

@@ -162,10 +162,8 @@ TEST(PngRgb8Decode, EveryFilterTypeDecodesIdentically) {
 TEST(PngRgb8Decode, IgnorableChunksAndOddChunkingDecodeIdentically) {
   const cv::Mat im = synthetic_bgr(37, 21, "smooth", 8);
   const Chunks meta = {{"gAMA", {0, 1, 0x86, 0xa0}},  // gamma 1.0
-                       {"cHRM", Bytes(32, 7)},
-                       {"sBIT", {5, 6, 5}},
-                       {"bKGD", {0, 255, 0, 0, 0, 255}},
-                       {"pHYs", {0, 0, 0x0b, 0x13, 0, 0, 0x0b, 0x13, 1}},
+                       {"cHRM", Bytes(32, 7)},           {"sBIT", {5, 6, 5}},
+                       {"bKGD", {0, 255, 0, 0, 0, 255}}, {"pHYs", {0, 0, 0x0b, 0x13, 0, 0, 0x0b, 0x13, 1}},
                        {"tEXt", {'K', 'e', 'y', 0, 'v'}}};
   const Chunks srgb = {{"sRGB", {0}}, {"gAMA", {0, 0, 0xb1, 0x8f}}};
   for (const Bytes& png : {rgb_png(im, {4, 1}, 6, 1, meta, {{"tEXt", {'a', 0, 'b'}}}),  // one-byte IDATs
@@ -283,7 +281,8 @@ TEST(PngRgb8Decode, ManyThreadsAtOnceMixedWithDepth) {
         const Bytes& png = pngs[k];
         cv::Mat got;
         if (i % 7 == 0) decode_png_rgb8(png.data(), png.size() / 2, got);  // a failure in between
-        const bool ok = k % 2 ? decode_png_rgb8(png.data(), png.size(), got) : decode_png16_gray(png.data(), png.size(), got);
+        const bool ok =
+            k % 2 ? decode_png_rgb8(png.data(), png.size(), got) : decode_png16_gray(png.data(), png.size(), got);
         if (!ok || cv::norm(got, expected[k], cv::NORM_INF) != 0) ++mismatches[std::size_t(t)];
       }
     });
@@ -299,8 +298,7 @@ TEST(PngRgb8Decode, LoadColourImageMatchesImread) {
   cv::Mat bgra, grey;
   cv::cvtColor(bgr, bgra, cv::COLOR_BGR2BGRA);
   cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
-  const std::vector<std::pair<std::string, cv::Mat>> files = {
-      {"rgb.png", bgr}, {"bgra.png", bgra}, {"grey.png", grey}};
+  const std::vector<std::pair<std::string, cv::Mat>> files = {{"rgb.png", bgr}, {"bgra.png", bgra}, {"grey.png", grey}};
   for (const auto& [name, im] : files) {
     const std::string path = dir / name;
     ASSERT_TRUE(cv::imwrite(path, im));

@@ -33,15 +33,17 @@ const cv::Mat& texture() {
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) {
         const int g = grey.at<std::uint8_t>(y, x) - 128;
-        im.at<cv::Vec3b>(y, x) = cv::Vec3b(cv::saturate_cast<std::uint8_t>(60 + 120 * x / w + g),
-                                           cv::saturate_cast<std::uint8_t>(128 + g),
-                                           cv::saturate_cast<std::uint8_t>(190 - 120 * y / h + g));
+        im.at<cv::Vec3b>(y, x) =
+            cv::Vec3b(cv::saturate_cast<std::uint8_t>(60 + 120 * x / w + g), cv::saturate_cast<std::uint8_t>(128 + g),
+                      cv::saturate_cast<std::uint8_t>(190 - 120 * y / h + g));
       }
     for (int i = 0; i < 40; ++i) {
       const cv::Point c(rng.uniform(0, w), rng.uniform(0, h));
       const cv::Scalar colour(rng.uniform(0, 256), rng.uniform(0, 256), rng.uniform(0, 256));
-      if (i % 2) cv::circle(im, c, rng.uniform(4, 20), colour, cv::FILLED);
-      else cv::rectangle(im, cv::Rect(c.x, c.y, rng.uniform(5, 30), rng.uniform(5, 30)), colour, cv::FILLED);
+      if (i % 2)
+        cv::circle(im, c, rng.uniform(4, 20), colour, cv::FILLED);
+      else
+        cv::rectangle(im, cv::Rect(c.x, c.y, rng.uniform(5, 30), rng.uniform(5, 30)), colour, cv::FILLED);
     }
     return im;
   }();
@@ -281,26 +283,48 @@ TEST_P(H264CorruptPacket, InputErrorThenResyncAtTheNextKey) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Kinds, H264CorruptPacket,
-    ::testing::Values(
-        Corruption{"FlippedBitstreamByte", [](Bytes& p) { p[p.size() / 2] ^= 0x10; }},
-        Corruption{"FlippedIndexByte", [](Bytes& p) { p[4] ^= 0x01; }},
-        Corruption{"FlippedKeyFlag", [](Bytes& p) { p[3] ^= 0x01; }},
-        Corruption{"TruncatedHeader", [](Bytes& p) { p.resize(10); }},
-        Corruption{"TruncatedBitstream", [](Bytes& p) { p.resize(p.size() - 7); }},
-        Corruption{"Empty", [](Bytes& p) { p.clear(); }},
-        Corruption{"BadMagic", [](Bytes& p) { p[0] = 'J'; }},
-        Corruption{"BadVersion", [](Bytes& p) { p[2] = 2; reseal(p); }},
-        Corruption{"UnknownFlag", [](Bytes& p) { p[3] |= 0x80; reseal(p); }},
-        Corruption{"LengthMismatch", [](Bytes& p) { set_le32(p, 8, le32(p, 8) + 1); reseal(p); }},
-        Corruption{"AbsurdLength", [](Bytes& p) { set_le32(p, 8, 0xfffffff0u); reseal(p); }},
-        Corruption{"NoBitstream", [](Bytes& p) { p.resize(kH264HeaderBytes); set_le32(p, 8, 0); reseal(p); }},
-        Corruption{"GarbageWithValidCrc", [](Bytes& p) {
-          for (std::size_t i = kH264HeaderBytes; i < p.size(); ++i) p[i] = std::uint8_t(i * 37);
-          reseal(p);
-        }}),
-    [](const auto& info) { return info.param.name; });
+INSTANTIATE_TEST_SUITE_P(Kinds, H264CorruptPacket,
+                         ::testing::Values(Corruption{"FlippedBitstreamByte",
+                                                      [](Bytes& p) { p[p.size() / 2] ^= 0x10; }},
+                                           Corruption{"FlippedIndexByte", [](Bytes& p) { p[4] ^= 0x01; }},
+                                           Corruption{"FlippedKeyFlag", [](Bytes& p) { p[3] ^= 0x01; }},
+                                           Corruption{"TruncatedHeader", [](Bytes& p) { p.resize(10); }},
+                                           Corruption{"TruncatedBitstream", [](Bytes& p) { p.resize(p.size() - 7); }},
+                                           Corruption{"Empty", [](Bytes& p) { p.clear(); }},
+                                           Corruption{"BadMagic", [](Bytes& p) { p[0] = 'J'; }},
+                                           Corruption{"BadVersion",
+                                                      [](Bytes& p) {
+                                                        p[2] = 2;
+                                                        reseal(p);
+                                                      }},
+                                           Corruption{"UnknownFlag",
+                                                      [](Bytes& p) {
+                                                        p[3] |= 0x80;
+                                                        reseal(p);
+                                                      }},
+                                           Corruption{"LengthMismatch",
+                                                      [](Bytes& p) {
+                                                        set_le32(p, 8, le32(p, 8) + 1);
+                                                        reseal(p);
+                                                      }},
+                                           Corruption{"AbsurdLength",
+                                                      [](Bytes& p) {
+                                                        set_le32(p, 8, 0xfffffff0u);
+                                                        reseal(p);
+                                                      }},
+                                           Corruption{"NoBitstream",
+                                                      [](Bytes& p) {
+                                                        p.resize(kH264HeaderBytes);
+                                                        set_le32(p, 8, 0);
+                                                        reseal(p);
+                                                      }},
+                                           Corruption{"GarbageWithValidCrc",
+                                                      [](Bytes& p) {
+                                                        for (std::size_t i = kH264HeaderBytes; i < p.size(); ++i)
+                                                          p[i] = std::uint8_t(i * 37);
+                                                        reseal(p);
+                                                      }}),
+                         [](const auto& info) { return info.param.name; });
 
 // A hostile peer seals damaged bitstreams with a valid CRC: libavcodec sees them. Whatever comes
 // out is an InputError or a picture of exactly the expected size, and the next key resyncs.

@@ -21,7 +21,9 @@ inline PinholeCamera small_camera() {
 }
 
 // BGR (40, 80, 120) everywhere, every pixel at depth_m.
-inline cv::Mat plane_colour(const PinholeCamera& c) { return cv::Mat(c.height, c.width, CV_8UC3, cv::Scalar(40, 80, 120)); }
+inline cv::Mat plane_colour(const PinholeCamera& c) {
+  return cv::Mat(c.height, c.width, CV_8UC3, cv::Scalar(40, 80, 120));
+}
 inline cv::Mat plane_depth(const PinholeCamera& c, double depth_m) {
   return cv::Mat(c.height, c.width, CV_16UC1, cv::Scalar(std::round(depth_m * c.depth_factor)));
 }

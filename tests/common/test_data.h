@@ -19,10 +19,10 @@ inline bool running_in_ci() {
 }  // namespace cslam::test
 
 // Use at the top of a test that needs the real sequence.
-#define CSLAM_REQUIRE_TUM_RPY()                                                                         \
-  do {                                                                                                  \
-    if (!std::filesystem::exists(cslam::test::tum_rpy_dir() + "/rgb.txt")) {                            \
+#define CSLAM_REQUIRE_TUM_RPY()                                                                            \
+  do {                                                                                                     \
+    if (!std::filesystem::exists(cslam::test::tum_rpy_dir() + "/rgb.txt")) {                               \
       if (cslam::test::running_in_ci()) FAIL() << "real sequence missing: " << cslam::test::tum_rpy_dir(); \
-      GTEST_SKIP() << "real sequence not found at " << cslam::test::tum_rpy_dir();                      \
-    }                                                                                                   \
+      GTEST_SKIP() << "real sequence not found at " << cslam::test::tum_rpy_dir();                         \
+    }                                                                                                      \
   } while (0)

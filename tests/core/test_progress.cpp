@@ -23,7 +23,8 @@ TEST(Progress, FormatsCountRateAndEta) {
   EXPECT_EQ(Progress::format("client 1: sent", 30, 60, "frames", 10.0, "94.3 KB/frame"),
             "client 1: sent 30/60 frames (50.0 %), 10.0 frames/s, ETA 3 s, 94.3 KB/frame");
   EXPECT_EQ(Progress::format("runs", 5, 0, "runs", 0.5, ""), "runs 5 runs, 2 s each");
-  EXPECT_EQ(Progress::format("runs", 1, 4, "runs", 1.0 / 125, ""), "runs 1/4 runs (25.0 %), 2 min 05 s each, ETA 6 min 15 s");
+  EXPECT_EQ(Progress::format("runs", 1, 4, "runs", 1.0 / 125, ""),
+            "runs 1/4 runs (25.0 %), 2 min 05 s each, ETA 6 min 15 s");
   EXPECT_EQ(Progress::format("x", 0, 10, "f", 0.0, ""), "x 0/10 f (0.0 %), 0.0 f/s, ETA ?");
   EXPECT_EQ(Progress::format("x", 10, 10, "f", 2.0, ""), "x 10/10 f (100.0 %), 2.0 f/s");
 }

@@ -27,10 +27,11 @@ TEST(Backproject, HandComputedPointWithPose) {
   const PinholeCamera cam = simple_camera();
   cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(0));
   cv::Mat bgr(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
-  depth.at<std::uint16_t>(100, 400) = 10000;  // 2 m at u = 400, v = 100
+  depth.at<std::uint16_t>(100, 400) = 10000;   // 2 m at u = 400, v = 100
   bgr.at<cv::Vec3b>(100, 400) = {11, 22, 33};  // B G R
   // Camera rotated 90 degrees about z, at (1, 2, 3).
-  const SE3 T_world_cam(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(1, 2, 3));
+  const SE3 T_world_cam(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ())),
+                        Eigen::Vector3d(1, 2, 3));
   const RayTable rays(cam);
   ColoredCloud out;
   BackprojectParams p;
@@ -45,8 +46,8 @@ TEST(Backproject, HandComputedPointWithPose) {
 TEST(Backproject, DepthRangeAndStride) {
   const PinholeCamera cam = simple_camera();
   cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(5000));  // 1 m everywhere
-  depth.at<std::uint16_t>(0, 0) = 1000;                  // 0.2 m: too near
-  depth.at<std::uint16_t>(0, 2) = 30000;                 // 6 m: too far
+  depth.at<std::uint16_t>(0, 0) = 1000;                 // 0.2 m: too near
+  depth.at<std::uint16_t>(0, 2) = 30000;                // 6 m: too far
   cv::Mat bgr(480, 640, CV_8UC3, cv::Scalar(1, 2, 3));
   const RayTable rays(cam);
   ColoredCloud out;
@@ -61,7 +62,8 @@ TEST(Backproject, DistortedCameraUsesUndistortedRays) {
   const RayTable rays(cam);
   // For several pixels, the ray re-distorted through the camera model lands on the pixel
   // (OpenCV's iterative undistortion leaves < 0.1 px at fr1's extreme corners).
-  for (const auto& uv : {Eigen::Vector2i(0, 0), Eigen::Vector2i(639, 479), Eigen::Vector2i(320, 240), Eigen::Vector2i(50, 400)}) {
+  for (const auto& uv :
+       {Eigen::Vector2i(0, 0), Eigen::Vector2i(639, 479), Eigen::Vector2i(320, 240), Eigen::Vector2i(50, 400)}) {
     const float* r = rays.ray(uv.x(), uv.y());
     const Eigen::Vector2d undist(cam.fx * r[0] + cam.cx, cam.fy * r[1] + cam.cy);
     const Eigen::Vector2d back = cam.distort_pixel(undist);

@@ -16,7 +16,9 @@ namespace {
 
 using test::small_camera;
 
-DenseImages plane_images(const PinholeCamera& c, double depth_m) { return {test::plane_colour(c), test::plane_depth(c, depth_m)}; }
+DenseImages plane_images(const PinholeCamera& c, double depth_m) {
+  return {test::plane_colour(c), test::plane_depth(c, depth_m)};
+}
 
 LiveDenseConfig small_config() {
   LiveDenseConfig c;
@@ -34,12 +36,14 @@ KeyFrameId kf(ClientId client, std::uint32_t seq) { return KeyFrameId{client, se
 std::vector<KeyframePose> sliding_poses(int n, int group = 100) {
   std::vector<KeyframePose> poses;
   for (int i = 0; i < n; ++i)
-    poses.push_back({kf(1, std::uint32_t(i + 1)), group, 0, SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05 * i, 0, 0))});
+    poses.push_back(
+        {kf(1, std::uint32_t(i + 1)), group, 0, SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05 * i, 0, 0))});
   return poses;
 }
 
 SE3 correction() {
-  return SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized())), Eigen::Vector3d(1, -2, 0.5));
+  return SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized())),
+             Eigen::Vector3d(1, -2, 0.5));
 }
 
 double pose_gap(const SE3& a, const SE3& b) {
@@ -159,7 +163,9 @@ TEST(LiveDenseMap, RotationCountsByTheDepthTheKeyframeSaw) {
   f.add(3);
   auto poses = sliding_poses(3);
   f.map.flush(poses, f.loader);
-  auto turn = [](double rad) { return SE3(Eigen::Quaterniond(Eigen::AngleAxisd(rad, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero()); };
+  auto turn = [](double rad) {
+    return SE3(Eigen::Quaterniond(Eigen::AngleAxisd(rad, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero());
+  };
   poses[1].T_world_cam = poses[1].T_world_cam * turn(0.008);  // 8 mm at 1 m: kept
   auto r = f.map.step(poses, 10.0, f.loader);
   EXPECT_EQ(r.reintegrated, 0);
@@ -211,7 +217,7 @@ TEST(LiveDenseMap, WaitsForPosesDelayAndCameraAndBoundsHeldImages) {
   EXPECT_EQ(map.step(poses, 5.0, loader).integrated, 0);  // no camera yet
   map.set_camera(1, cam);
   EXPECT_EQ(map.step(poses, 0.5, loader).integrated, 0);  // too young for local BA to have refined
-  const auto r = map.step(poses, 5.0, loader, {2, 0});      // budget: two per step
+  const auto r = map.step(poses, 5.0, loader, {2, 0});    // budget: two per step
   EXPECT_EQ(r.integrated, 2);
   EXPECT_EQ(loads, 2);  // only the two newest kept their images
   EXPECT_EQ(map.step(poses, 6.0, loader).integrated, 3);

@@ -56,7 +56,8 @@ TEST(MarchingCubes, ClosedOrientedSurfaceOfAnalyticField) {
           std::array<int, 3> ids{};
           for (int q = 0; q < 3; ++q) {
             const int ca = mc_edge_corner(t[q], 0), cb = mc_edge_corner(t[q], 1);
-            const auto key = std::make_tuple(i + (ca & 1), j + ((ca >> 1) & 1), k + ((ca >> 2) & 1), mc_edge_axis(t[q]));
+            const auto key =
+                std::make_tuple(i + (ca & 1), j + ((ca >> 1) & 1), k + ((ca >> 2) & 1), mc_edge_axis(t[q]));
             auto it = vid.find(key);
             if (it == vid.end()) {
               const double s = v[ca] / (v[ca] - v[cb]);

@@ -54,16 +54,18 @@ int run(const std::string& cmd) { return std::system((cmd + " > /dev/null 2>&1")
 TEST(ReconCli, WritesCloudAndMeshAndEvaluates) {
   TinyDataset ds;
   const std::string bin = CSLAM_BIN_DIR;
-  ASSERT_EQ(run(bin + "/cslam-recon --dataset " + ds.root.string() + " --poses " + ds.p("poses.txt") + " --stride 1 --out " +
-                ds.p("c.ply") + " --pcd " + ds.p("c.pcd") + " --mesh " + ds.p("m.ply")),
+  ASSERT_EQ(run(bin + "/cslam-recon --dataset " + ds.root.string() + " --poses " + ds.p("poses.txt") +
+                " --stride 1 --out " + ds.p("c.ply") + " --pcd " + ds.p("c.pcd") + " --mesh " + ds.p("m.ply")),
             0);
   const ColoredCloud c = read_ply(ds.p("c.ply"));
   ASSERT_GT(c.size(), 1000u);
   EXPECT_EQ(c.colors[0], (Rgb8{50, 100, 200}));
-  for (const auto& q : c.points) EXPECT_TRUE(std::abs(q.z() - 1.0f) < 1e-3f || std::abs(q.z() - 0.8f) < 1e-3f) << q.transpose();
+  for (const auto& q : c.points)
+    EXPECT_TRUE(std::abs(q.z() - 1.0f) < 1e-3f || std::abs(q.z() - 0.8f) < 1e-3f) << q.transpose();
   EXPECT_TRUE(fs::exists(ds.p("c.pcd")));
   EXPECT_GT(read_ply_mesh(ds.p("m.ply")).triangles.size(), 100u);
-  const std::string eval = bin + "/cslam-eval cloud " + ds.p("c.ply") + " " + ds.p("c.ply") + " --match-bbox --json > " + ds.p("e.json");
+  const std::string eval =
+      bin + "/cslam-eval cloud " + ds.p("c.ply") + " " + ds.p("c.ply") + " --match-bbox --json > " + ds.p("e.json");
   ASSERT_EQ(std::system(eval.c_str()), 0);
   std::ifstream f(ds.p("e.json"));
   const nlohmann::json j = nlohmann::json::parse(f);
@@ -75,9 +77,13 @@ TEST(ReconCli, WritesCloudAndMeshAndEvaluates) {
 TEST(ReconCli, EmptyResultFailsAndWritesNothing) {
   TinyDataset ds;
   const std::string bin = CSLAM_BIN_DIR;
-  EXPECT_NE(run(bin + "/cslam-recon --dataset " + ds.root.string() + " --poses " + ds.p("none.txt") + " --out " + ds.p("x.ply")), 0);
+  EXPECT_NE(run(bin + "/cslam-recon --dataset " + ds.root.string() + " --poses " + ds.p("none.txt") + " --out " +
+                ds.p("x.ply")),
+            0);
   EXPECT_FALSE(fs::exists(ds.p("x.ply")));
-  EXPECT_NE(run(bin + "/cslam-recon --dataset " + ds.root.string() + " --poses " + ds.p("poses.txt") + " --out " + ds.p("x.txt")), 0);
+  EXPECT_NE(run(bin + "/cslam-recon --dataset " + ds.root.string() + " --poses " + ds.p("poses.txt") + " --out " +
+                ds.p("x.txt")),
+            0);
   EXPECT_NE(run(bin + "/cslam-eval cloud " + ds.p("missing.ply") + " " + ds.p("missing.ply")), 0);
   EXPECT_EQ(run(bin + "/cslam-recon --help"), 0);
 }
@@ -93,9 +99,10 @@ TEST(DenseReplayCli, RebuildsTheLiveMapFromKeyframes) {
     std::string line;
     for (int i = 0; std::getline(in, line); ++i) (i < 3 ? a : b) << line << "\n";
   }
-  ASSERT_EQ(run(bin + "/cslam-dense-replay --dataset " + ds.root.string() + " --keyframes " + ds.p("kf_1.txt") + " " +
-                ds.p("kf_2.txt") + " --voxel 0.01 --submap-keyframes 2 --out " + ds.p("r.ply") + " --mesh " + ds.p("rm.ply")),
-            0);
+  ASSERT_EQ(
+      run(bin + "/cslam-dense-replay --dataset " + ds.root.string() + " --keyframes " + ds.p("kf_1.txt") + " " +
+          ds.p("kf_2.txt") + " --voxel 0.01 --submap-keyframes 2 --out " + ds.p("r.ply") + " --mesh " + ds.p("rm.ply")),
+      0);
   const ColoredCloud c = read_ply(ds.p("r.ply"));
   ASSERT_GT(c.size(), 100u);
   int on_surface = 0;

@@ -18,7 +18,9 @@ using test::small_camera;
 struct Frame {
   cv::Mat bgr, depth;
 };
-Frame plane_frame(const PinholeCamera& c, double depth_m) { return {test::plane_colour(c), test::plane_depth(c, depth_m)}; }
+Frame plane_frame(const PinholeCamera& c, double depth_m) {
+  return {test::plane_colour(c), test::plane_depth(c, depth_m)};
+}
 
 }  // namespace
 
@@ -35,7 +37,8 @@ TEST(DenseReconstructor, PlaneAtKnownDepth) {
     const Frame f = plane_frame(cam, 0.5);
     // Five frames sliding sideways along x: a wider plane at world z = 0.5.
     for (int i = 0; i < 5; ++i) {
-      const auto o = recon.integrate(SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.1 * i, 0, 0)), f.bgr, f.depth, cam);
+      const auto o =
+          recon.integrate(SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.1 * i, 0, 0)), f.bgr, f.depth, cam);
       EXPECT_TRUE(o.used);
       EXPECT_EQ(o.points, size_t(cam.width * cam.height));
     }
@@ -121,7 +124,8 @@ TEST(DenseReconstructor, MeshOfPlaneLiesOnPlaneAndFacesCamera) {
   cfg.tsdf.truncation = 0.04f;
   DenseReconstructor recon(cfg);
   const Frame f = plane_frame(cam, 1.0);
-  for (int i = 0; i < 3; ++i) recon.integrate(SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.02 * i, 0, 0)), f.bgr, f.depth, cam);
+  for (int i = 0; i < 3; ++i)
+    recon.integrate(SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.02 * i, 0, 0)), f.bgr, f.depth, cam);
   const DenseResult r = recon.finish();
   EXPECT_EQ(r.counts.tsdf_frames, 3);
   ASSERT_GT(r.mesh.triangles.size(), 1000u);
@@ -129,7 +133,8 @@ TEST(DenseReconstructor, MeshOfPlaneLiesOnPlaneAndFacesCamera) {
   for (const auto& v : r.mesh.vertices) EXPECT_NEAR(v.z(), 1.0, 0.003);
   int facing = 0;
   for (const auto& t : r.mesh.triangles) {
-    const Eigen::Vector3f n = (r.mesh.vertices[t[1]] - r.mesh.vertices[t[0]]).cross(r.mesh.vertices[t[2]] - r.mesh.vertices[t[0]]);
+    const Eigen::Vector3f n =
+        (r.mesh.vertices[t[1]] - r.mesh.vertices[t[0]]).cross(r.mesh.vertices[t[2]] - r.mesh.vertices[t[0]]);
     if (n.z() < 0) ++facing;  // towards the camera (free space), which is at z = 0
   }
   EXPECT_EQ(facing, int(r.mesh.triangles.size()));

@@ -67,7 +67,8 @@ TEST(ReconstructFromTrajectories, TwoClientsUnorderedWithGapsAndBrokenImage) {
   // pose at a time with no image.
   Trajectory poses;
   for (int i : {5, 0, 3, 1, 2, 4}) poses.push_back({10 + 0.1 * i + 0.003, SE3()});
-  for (int i : {9, 4, 6, 8, 7, 5}) poses.push_back({10 + 0.1 * i - 0.004, SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01, 0, 0))});
+  for (int i : {9, 4, 6, 8, 7, 5})
+    poses.push_back({10 + 0.1 * i - 0.004, SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01, 0, 0))});
   poses.push_back({55.0, SE3()});
   DatasetPoses src{dir, poses, tiny_camera()};
   for (int threads : {1, 2}) {
@@ -97,7 +98,9 @@ TEST(ReconstructFromTrajectories, MissingDatasetIsAnInputError) {
 
 TEST(ReconstructFromFrames, InMemoryFramesMatchedByTimestamp) {
   std::vector<TimedRgbd> frames;
-  for (int i : {2, 0, 1}) frames.push_back({1.0 * i, 0.0, cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)), cv::Mat(48, 64, CV_16UC1, cv::Scalar(2500))});
+  for (int i : {2, 0, 1})
+    frames.push_back(
+        {1.0 * i, 0.0, cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)), cv::Mat(48, 64, CV_16UC1, cv::Scalar(2500))});
   FramePoses src;
   src.frames = &frames;
   src.camera = tiny_camera();
@@ -113,8 +116,8 @@ TEST(ReconstructFromFrames, InMemoryFramesMatchedByTimestamp) {
 // takes its colour where it projects in the colour image, so the colour edge of the scene stays
 // where the colour camera saw it.
 TEST(ReconstructFromFrames, DepthImageTakenLaterIsPlacedAtItsOwnTime) {
-  cv::Mat bgr(48, 64, CV_8UC3, cv::Scalar(0, 0, 255));              // red left half ...
-  bgr(cv::Rect(32, 0, 32, 48)).setTo(cv::Scalar(255, 0, 0));         // ... blue right half
+  cv::Mat bgr(48, 64, CV_8UC3, cv::Scalar(0, 0, 255));                                           // red left half ...
+  bgr(cv::Rect(32, 0, 32, 48)).setTo(cv::Scalar(255, 0, 0));                                     // ... blue right half
   std::vector<TimedRgbd> frames{{0.0, 0.05, bgr, cv::Mat(48, 64, CV_16UC1, cv::Scalar(2500))}};  // plane at 0.5 m
   FramePoses src;
   src.frames = &frames;
@@ -131,7 +134,8 @@ TEST(ReconstructFromFrames, DepthImageTakenLaterIsPlacedAtItsOwnTime) {
     for (size_t i = 0; i < r.cloud.size(); ++i) {
       x += r.cloud.points[i].x();
       // The colour camera sees the edge at x = 0.5 * 0.5 / 40 = 6 mm: right of it is blue.
-      if (r.cloud.points[i].x() > 0.015 && r.cloud.points[i].x() < 0.035) (r.cloud.colors[i][2] > 200 ? blue : red) += 1;
+      if (r.cloud.points[i].x() > 0.015 && r.cloud.points[i].x() < 0.035)
+        (r.cloud.colors[i][2] > 200 ? blue : red) += 1;
     }
     return std::tuple{x / double(r.cloud.size()), blue, red};
   };

@@ -29,15 +29,28 @@ namespace {
 const std::string kBin = CSLAM_BIN_DIR;
 
 std::vector<std::string> server_args(const std::string& run, std::vector<std::string> extra) {
-  std::vector<std::string> a = {kBin + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file", run + "/endpoint",
-                                "--out-dir", run + "/out", "--http", "0", "--http-port-file", run + "/http_port",
-                                "--log-interval", "2", "--clients", "2"};
+  std::vector<std::string> a = {kBin + "/cslam-server",
+                                "--bind",
+                                "tcp://127.0.0.1:*",
+                                "--endpoint-file",
+                                run + "/endpoint",
+                                "--out-dir",
+                                run + "/out",
+                                "--http",
+                                "0",
+                                "--http-port-file",
+                                run + "/http_port",
+                                "--log-interval",
+                                "2",
+                                "--clients",
+                                "2"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
 
 std::vector<std::string> client_args(const std::string& endpoint, int id, const std::string& dataset) {
-  return {kBin + "/cslam-client", "--server", endpoint, "--id", std::to_string(id), "--dataset", dataset, "--rate", "30"};
+  return {
+      kBin + "/cslam-client", "--server", endpoint, "--id", std::to_string(id), "--dataset", dataset, "--rate", "30"};
 }
 
 nlohmann::json get_json(httplib::Client& http, const std::string& path) {
@@ -180,9 +193,9 @@ TEST_F(DenseServer, StreamedRobotsGetALiveDenseMapThatFollowsFusion) {
   const auto ate = compute_ate_joint(pairs, Alignment::kSE3, 0.02);
   // The same run's poses and voxel size through the offline reconstruction (every frame, from
   // the image files): the live map, built from keyframes alone, must be as accurate.
-  const auto recon = test::run_program("cslam-recon", "--dataset " + scene_ + "/robot_1 " + scene_ + "/robot_2 --poses " + run +
-                                                          "/out/client_1.txt " + run + "/out/client_2.txt --voxel 0.02 --out " +
-                                                          run + "/recon_cloud.ply");
+  const auto recon = test::run_program(
+      "cslam-recon", "--dataset " + scene_ + "/robot_1 " + scene_ + "/robot_2 --poses " + run + "/out/client_1.txt " +
+                         run + "/out/client_2.txt --voxel 0.02 --out " + run + "/recon_cloud.ply");
   ASSERT_EQ(recon.status, 0) << recon.output;
   const ColoredCloud scene = read_ply(scene_ + "/scene.ply");
   auto accuracy = [&](const std::string& path) {
@@ -192,9 +205,10 @@ TEST_F(DenseServer, StreamedRobotsGetALiveDenseMapThatFollowsFusion) {
     return compare_clouds(scene.points, cloud.points, CloudCompareConfig()).test_to_ref;
   };
   const DistanceStats live = accuracy(run + "/live_cloud.ply"), offline = accuracy(run + "/recon_cloud.ply");
-  std::printf("vs exact surface (joint ATE %.4f m): live dense cloud C2C median %.1f mm, p95 %.1f mm; offline every-frame "
-              "reconstruction %.1f / %.1f mm\n",
-              ate.stats.rmse, 1e3 * live.median, 1e3 * live.p95, 1e3 * offline.median, 1e3 * offline.p95);
+  std::printf(
+      "vs exact surface (joint ATE %.4f m): live dense cloud C2C median %.1f mm, p95 %.1f mm; offline every-frame "
+      "reconstruction %.1f / %.1f mm\n",
+      ate.stats.rmse, 1e3 * live.median, 1e3 * live.p95, 1e3 * offline.median, 1e3 * offline.p95);
   EXPECT_LT(live.median, 1.15 * offline.median + 0.001);
   EXPECT_LT(live.p95, 1.15 * offline.p95 + 0.002);
   // Written at exit too, per group.
@@ -208,8 +222,8 @@ TEST_F(DenseServer, KilledServerReturnsTheDenseMapOfEveryKeyframeItsSnapshotHold
   const test::ScratchDir run_dir("dense_kill");
   const std::string& run = run_dir.path();
   const std::string state = run + "/state";
-  auto server = std::make_unique<test::ChildProcess>(server_args(run, {"--state-dir", state, "--snapshot-interval", "1"}),
-                                                     run + "/server1.log");
+  auto server = std::make_unique<test::ChildProcess>(
+      server_args(run, {"--state-dir", state, "--snapshot-interval", "1"}), run + "/server1.log");
   const auto endpoint = test::wait_for_file_line(run + "/endpoint", 30);
   ASSERT_TRUE(endpoint) << "see " << run << "/server1.log";
   {

@@ -69,13 +69,14 @@ bool same_double(double a, double b) {
 void expect_same(const KeyframeRecord& a, const KeyframeRecord& b) {
   EXPECT_EQ(a.id, b.id);
   EXPECT_TRUE(same_double(a.timestamp, b.timestamp)) << a.timestamp << " vs " << b.timestamp;
-  EXPECT_TRUE(same_double(a.depth_time_offset, b.depth_time_offset)) << a.depth_time_offset << " vs " << b.depth_time_offset;
+  EXPECT_TRUE(same_double(a.depth_time_offset, b.depth_time_offset))
+      << a.depth_time_offset << " vs " << b.depth_time_offset;
   EXPECT_EQ(a.images.rgb_codec, b.images.rgb_codec);
   EXPECT_EQ(a.images.depth_codec, b.images.depth_codec);
-  EXPECT_TRUE(a.images.rgb == b.images.rgb) << a.id << ": rgb differs (" << a.images.rgb.size() << " vs " << b.images.rgb.size()
-                                            << " bytes)";
-  EXPECT_TRUE(a.images.depth == b.images.depth) << a.id << ": depth differs (" << a.images.depth.size() << " vs "
-                                                << b.images.depth.size() << " bytes)";
+  EXPECT_TRUE(a.images.rgb == b.images.rgb)
+      << a.id << ": rgb differs (" << a.images.rgb.size() << " vs " << b.images.rgb.size() << " bytes)";
+  EXPECT_TRUE(a.images.depth == b.images.depth)
+      << a.id << ": depth differs (" << a.images.depth.size() << " vs " << b.images.depth.size() << " bytes)";
 }
 
 void expect_same_camera(const PinholeCamera& a, const PinholeCamera& b) {
@@ -178,8 +179,9 @@ TEST(KeyframeStore, RecordsAndCamerasRoundTripExactlyAndSurviveReopening) {
   const std::string folder = dir / "nested/state";  // created with its parents
   std::vector<KeyFrameId> ids;
   for (ClientId c : {ClientId(65535), ClientId(0), ClientId(3)})
-    for (std::uint32_t seq : {std::uint32_t(7), std::uint32_t(0), std::uint32_t(0xffffffffu), std::uint32_t(1), std::uint32_t(2),
-                              std::uint32_t(3), std::uint32_t(4), std::uint32_t(5), std::uint32_t(11), std::uint32_t(6)})
+    for (std::uint32_t seq :
+         {std::uint32_t(7), std::uint32_t(0), std::uint32_t(0xffffffffu), std::uint32_t(1), std::uint32_t(2),
+          std::uint32_t(3), std::uint32_t(4), std::uint32_t(5), std::uint32_t(11), std::uint32_t(6)})
       ids.push_back({c, seq});
   std::vector<KeyframeRecord> records;
   for (KeyFrameId id : ids) records.push_back(make_record(id));
@@ -420,8 +422,10 @@ TEST(KeyframeStore, FailedWritesKeepTheStoredStateFileSizeLimit) {
   for (std::uint32_t i = 0; i < 200 && failed < 5; ++i) {
     KeyframeRecord r = make_record({2, i}, 60000);
     const PutStatus st = store.put(r);
-    if (st == PutStatus::kError) ++failed;
-    else if (st == PutStatus::kStored) ++stored_meanwhile, meanwhile.push_back(r);
+    if (st == PutStatus::kError)
+      ++failed;
+    else if (st == PutStatus::kStored)
+      ++stored_meanwhile, meanwhile.push_back(r);
   }
   const auto s = store.stats();
   setrlimit(RLIMIT_FSIZE, &old);
@@ -484,8 +488,9 @@ TEST(KeyframeStore, FailedWritesKeepTheStoredStateFullTmpfs) {
       check_before(store);
       EXPECT_EQ(store.ids().size(), before.size());
       (void)store.erase({1, 0});  // a delete may or may not fit; it must not crash or lose anything else
-      before.erase(std::remove_if(before.begin(), before.end(), [&](const KeyframeRecord& r) { return !store.get(r.id); }),
-                   before.end());
+      before.erase(
+          std::remove_if(before.begin(), before.end(), [&](const KeyframeRecord& r) { return !store.get(r.id); }),
+          before.end());
     }  // closed on a full disk: its checkpoint may fail, the WAL stays
     {
       // Reopened while still full: everything is readable, writes fail cleanly.
@@ -608,8 +613,10 @@ TEST(KeyframeStore, ForeignAndDamagedFilesGiveClearErrors) {
     }
     sqlite3* db = nullptr;
     ASSERT_EQ(sqlite3_open((folder + "/keyframes.sqlite").c_str(), &db), SQLITE_OK);
-    sqlite3_exec(db, "UPDATE keyframes SET rgb_codec='webp' WHERE id=(1<<32)+1; UPDATE keyframes SET depth=42 WHERE id=(1<<32)+2;",
-                 nullptr, nullptr, nullptr);
+    sqlite3_exec(
+        db,
+        "UPDATE keyframes SET rgb_codec='webp' WHERE id=(1<<32)+1; UPDATE keyframes SET depth=42 WHERE id=(1<<32)+2;",
+        nullptr, nullptr, nullptr);
     sqlite3_close(db);
     KeyframeStore store(config_for(folder));
     for (std::uint32_t seq : {1u, 2u}) {
@@ -673,7 +680,8 @@ TEST(KeyframeStore, ForeignAndDamagedFilesGiveClearErrors) {
         EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
       }
     }
-    std::cout << "damaged stores: " << refused << " of 40 refused at open, " << damaged_reads << " damaged reads reported\n";
+    std::cout << "damaged stores: " << refused << " of 40 refused at open, " << damaged_reads
+              << " damaged reads reported\n";
   }
 }
 
@@ -780,7 +788,7 @@ TEST(KeyframeStore, BytesOnDiskAreThePayload) {
       KeyframeRecord r;
       r.id = {ClientId(i % 4), std::uint32_t(i)};
       r.timestamp = i / 30.0;
-      r.images.rgb = random_bytes(rng, 35000 + rng() % 20000);   // JPEG q75, 640x480
+      r.images.rgb = random_bytes(rng, 35000 + rng() % 20000);    // JPEG q75, 640x480
       r.images.depth = random_bytes(rng, 40000 + rng() % 10000);  // zstd-delta depth
       payload += r.images.bytes();
       const auto t0 = std::chrono::steady_clock::now();
@@ -792,14 +800,14 @@ TEST(KeyframeStore, BytesOnDiskAreThePayload) {
     std::sort(ms.begin(), ms.end());
     std::cout << "keyframe store, " << kRecords << " keyframes of " << payload / kRecords << " bytes: file+wal "
               << s.file_bytes << " bytes, " << double(s.file_bytes) / payload << " x payload, "
-              << (double(s.file_bytes) - payload) / kRecords << " bytes/keyframe over; put ms median " << ms[ms.size() / 2]
-              << " min " << ms.front() << " max " << ms.back() << "\n";
+              << (double(s.file_bytes) - payload) / kRecords << " bytes/keyframe over; put ms median "
+              << ms[ms.size() / 2] << " min " << ms.front() << " max " << ms.back() << "\n";
     EXPECT_LT(double(s.file_bytes), 1.15 * double(payload));
   }
   KeyframeStore store(config_for(dir.str()));  // closed: WAL checkpointed into the file
   const auto s = store.stats();
-  std::cout << "after reopening: file " << s.file_bytes << " bytes, " << double(s.file_bytes) / payload << " x payload, "
-            << (double(s.file_bytes) - payload) / kRecords << " bytes/keyframe over\n";
+  std::cout << "after reopening: file " << s.file_bytes << " bytes, " << double(s.file_bytes) / payload
+            << " x payload, " << (double(s.file_bytes) - payload) / kRecords << " bytes/keyframe over\n";
   EXPECT_LT(double(s.file_bytes), 1.03 * double(payload));
 }
 

@@ -21,7 +21,8 @@ Trajectory circle(int n) {
 
 TEST(Ate, RigidlyMovedEstimateHasZeroErrorAfterAlignment) {
   const Trajectory gt = circle(200);
-  const SE3 offset(Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d(0.3, 0.4, 1).normalized())), Eigen::Vector3d(5, -3, 1));
+  const SE3 offset(Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d(0.3, 0.4, 1).normalized())),
+                   Eigen::Vector3d(5, -3, 1));
   Trajectory est = gt;
   for (auto& p : est) p.T_world_cam = offset * p.T_world_cam;
   EXPECT_LT(compute_ate(gt, est, Alignment::kSE3).stats.rmse, 1e-9);
@@ -35,8 +36,8 @@ TEST(Ate, PerturbedGroundTruthMatchesAnalyticValue) {
   const double d = 0.05;
   Trajectory est = gt;
   for (size_t i = 0; i < est.size(); ++i)
-    est[i].T_world_cam = SE3(est[i].T_world_cam.rotation(),
-                             est[i].T_world_cam.translation() + Eigen::Vector3d(0, 0, i % 2 ? d : -d));
+    est[i].T_world_cam =
+        SE3(est[i].T_world_cam.rotation(), est[i].T_world_cam.translation() + Eigen::Vector3d(0, 0, i % 2 ? d : -d));
   const auto r = compute_ate(gt, est, Alignment::kNone);
   EXPECT_EQ(r.stats.n, 300);
   EXPECT_NEAR(r.stats.rmse, d, 1e-9);

@@ -52,17 +52,25 @@ TEST(CslamEvalCli, EventsCheckLoopAndFusionTransformsAgainstGroundTruth) {
   // p_query = T * p_candidate with T = T_world_q^-1 * T_world_c; query at t=0.8, candidate at t=0.2.
   auto rel = [](double tq, double tc, double extra_deg) {
     const double a = 0.5 * (tc - tq) + extra_deg * M_PI / 180;  // rotation about z
-    const double aq = 0.5 * tq, dx = tc - tq;                    // translation: R_q^T (x_c - x_q)
+    const double aq = 0.5 * tq, dx = tc - tq;                   // translation: R_q^T (x_c - x_q)
     char buf[200];
-    std::snprintf(buf, sizeof buf, "0 %.9f %.9f 0 0 0 %.9f %.9f", std::cos(aq) * dx, -std::sin(aq) * dx, std::sin(a / 2),
-                  std::cos(a / 2));
+    std::snprintf(buf, sizeof buf, "0 %.9f %.9f 0 0 0 %.9f %.9f", std::cos(aq) * dx, -std::sin(aq) * dx,
+                  std::sin(a / 2), std::cos(a / 2));
     return std::string(buf);
   };
   nlohmann::json stats;
-  stats["clients"] = {{{"id", 1}, {"loop_events", {{{"query_timestamp", 0.8}, {"candidate_timestamp", 0.2}, {"inliers", 100},
-                                                     {"T_query_candidate", rel(0.8, 0.2, 0)}}}}}};
-  stats["fusion_events"] = {{{"client_a", 2}, {"client_b", 1}, {"query_timestamp", 0.6}, {"candidate_timestamp", 0.1},
-                             {"inliers", 80}, {"T_query_candidate", rel(0.6, 0.1, 3.0)}}};
+  stats["clients"] = {{{"id", 1},
+                       {"loop_events",
+                        {{{"query_timestamp", 0.8},
+                          {"candidate_timestamp", 0.2},
+                          {"inliers", 100},
+                          {"T_query_candidate", rel(0.8, 0.2, 0)}}}}}};
+  stats["fusion_events"] = {{{"client_a", 2},
+                             {"client_b", 1},
+                             {"query_timestamp", 0.6},
+                             {"candidate_timestamp", 0.1},
+                             {"inliers", 80},
+                             {"T_query_candidate", rel(0.6, 0.1, 3.0)}}};
   {
     std::FILE* f = std::fopen((dir / "stats.json").c_str(), "w");
     std::fputs(stats.dump().c_str(), f);

@@ -47,7 +47,8 @@ TEST(PoseCheck, RelativePoseErrorIsZeroForTheTrueTransformAndMeasuresAPerturbati
   ASSERT_TRUE(e0.valid);
   EXPECT_LT(e0.rotation_deg, 1e-6);
   EXPECT_LT(e0.translation_m, 1e-9);
-  const SE3 bump(Eigen::Quaterniond(Eigen::AngleAxisd(3.0 * M_PI / 180, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(0.04, 0, 0));
+  const SE3 bump(Eigen::Quaterniond(Eigen::AngleAxisd(3.0 * M_PI / 180, Eigen::Vector3d::UnitZ())),
+                 Eigen::Vector3d(0.04, 0, 0));
   const auto e1 = relative_pose_error(gt, tq, gt, tc, bump * T_true);
   EXPECT_NEAR(e1.rotation_deg, 3.0, 1e-6);
   EXPECT_FALSE(relative_pose_error(gt, 50, gt, tc, T_true).valid);

@@ -32,9 +32,12 @@ std::vector<std::vector<std::string>> parse_csv(const std::string& text) {
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
     if (quoted) {
-      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"') field += text[++i];
-      else if (c == '"') quoted = false;
-      else field += c;
+      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"')
+        field += text[++i];
+      else if (c == '"')
+        quoted = false;
+      else
+        field += c;
     } else if (c == '"') {
       quoted = true;
     } else if (c == ',') {
@@ -166,8 +169,8 @@ TEST_F(ExperimentCli, DatasetWithoutGroundTruthReportsTimingAndNa) {
   for (const char* f : {"rgb.txt", "depth.txt", "camera.yaml"}) fs::copy_file(src + "/" + f, dst + "/" + f);
   fs::create_directory_symlink(src + "/rgb", dst + "/rgb");
   fs::create_directory_symlink(src + "/depth", dst + "/depth");
-  const auto r = run_program("cslam-experiment", "--quick --mode offline --dataset " + dst + " --clients 1,2 --overlaps 20 --out " +
-                                                     path("nogt_report"));
+  const auto r = run_program("cslam-experiment", "--quick --mode offline --dataset " + dst +
+                                                     " --clients 1,2 --overlaps 20 --out " + path("nogt_report"));
   ASSERT_EQ(r.status, 0) << r.output;
   check_report_files(path("nogt_report"), 2);
   const auto j = nlohmann::json::parse(slurp(path("nogt_report/results.json")));
@@ -202,13 +205,14 @@ TEST_F(ExperimentCli, FailingRunsAreReportedAndTheHarnessContinues) {
   EXPECT_NE(slurp(path("failing/report.md")).find("FAILED: cslam-slam"), std::string::npos);
 
   // A run over its time limit is stopped and reported; the next configuration still runs.
-  r = run_program("cslam-experiment", "--quick --timeout 0.2 --no-recon --synthetic " + path("quick/synthetic_test-small") +
-                                          " --out " + path("timeout"));
+  r = run_program("cslam-experiment", "--quick --timeout 0.2 --no-recon --synthetic " +
+                                          path("quick/synthetic_test-small") + " --out " + path("timeout"));
   EXPECT_EQ(r.status, 3) << r.output;
   j = nlohmann::json::parse(slurp(path("timeout/results.json")));
   ASSERT_EQ(j["runs"].size(), 3u);
   // Either the run itself overran ("timeout after ...") or its server had not even started.
-  for (const auto& run : j["runs"]) EXPECT_NE(run["error"].get<std::string>().find("timeout"), std::string::npos) << run["error"];
+  for (const auto& run : j["runs"])
+    EXPECT_NE(run["error"].get<std::string>().find("timeout"), std::string::npos) << run["error"];
 }
 
 TEST_F(ExperimentCli, BadArgumentsGiveOneLineErrors) {

@@ -112,7 +112,7 @@ TEST(FrameLookup, PositionWithinTheClientsOwnFrames) {
   const TumDataset d = fake_dataset(100);
   EXPECT_EQ(frame_number_at(d, 1, 100, 100.0), 1);
   EXPECT_EQ(frame_number_at(d, 41, 100, 100.0 + 50 / 30.0 + 0.004), 11);  // frame 51 of the sequence = 11th of 41..100
-  EXPECT_EQ(frame_number_at(d, 41, 100, 100.0 + 10 / 30.0), -1);           // before the client's range
+  EXPECT_EQ(frame_number_at(d, 41, 100, 100.0 + 10 / 30.0), -1);          // before the client's range
   EXPECT_EQ(frame_number_at(d, 1, 100, 500.0), -1);
   EXPECT_EQ(frame_number_at(d, 1, 100, NAN), -1);
 }
@@ -139,7 +139,8 @@ TEST(PoseAlignment, RecoversTheRotationOfACameraTurningInPlace) {
   for (int i = 0; i < 100; ++i) {
     const double t = i * 0.1;
     const SE3 pose = SE3(rot(20 * std::sin(t), Eigen::Vector3d::UnitY(), Eigen::Vector3d::Zero())) *
-                     rot(10 * std::cos(1.3 * t), Eigen::Vector3d::UnitX(), {0.01 * std::sin(3 * t), 0.01 * std::cos(2 * t), 0.002 * t});
+                     rot(10 * std::cos(1.3 * t), Eigen::Vector3d::UnitX(),
+                         {0.01 * std::sin(3 * t), 0.01 * std::cos(2 * t), 0.002 * t});
     gt.push_back({t, pose});
     est.push_back({t, T_gt_est.inverse() * pose});
   }
@@ -210,7 +211,8 @@ TEST(Summaries, TimeRatioPrefersRunsWithoutOtherLoad) {
     const char* config;
     double time, other;
   };
-  const Row rows[] = {{"single", 10, 0.0}, {"single", 20, 0.9}, {"k2", 8, 0.1}, {"k2", 18, 0.9}, {"k3", 16, 0.8}, {"k3", 14, 0.9}};
+  const Row rows[] = {{"single", 10, 0.0}, {"single", 20, 0.9}, {"k2", 8, 0.1},
+                      {"k2", 18, 0.9},     {"k3", 16, 0.8},     {"k3", 14, 0.9}};
   std::vector<RunRecord> rec;
   for (const auto& r : rows) {
     RunRecord x;

@@ -26,13 +26,15 @@ std::vector<KeyFramePtr> in_order(const Map& map) {
 
 double mean_translation_gap(const std::vector<KeyFramePtr>& kfs, const std::map<const KeyFrame*, SE3>& reference) {
   double sum = 0;
-  for (const auto& kf : kfs) sum += (kf->T_world_cam().translation() - reference.at(kf.get()).inverse().translation()).norm();
+  for (const auto& kf : kfs)
+    sum += (kf->T_world_cam().translation() - reference.at(kf.get()).inverse().translation()).norm();
   return sum / double(kfs.size());
 }
 
 // One robot of the small synthetic scene over 240 frames, mapped offline (~40 keyframes).
 test::ClientMap build_long_map(const test::TempDir& dir) {
-  const auto r = test::run_program("cslam-synth", "--preset test-small --frames 240 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::run_program(
+      "cslam-synth", "--preset test-small --frames 240 --seed 5 --out " + (dir / "scene") + " --log-level warn");
   if (r.status != 0) throw std::runtime_error("cslam-synth failed: " + r.output);
   auto voc = std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path()));
   return test::build_client_map(dir / "scene/robot_1", 1, voc);
@@ -116,8 +118,8 @@ TEST(Reencounter, LoopClosureInAFusedMapRebalancesTheGroup) {
   test::TempDir dir("cslam_reencounter_loop");
   test::TwoMaps m = test::build_two_maps(dir);
   FusionConfig cfg;
-  cfg.threaded = false;              // the group BA runs inside notify()
-  cfg.reencounter.enabled = false;   // only the loop closure may start it
+  cfg.threaded = false;             // the group BA runs inside notify()
+  cfg.reencounter.enabled = false;  // only the loop closure may start it
   FusionManager fusion(cfg, std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
   fusion.restore_group(1, m.a.map, GroupId::from_value(7));
   fusion.restore_group(2, m.b.map, GroupId::from_value(7));

@@ -43,8 +43,9 @@ std::pair<KeyFramePtr, KeyFramePtr> closest_pair(const test::ClientMap& a, const
 // trajectory of a fused group): grows with any misalignment between the maps.
 double joint_keyframe_ate(const test::ClientMap& a, const test::ClientMap& b) {
   SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({a.map.get(), b.map.get()});
-  return compute_ate_joint({{a.groundtruth, test::keyframe_trajectory(*a.map)}, {b.groundtruth, test::keyframe_trajectory(*b.map)}},
-                           Alignment::kSE3, 0.001)
+  return compute_ate_joint(
+             {{a.groundtruth, test::keyframe_trajectory(*a.map)}, {b.groundtruth, test::keyframe_trajectory(*b.map)}},
+             Alignment::kSE3, 0.001)
       .stats.rmse;
 }
 
@@ -111,8 +112,10 @@ TEST(Seam, LinksTheSamePointsAcrossMapsAndGroupBaRemovesTheMisalignment) {
     for (const auto& l : seam.points) EXPECT_LT((l.moved->position - l.kept->position).norm(), 1e-9);
   }
   const double after = joint_keyframe_ate(m.a, m.b);
-  std::printf("joint keyframe ATE exactly aligned %.4f m, misaligned (before group BA) %.4f m, after %.4f m; link gaps "
-              "median %.4f p90 %.4f\n", aligned, before, after, gaps[gaps.size() / 2], gaps[gaps.size() * 9 / 10]);
+  std::printf(
+      "joint keyframe ATE exactly aligned %.4f m, misaligned (before group BA) %.4f m, after %.4f m; link gaps "
+      "median %.4f p90 %.4f\n",
+      aligned, before, after, gaps[gaps.size() / 2], gaps[gaps.size() * 9 / 10]);
   // The group BA removes most of what the misalignment added to the maps' own error.
   ASSERT_GT(before, aligned);
   EXPECT_LT(after - aligned, 0.5 * (before - aligned));
@@ -134,6 +137,7 @@ TEST(Seam, GroupBaIsDiscardedWhenAMapChangedMeanwhile) {
     for (const auto& kf : m.a.map->keyframes()) poses[kf.get()] = kf->T_cam_world;
     EXPECT_FALSE(gba.apply(r));
     for (const auto& kf : m.a.map->keyframes())
-      EXPECT_TRUE(kf->T_cam_world.translation() == poses.at(kf.get()).translation()) << "map a written by a discarded BA";
+      EXPECT_TRUE(kf->T_cam_world.translation() == poses.at(kf.get()).translation())
+          << "map a written by a discarded BA";
   }
 }

@@ -21,7 +21,8 @@ struct ClientMap {
   SE3 T_gtworld_map;  // ground-truth pose of the map's origin keyframe
 };
 
-inline ClientMap build_client_map(const std::string& robot_dir, ClientId id, const std::shared_ptr<const Vocabulary>& voc) {
+inline ClientMap build_client_map(const std::string& robot_dir, ClientId id,
+                                  const std::shared_ptr<const Vocabulary>& voc) {
   const TumDataset ds = open_tum_dataset(robot_dir);
   ClientInfo info;
   info.id = id;
@@ -37,7 +38,8 @@ inline ClientMap build_client_map(const std::string& robot_dir, ClientId id, con
   out.groundtruth = *ds.groundtruth;
   sort_by_time(out.groundtruth);
   std::shared_lock<std::shared_mutex> lock(out.map->mutex);
-  out.T_gtworld_map = *interpolate_pose(out.groundtruth, out.map->origin()->timestamp()) * out.map->origin()->T_cam_world;
+  out.T_gtworld_map =
+      *interpolate_pose(out.groundtruth, out.map->origin()->timestamp()) * out.map->origin()->T_cam_world;
   return out;
 }
 
@@ -56,7 +58,8 @@ struct TwoMaps {
 
 // Renders the small synthetic scene into `dir` and maps robots 1 and 2 (clients 1 and 2).
 inline TwoMaps build_two_maps(const TempDir& dir) {
-  const auto r = run_program("cslam-synth", "--preset test-small --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r =
+      run_program("cslam-synth", "--preset test-small --seed 5 --out " + (dir / "scene") + " --log-level warn");
   if (r.status != 0) throw std::runtime_error("cslam-synth failed: " + r.output);
   auto voc = std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path()));
   return {build_client_map(dir / "scene/robot_1", 1, voc), build_client_map(dir / "scene/robot_2", 2, voc)};

@@ -42,7 +42,8 @@ TEST(Camera, PresetsAndValidation) {
   EXPECT_NEAR(camera_tum_fr1().depth_from_raw(5000), 1.0, 1e-12);
   EXPECT_EQ(camera_tum_fr1().depth_from_raw(0), 0.0);
   // The TUM Kinect/Xtion colour cameras are rolling shutter; the synthetic renderer is not.
-  for (const char* name : {"tum1", "tum2", "tum2-corrected", "tum3"}) EXPECT_DOUBLE_EQ(camera_preset(name).readout_time, 0.020);
+  for (const char* name : {"tum1", "tum2", "tum2-corrected", "tum3"})
+    EXPECT_DOUBLE_EQ(camera_preset(name).readout_time, 0.020);
   EXPECT_EQ(camera_preset("synthetic").readout_time, 0.0);
   EXPECT_EQ(PinholeCamera().readout_time, 0.0);
   for (double readout : {-0.001, 1.5, std::nan("")}) {
@@ -68,20 +69,15 @@ TEST(Camera, FileRoundTripYamlAndJson) {
 
 TEST(Camera, FileErrors) {
   const auto path = (std::filesystem::temp_directory_path() / "cslam_cam_bad.yaml").string();
-  {
-    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\nfoo: 1\n";
-  }
+  { std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\nfoo: 1\n"; }
   EXPECT_THROW(load_camera_file(path), InputError);  // unknown key
-  {
-    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\nwidth: 640\nheight: 480\n";
-  }
+  { std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\nwidth: 640\nheight: 480\n"; }
   EXPECT_THROW(load_camera_file(path), InputError);  // missing cy
-  {
-    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\n";
-  }
+  { std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\n"; }
   EXPECT_EQ(load_camera_file(path).readout_time, 0.0);  // no readout_time key: global shutter
   {
-    std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\nreadout_time: -0.01\n";
+    std::ofstream(path)
+        << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\nreadout_time: -0.01\n";
   }
   EXPECT_THROW(load_camera_file(path), InputError);  // negative readout
   EXPECT_THROW(load_camera_file("/nonexistent/cam.yaml"), InputError);

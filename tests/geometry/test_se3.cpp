@@ -31,6 +31,7 @@ TEST(Sim3, ComposeInverseAct) {
 }
 
 TEST(SE3, RotationAngle) {
-  const SE3 a(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 1, 0).normalized())), Eigen::Vector3d::Zero());
+  const SE3 a(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 1, 0).normalized())),
+              Eigen::Vector3d::Zero());
   EXPECT_NEAR(a.rotation_angle(), 0.3, 1e-12);
 }

@@ -20,9 +20,9 @@ TEST(DatasetCamera, TumCameraFromTheFolderName) {
   EXPECT_EQ(tum_preset_from_name("FR3-office.bag"), "tum3");
   EXPECT_EQ(tum_preset_from_name("/data/freiburg2/xyz"), "tum2");  // the parent names it
   EXPECT_EQ(tum_preset_from_name("/data/robot_1"), "");
-  EXPECT_EQ(tum_preset_from_name("/data/frame_dump"), "");        // "fr" without a camera number
-  EXPECT_EQ(tum_preset_from_name("/data/run_fr12"), "");          // fr12 is not fr1
-  EXPECT_EQ(tum_preset_from_name("/data/afr1"), "");              // not a word of its own
+  EXPECT_EQ(tum_preset_from_name("/data/frame_dump"), "");  // "fr" without a camera number
+  EXPECT_EQ(tum_preset_from_name("/data/run_fr12"), "");    // fr12 is not fr1
+  EXPECT_EQ(tum_preset_from_name("/data/afr1"), "");        // not a word of its own
   EXPECT_EQ(tum_preset_from_name("/data/freiburg4_x"), "");
   EXPECT_EQ(tum_preset_from_name(""), "");
 }

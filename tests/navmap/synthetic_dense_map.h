@@ -20,18 +20,18 @@ struct DenseFixtureOptions {
   int width = 160, height = 120;      // render size
   int robots = 1, frames = 300;       // trajectory (robot 1 drives the loop when loop)
   bool loop = true;
-  int every = 10;                     // integrate every n-th frame of each robot
-  int window = 6;                     // integrated frames per submap
+  int every = 10;  // integrate every n-th frame of each robot
+  int window = 6;  // integrated frames per submap
   float voxel = 0.02f, truncation = 0.06f;
   double max_depth = 6.0;
 };
 
 struct DenseFixture {
   synth::Scene scene;
-  SE3 T_scene_world;                                  // world = the first camera's frame
-  std::vector<std::unique_ptr<TsdfVolume>> volumes;   // owned
-  SubmapViews views;                                  // into volumes, T_world_submap
-  std::vector<SE3> T_world_cams;                      // every integrated frame
+  SE3 T_scene_world;                                 // world = the first camera's frame
+  std::vector<std::unique_ptr<TsdfVolume>> volumes;  // owned
+  SubmapViews views;                                 // into volumes, T_world_submap
+  std::vector<SE3> T_world_cams;                     // every integrated frame
   std::size_t frames_integrated = 0;
 };
 

@@ -95,14 +95,15 @@ TEST_F(NavMapScene, GridAgreesWithExactScene) {
       false_occupied += map_occ && d > 0;
     }
   const double agreement = double(agree) / double(std::max<std::size_t>(1, judged));
-  std::printf("grid %d x %d at %.2f m: observed %zu (occupied %zu, free %zu), edge cells %zu; agreement %.2f %% of %zu "
-              "non-edge observed cells, %.2f %% of all observed cells by their centres; %.1f ms (up/floor %.1f, grid %.1f, "
-              "octomap %.1f)\n",
-              g.width, g.height, g.resolution, observed, occupied, free, boundary, 100 * agreement, judged,
-              100.0 * double(centre_agree) / double(std::max<std::size_t>(1, observed)), m.stats.total_ms,
-              m.stats.up_floor_ms, m.stats.grid_ms, m.stats.octomap_ms);
-  std::printf("disagreements: %zu free cells inside an obstacle, %zu occupied cells clear of any obstacle\n", false_free,
-              false_occupied);
+  std::printf(
+      "grid %d x %d at %.2f m: observed %zu (occupied %zu, free %zu), edge cells %zu; agreement %.2f %% of %zu "
+      "non-edge observed cells, %.2f %% of all observed cells by their centres; %.1f ms (up/floor %.1f, grid %.1f, "
+      "octomap %.1f)\n",
+      g.width, g.height, g.resolution, observed, occupied, free, boundary, 100 * agreement, judged,
+      100.0 * double(centre_agree) / double(std::max<std::size_t>(1, observed)), m.stats.total_ms, m.stats.up_floor_ms,
+      m.stats.grid_ms, m.stats.octomap_ms);
+  std::printf("disagreements: %zu free cells inside an obstacle, %zu occupied cells clear of any obstacle\n",
+              false_free, false_occupied);
   EXPECT_GT(occupied, 500u);
   EXPECT_GT(free, 500u);
   EXPECT_GE(agreement, 0.95);
@@ -114,8 +115,8 @@ TEST_F(NavMapScene, GridFrameSitsOnTheFloor) {
   const OccupancyGrid2D& g = maps_->grid;
   ASSERT_FALSE(g.empty());
   const Eigen::Matrix3d R = g.T_world_grid.R();
-  EXPECT_LT((R.col(2) - maps_->up).norm(), 1e-9);                                        // z is up
-  EXPECT_NEAR(maps_->up.dot(g.T_world_grid.translation()), maps_->floor, 1e-9);          // origin on the floor
+  EXPECT_LT((R.col(2) - maps_->up).norm(), 1e-9);                                // z is up
+  EXPECT_NEAR(maps_->up.dot(g.T_world_grid.translation()), maps_->floor, 1e-9);  // origin on the floor
   EXPECT_NEAR(maps_->up.dot(g.cell_center_world(g.width - 1, g.height - 1)), maps_->floor, 1e-9);
   // The map_server files describe the same grid.
   const std::string pgm = to_pgm(g);
@@ -129,7 +130,8 @@ TEST_F(NavMapScene, OctomapLoadsWithOctomapsReaderAndLiesOnTheScene) {
   ASSERT_TRUE(m.octomap_error.empty()) << m.octomap_error;
   ASSERT_FALSE(m.octomap_bt.empty());
   // Through a file, as another tool would read it.
-  const std::filesystem::path path = std::filesystem::temp_directory_path() / ("cslam-navmap-" + std::to_string(::getpid()) + ".bt");
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("cslam-navmap-" + std::to_string(::getpid()) + ".bt");
   {
     std::ofstream out(path, std::ios::binary);
     out.write(m.octomap_bt.data(), std::streamsize(m.octomap_bt.size()));
@@ -158,9 +160,10 @@ TEST_F(NavMapScene, OctomapLoadsWithOctomapsReaderAndLiesOnTheScene) {
       fr_ok += fixture_->scene.is_free(p) || fixture_->scene.distance_to_surface(p) <= reach;
     }
   }
-  std::printf("octree: %zu nodes, %zu leaves; sampled occupied %zu (%.2f %% on a surface), free %zu (%.2f %% in free space)\n",
-              tree.size(), leaves, occ, 100.0 * occ_ok / std::max<std::size_t>(1, occ), fr,
-              100.0 * fr_ok / std::max<std::size_t>(1, fr));
+  std::printf(
+      "octree: %zu nodes, %zu leaves; sampled occupied %zu (%.2f %% on a surface), free %zu (%.2f %% in free space)\n",
+      tree.size(), leaves, occ, 100.0 * occ_ok / std::max<std::size_t>(1, occ), fr,
+      100.0 * fr_ok / std::max<std::size_t>(1, fr));
   EXPECT_GT(occ, 100u);
   EXPECT_GT(fr, 100u);
   EXPECT_GE(double(occ_ok), 0.97 * double(occ));

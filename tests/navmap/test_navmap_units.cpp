@@ -23,8 +23,8 @@ OccupancyGrid2D tiny_grid() {
   g.height = 2;
   g.resolution = 0.1;
   g.T_world_grid = SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 2, 3));
-  g.cells = {0, 100, -1,    // row 0 (grid y = 0, bottom)
-             100, -1, 0};   // row 1 (top)
+  g.cells = {0,   100, -1,  // row 0 (grid y = 0, bottom)
+             100, -1,  0};  // row 1 (top)
   return g;
 }
 
@@ -134,9 +134,9 @@ TEST(NavMapUp, MeanOfCameraYAxesAndFallback) {
 
 TEST(NavMapFloor, LowestDenseClusterIgnoresOutliersBelow) {
   std::vector<double> h;
-  for (int k = 0; k < 1000; ++k) h.push_back(0.3 + 0.001 * (k % 7));   // floor at ~0.303
-  for (int k = 0; k < 600; ++k) h.push_back(1.05 + 0.001 * (k % 5));   // a table top
-  for (int k = 0; k < 20; ++k) h.push_back(-0.5 + 0.03 * k);           // outliers below
+  for (int k = 0; k < 1000; ++k) h.push_back(0.3 + 0.001 * (k % 7));  // floor at ~0.303
+  for (int k = 0; k < 600; ++k) h.push_back(1.05 + 0.001 * (k % 5));  // a table top
+  for (int k = 0; k < 20; ++k) h.push_back(-0.5 + 0.03 * k);          // outliers below
   h.push_back(std::numeric_limits<double>::quiet_NaN());
   std::size_t n = 0;
   const auto f = floor_from_heights(h, 0.01, 0.05, &n);
@@ -184,7 +184,7 @@ TEST(NavMapGrid, SubmapsVoteAsLogOdds) {
   };
   const SE3 T = clear.T_world_cam;
   EXPECT_EQ(box_cell({{b.get(), T}}), OccupancyGrid2D::kOccupied);
-  EXPECT_EQ(box_cell({{b.get(), T}, {a.get(), T}}), OccupancyGrid2D::kOccupied);   // +0.85 - 0.405
+  EXPECT_EQ(box_cell({{b.get(), T}, {a.get(), T}}), OccupancyGrid2D::kOccupied);  // +0.85 - 0.405
   EXPECT_EQ(box_cell({{b.get(), T}, {a.get(), T}, {c.get(), T}, {d.get(), T}}), OccupancyGrid2D::kFree);  // outvoted
 }
 

@@ -24,7 +24,8 @@ TEST(AdapterFuzz, MutatedMessagesNeverCrashTheDecodePath) {
   png.depth = DepthCodec::kPng;
   CodecOptions rvl;
   rvl.depth = DepthCodec::kRvl;
-  for (const CodecOptions& o : {CodecOptions(), png, rvl}) seeds.push_back(test::make_frame(1, 1, 0, cam, o).SerializeAsString());
+  for (const CodecOptions& o : {CodecOptions(), png, rvl})
+    seeds.push_back(test::make_frame(1, 1, 0, cam, o).SerializeAsString());
   seeds.push_back(test::make_hello(1, cam).SerializeAsString());
   int parsed = 0, decoded = 0, rejected = 0;
   const int kIterations = 5000;
@@ -34,9 +35,16 @@ TEST(AdapterFuzz, MutatedMessagesNeverCrashTheDecodePath) {
       case 0:
         for (int k = 0; k < 1 + int(rng() % 6); ++k) bytes[rng() % bytes.size()] = char(rng());
         break;
-      case 1: bytes.resize(rng() % bytes.size()); break;
-      case 2: bytes.assign(rng() % 300, '\0'); for (auto& c : bytes) c = char(rng()); break;
-      default: bytes.insert(rng() % bytes.size(), std::string(1 + rng() % 20, char(rng()))); break;
+      case 1:
+        bytes.resize(rng() % bytes.size());
+        break;
+      case 2:
+        bytes.assign(rng() % 300, '\0');
+        for (auto& c : bytes) c = char(rng());
+        break;
+      default:
+        bytes.insert(rng() % bytes.size(), std::string(1 + rng() % 20, char(rng())));
+        break;
     }
     try {
       const wire::ClientMessage m = wire::parse_client_message(bytes.data(), bytes.size(), "fuzz");

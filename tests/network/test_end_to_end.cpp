@@ -25,9 +25,18 @@ RunDirs make_run(const std::string& name) {
 }
 
 std::vector<std::string> server_args(const RunDirs& r, int clients, std::vector<std::string> extra = {}) {
-  std::vector<std::string> a = {kBin + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file",
-                                r.endpoint_file, "--out-dir", r.out, "--no-slam", "--log-interval", "1",
-                                "--http", "off"};  // no HTTP viewer: parallel runs must not share its port
+  std::vector<std::string> a = {kBin + "/cslam-server",
+                                "--bind",
+                                "tcp://127.0.0.1:*",
+                                "--endpoint-file",
+                                r.endpoint_file,
+                                "--out-dir",
+                                r.out,
+                                "--no-slam",
+                                "--log-interval",
+                                "1",
+                                "--http",
+                                "off"};  // no HTTP viewer: parallel runs must not share its port
   if (clients > 0) {
     a.insert(a.end(), {"--clients", std::to_string(clients), "--exit-when-done"});
   }
@@ -37,8 +46,17 @@ std::vector<std::string> server_args(const RunDirs& r, int clients, std::vector<
 
 std::vector<std::string> client_args(const std::string& endpoint, int id, const std::string& dataset,
                                      const std::string& range, const std::string& rate) {
-  return {kBin + "/cslam-client", "--server", endpoint, "--id", std::to_string(id), "--dataset", dataset,
-          "--range", range, "--rate", rate};
+  return {kBin + "/cslam-client",
+          "--server",
+          endpoint,
+          "--id",
+          std::to_string(id),
+          "--dataset",
+          dataset,
+          "--range",
+          range,
+          "--rate",
+          rate};
 }
 
 nlohmann::json read_json(const std::string& path) {
@@ -87,8 +105,8 @@ TEST_F(EndToEnd, TwoClientProcessesServerExitsByItself) {
 TEST_F(EndToEnd, TwoRobotsFuseOverTheNetwork) {
   const RunDirs r = make_run("e2e_fusion");
   test::ChildProcess synth({kBin + "/cslam-synth", "--preset", "test-small", "--seed", "5", "--out", r.dir + "/scene",
-                           "--log-level", "warn"},
-                          r.dir + "/synth.log");
+                            "--log-level", "warn"},
+                           r.dir + "/synth.log");
   ASSERT_EQ(synth.wait(120), 0) << "see " << r.dir << "/synth.log";
   auto args = server_args(r, 2);
   args.erase(std::find(args.begin(), args.end(), "--no-slam"));
@@ -153,22 +171,22 @@ TEST_F(EndToEnd, MisbehavingClientDoesNotAffectTheGoodOne) {
     test::RawPeer bad(ctx, *endpoint);
     PinholeCamera cam = load_camera(data_ + "/camera.yaml");
     bad.send_bytes(std::string("\x00\x01\x02 not protobuf \xff", 17));
-    bad.send(test::make_frame(2, 1, 0.0, cam));                       // frame before hello
+    bad.send(test::make_frame(2, 1, 0.0, cam));  // frame before hello
     bad.send(test::make_hello(2, cam));
     const std::string frame = test::make_frame(2, 1, 0.0, cam).SerializeAsString();
-    bad.send_bytes(frame.substr(0, frame.size() - 7));                 // truncated protobuf
+    bad.send_bytes(frame.substr(0, frame.size() - 7));  // truncated protobuf
     wire::ClientMessage m = test::make_frame(2, 1, 0.0, cam);
     m.mutable_frame()->mutable_depth()->set_encoding(wire::Encoding(1234));
-    bad.send(m);                                                       // unknown encoding
+    bad.send(m);  // unknown encoding
     PinholeCamera wrong = cam;
     wrong.height = 60;
-    bad.send(test::make_frame(2, 1, 0.0, wrong));                      // size contradicts the hello
+    bad.send(test::make_frame(2, 1, 0.0, wrong));  // size contradicts the hello
     m = test::make_frame(2, 1, 0.0, cam);
     m.mutable_frame()->mutable_rgb()->set_data(std::string("\xff\xd8\xff\xe0", 4) + std::string(300, '\x07'));
-    bad.send(m);                                                       // corrupt JPEG
+    bad.send(m);  // corrupt JPEG
     bad.send(test::make_frame(2, 2, 0.1, cam));
-    bad.send(test::make_frame(2, 2, 0.1, cam));                        // duplicate seq
-    bad.send(test::make_frame(2, 1, 0.0, cam));                        // out of order
+    bad.send(test::make_frame(2, 2, 0.1, cam));  // duplicate seq
+    bad.send(test::make_frame(2, 1, 0.0, cam));  // out of order
     int errors = 0;
     for (auto reply = bad.receive(2000); reply; reply = bad.receive(500)) errors += reply->has_error();
     EXPECT_EQ(errors, 8);

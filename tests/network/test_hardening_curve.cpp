@@ -57,9 +57,9 @@ class KeyedPeer {
 struct Keys {
   std::string dir = test::scratch_dir("curve");
   auth::CurveKeyPair server = auth::generate_keypair();
-  auth::CurveKeyPair robot1 = auth::generate_keypair();   // bound to id 1
-  auth::CurveKeyPair robot2 = auth::generate_keypair();   // bound to id 2
-  auth::CurveKeyPair stranger = auth::generate_keypair(); // not allowed
+  auth::CurveKeyPair robot1 = auth::generate_keypair();    // bound to id 1
+  auth::CurveKeyPair robot2 = auth::generate_keypair();    // bound to id 2
+  auth::CurveKeyPair stranger = auth::generate_keypair();  // not allowed
   Keys() {
     std::filesystem::create_directories(dir + "/allowed");
     auth::write_secret_file(dir + "/server.key", server);
@@ -116,12 +116,13 @@ TEST(Curve, UnauthenticatedPeersGetNothingButACountedRejection) {
   std::shared_ptr<const http::NetStatus> s;
   for (int i = 0; i < 500; ++i) {
     s = srv.net_status();
-    if (s && s->totals.count("auth_rejected") && s->totals.at("auth_rejected") >= 1 && s->transport.count("handshake_failed"))
+    if (s && s->totals.count("auth_rejected") && s->totals.at("auth_rejected") >= 1 &&
+        s->transport.count("handshake_failed"))
       break;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   ASSERT_TRUE(s);
-  EXPECT_GE(s->totals.at("auth_rejected"), 1u);           // the stranger's key, refused by ZAP
+  EXPECT_GE(s->totals.at("auth_rejected"), 1u);  // the stranger's key, refused by ZAP
   EXPECT_GE(s->transport.count("handshake_failed"), 1u) << "transport events: " << http::network_json(*s).dump();
   srv.stop();
   EXPECT_EQ(srv.stats().unattributed().size(), 0u);  // nothing of theirs reached the application

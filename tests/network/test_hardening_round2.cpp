@@ -198,7 +198,9 @@ TEST(HardeningRound2, TimestampBoundFollowsTheSessionsFrameIntervalAndWallClock)
   server::StampHistory h;
   const Clock::time_point t0{};
   double t = 5.0;
-  auto at = [&t0](double s) { return t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
+  auto at = [&t0](double s) {
+    return t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+  };
   EXPECT_TRUE(h.check(1e9, t0, bound).ok);  // the first frame sets the clock
   h.accept(t, t0);
   for (int i = 1; i <= 40; ++i) {
@@ -301,7 +303,8 @@ RobotRun stream_robot(const std::string& data, bool hostile) {
     if (k == 2) bad.fx = 1e-3;
     if (k == 3) bad.cy = 1e9;
     peer.send(test::make_hello(ClientId(20 + k), bad));
-    peer.send(test::make_frame(9, ++hostile_seq, run.frames % 2 ? 1e6 * double(run.frames) : 1.0 + 0.03 * double(run.frames), qvga()));
+    peer.send(test::make_frame(9, ++hostile_seq,
+                               run.frames % 2 ? 1e6 * double(run.frames) : 1.0 + 0.03 * double(run.frames), qvga()));
   }
   EXPECT_TRUE(sender.goodbye(60));
   run.acks = sender.stats().acks;
@@ -317,8 +320,8 @@ RobotRun stream_robot(const std::string& data, bool hostile) {
 
 TEST(HardeningRound2, RobotBesideAHostilePeerGetsAllItsPosesAtUnchangedAccuracy) {
   test::TempDir dir("cslam_round2_beside");
-  const auto synth =
-      test::run_program("cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
+  const auto synth = test::run_program(
+      "cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
   ASSERT_EQ(synth.status, 0) << synth.output;
   const std::string data = dir / "scene/robot_1";
   const RobotRun alone = stream_robot(data, false);

@@ -83,7 +83,7 @@ TEST(Hardening, HelloWithALiveVictimsIdCannotTakeOverItsSession) {
   srv.system().finish();
   const Trajectory t = srv.system().trajectories().at(5);
   ASSERT_EQ(t.size(), 4u);
-  for (const auto& pose : t) EXPECT_LT(pose.timestamp, 1.0);  // the injected frame (t = 9.9) is not among them
+  for (const auto& pose : t) EXPECT_LT(pose.timestamp, 1.0);   // the injected frame (t = 9.9) is not among them
   EXPECT_EQ(srv.stats().clients().at(5).dropped_total(), 0u);  // the attacker's drops are not the victim's
   EXPECT_EQ(srv.stats().unattributed().at("session_busy"), 1u);
 }
@@ -154,7 +154,7 @@ TEST(Hardening, HugeCameraIsRefusedAtHello) {
   hd.height = 1080;
   hd.cx = 960;
   hd.cy = 540;
-  hd.fx = hd.fy = 1000;  // within [0.1, 10] x the image size
+  hd.fx = hd.fy = 1000;                // within [0.1, 10] x the image size
   peer.send(test::make_hello(2, hd));  // the default limit is 1920 x 1080
   EXPECT_TRUE(next_of(peer, wire::ServerMessage::kWelcome));
   srv.stop();
@@ -224,9 +224,8 @@ TEST(Hardening, VanishedClientIsDisconnectedThenReclaimed) {
     ASSERT_EQ(early.get()->status["clients"].size(), 1u);
     EXPECT_NE(early.get()->status["clients"][0]["connection"], "reclaimed");
   }  // vanishes without goodbye
-  auto s = wait_status(srv, [](const http::NetStatus& s) {
-    return s.clients.count(6) && s.clients.at(6).connection == "disconnected";
-  });
+  auto s = wait_status(
+      srv, [](const http::NetStatus& s) { return s.clients.count(6) && s.clients.at(6).connection == "disconnected"; });
   ASSERT_TRUE(s && s->clients.count(6));
   EXPECT_EQ(s->clients.at(6).connection, "disconnected");
   // The HTTP status shows it too.
@@ -239,7 +238,8 @@ TEST(Hardening, VanishedClientIsDisconnectedThenReclaimed) {
   ASSERT_EQ(state->status["clients"].size(), 1u);
   EXPECT_EQ(state->status["clients"][0]["connection"], "disconnected");
 
-  s = wait_status(srv, [](const http::NetStatus& s) { return s.clients.count(6) == 0 && s.totals.at("sessions_reclaiming") == 0; });
+  s = wait_status(
+      srv, [](const http::NetStatus& s) { return s.clients.count(6) == 0 && s.totals.at("sessions_reclaiming") == 0; });
   ASSERT_TRUE(s);
   EXPECT_EQ(s->clients.count(6), 0u);
   EXPECT_EQ(s->totals.at("sessions_reclaimed"), 1u);
@@ -316,7 +316,7 @@ TEST(Hardening, ServerRestartDoesNotFailAClientThatDeliveredEverything) {
   EXPECT_TRUE(sender.goodbye(20));
   EXPECT_GE(sender.stats().reconnects, 1u);
   EXPECT_EQ(sender.stats().errors.count("ERROR_NOT_REGISTERED"), 1u);  // what used to fail the run
-  EXPECT_EQ(sender.stats().frames_refused, 0u);  // cslam-client exits 0 on this
+  EXPECT_EQ(sender.stats().frames_refused, 0u);                        // cslam-client exits 0 on this
 }
 
 // Case 7: the network counters are live (not only in network_stats.json at exit).

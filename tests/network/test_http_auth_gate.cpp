@@ -41,7 +41,7 @@ TEST(AuthGate, WrongTokensEmptyTheBucketWhichRefillsOverTheWindow) {
   for (int i = 0; i < 3; ++i) EXPECT_EQ(gate.check("10.0.0.1", wrong, t0).verdict, Verdict::kWrong);
   const auto throttled = gate.check("10.0.0.1", right, t0);  // refused without looking at the token
   EXPECT_EQ(throttled.verdict, Verdict::kThrottled);
-  EXPECT_EQ(throttled.retry_after_s, 20);  // one attempt back after 60 s / 3
+  EXPECT_EQ(throttled.retry_after_s, 20);                              // one attempt back after 60 s / 3
   EXPECT_EQ(gate.check("10.0.0.2", right, t0).verdict, Verdict::kOk);  // another address is not affected
   EXPECT_EQ(gate.check("10.0.0.1", right, t0 + std::chrono::seconds(19)).verdict, Verdict::kThrottled);
   EXPECT_EQ(gate.check("10.0.0.1", right, t0 + std::chrono::seconds(21)).verdict, Verdict::kOk);
@@ -69,7 +69,8 @@ TEST(AuthGate, TheAddressTableIsBoundedAndNewcomersShareOneBucketWhenItIsFull) {
   const std::string right = "Bearer a-token-of-24-characters", wrong = "Bearer guess";
   for (int i = 1; i <= 4; ++i) EXPECT_EQ(gate.check("10.0.0." + std::to_string(i), wrong, t0).verdict, Verdict::kWrong);
   EXPECT_EQ(gate.tracked(), 4u);
-  for (int i = 5; i <= 1000; ++i) gate.check("10.1." + std::to_string(i / 250) + "." + std::to_string(i % 250), wrong, t0);
+  for (int i = 5; i <= 1000; ++i)
+    gate.check("10.1." + std::to_string(i / 250) + "." + std::to_string(i % 250), wrong, t0);
   EXPECT_EQ(gate.tracked(), 4u);
   EXPECT_GE(gate.stats().table_full, 1u);
   // The shared bucket is empty: a newcomer is throttled while the table stays full ...

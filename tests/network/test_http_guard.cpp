@@ -205,7 +205,8 @@ TEST_F(HttpGuardTest, ChunkedBodyPastTheLimitIsRefused) {
   ::close(fd);
   // A small chunked body still reaches the handler (decoded, with a Content-Length).
   const int fd2 = connect_to(server->port());
-  send_all(fd2, "POST /api/reconstruction HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n2\r\n{}\r\n0\r\n\r\n");
+  send_all(fd2,
+           "POST /api/reconstruction HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n2\r\n{}\r\n0\r\n\r\n");
   const std::string small = read_response(fd2, 10);
   EXPECT_EQ(small.find("413"), std::string::npos) << small.substr(0, 200);
   EXPECT_NE(small.find("HTTP/1.1 "), std::string::npos);

@@ -257,7 +257,8 @@ TEST(TlsChannel, WritingToAPeerThatHasGoneFailsWithoutSigpipe) {
   SSL_CTX_free(client_ctx);
   ::close(sv[1]);
   const std::string body(1 << 20, 'x');
-  EXPECT_FALSE(write_all(server, body.data(), body.size(), std::chrono::steady_clock::now() + std::chrono::seconds(10)));
+  EXPECT_FALSE(
+      write_all(server, body.data(), body.size(), std::chrono::steady_clock::now() + std::chrono::seconds(10)));
 }
 
 }  // namespace

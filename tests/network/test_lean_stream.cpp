@@ -63,8 +63,8 @@ TEST(LeanStream, LightFramesBetweenFullFramesAreAllTaken) {
   const auto& s = sender.stats();
   EXPECT_EQ(s.acks, 20u);
   EXPECT_EQ(s.frames_refused, 0u);
-  EXPECT_EQ(s.frames_light, 15u);  // full frames 0, 4, 8, 12, 16
-  EXPECT_EQ(s.colour_key_packets, 1u);   // the stream's first packet
+  EXPECT_EQ(s.frames_light, 15u);       // full frames 0, 4, 8, 12, 16
+  EXPECT_EQ(s.colour_key_packets, 1u);  // the stream's first packet
   EXPECT_EQ(s.stream_gaps, 0u);
   EXPECT_LT(double(s.bytes_light) / 15.0, double(s.bytes_sent - s.bytes_light) / 5.0);  // a light frame is smaller
   srv.stop();

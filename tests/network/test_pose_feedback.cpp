@@ -21,8 +21,8 @@ namespace {
 
 TEST(PoseFeedback, AcksCarryTheServersTrajectoryPosesWhileASlowLiveWorkerSkipsFrames) {
   test::TempDir dir("cslam_pose_feedback");
-  const auto synth =
-      test::run_program("cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
+  const auto synth = test::run_program(
+      "cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
   ASSERT_EQ(synth.status, 0) << synth.output;
   const std::string data = dir / "scene/robot_1";
   const TumDataset dataset = open_tum_dataset(data);
@@ -36,7 +36,7 @@ TEST(PoseFeedback, AcksCarryTheServersTrajectoryPosesWhileASlowLiveWorkerSkipsFr
   std::atomic<test::InProcessServer*> server{nullptr};
   std::atomic<bool> client_done{false}, worker_blocked{false};
   std::mutex mutex;
-  std::map<std::uint64_t, FrameDone> reported;       // seq -> what the worker reported
+  std::map<std::uint64_t, FrameDone> reported;         // seq -> what the worker reported
   std::map<std::uint64_t, StampedPose> trajectory_at;  // seq -> server trajectory entry at that moment
   int processed = 0;
   sc.on_frame_done = [&](const FrameDone& d) {

@@ -48,16 +48,16 @@ TEST(SecurityCli, KeyedServerServesAKeyedClientOnly) {
   ASSERT_EQ(test::run_program("cslam-keygen", "--out " + dir + "/keys/server").status, 0);
   ASSERT_EQ(test::run_program("cslam-keygen", "--out " + dir + "/robot1 --client-ids 1").status, 0);
   std::filesystem::copy_file(dir + "/robot1.pub", dir + "/keys/clients/robot1.pub");
-  test::ChildProcess server({kBin + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file",
-                             dir + "/endpoint", "--out-dir", dir + "/out", "--no-slam", "--http", "off", "--clients",
-                             "1", "--exit-when-done", "--curve-secret", dir + "/keys/server.key",
-                             "--clients-allowed", dir + "/keys/clients"},
-                            dir + "/server.log");
+  test::ChildProcess server(
+      {kBin + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file", dir + "/endpoint", "--out-dir",
+       dir + "/out", "--no-slam", "--http", "off", "--clients", "1", "--exit-when-done", "--curve-secret",
+       dir + "/keys/server.key", "--clients-allowed", dir + "/keys/clients"},
+      dir + "/server.log");
   const auto endpoint = test::wait_for_file_line(dir + "/endpoint", 60);
   ASSERT_TRUE(endpoint);
   // Without keys: no answer at all (the handshake fails), so the client gives up.
-  test::ChildProcess plain({kBin + "/cslam-client", "--server", *endpoint, "--id", "1", "--dataset", data,
-                            "--rate", "max", "--reply-timeout", "2"},
+  test::ChildProcess plain({kBin + "/cslam-client", "--server", *endpoint, "--id", "1", "--dataset", data, "--rate",
+                            "max", "--reply-timeout", "2"},
                            dir + "/plain.log");
   const auto plain_exit = plain.wait(60);
   ASSERT_TRUE(plain_exit);

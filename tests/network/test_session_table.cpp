@@ -37,7 +37,7 @@ TEST(SessionTable, OpenResumeExpireAndFinish) {
   t.open(info(2), "peerC", t0);
   EXPECT_FALSE(t.all_finished(1));  // client 2 still active
   t.expire(t0 + std::chrono::seconds(10), std::chrono::seconds(5));
-  EXPECT_TRUE(t.all_finished(1));   // it vanished: the run may end
+  EXPECT_TRUE(t.all_finished(1));  // it vanished: the run may end
 }
 
 TEST(SessionTable, RoutingIdText) {

@@ -31,7 +31,7 @@ class TlsConn {
   int fd() const { return fd_; }
   bool send_raw(const std::string& bytes);  // on the socket, past TLS
   bool handshake(double timeout_s = 10);
-  bool send(const std::string& bytes);      // through TLS
+  bool send(const std::string& bytes);  // through TLS
   // One response (headers and a Content-Length body), or what came before close/timeout.
   std::string read_response(double timeout_s = 10);
   // Everything until the server closes (*closed = true) or the timeout (*closed = false). Works on

@@ -29,7 +29,8 @@ TEST(AnalyticJacobians, PoseAndPointJacobiansMatchNumericDifferences) {
   for (int trial = 0; trial < 40; ++trial) {
     // Rotations from tiny (the small-angle branch of Jr) to large ones.
     const double angle = trial < 5 ? 1e-6 * trial : 2.5 * U(rng);
-    const SE3 T = problems::small_motion(angle, {U(rng), U(rng), 1 + U(rng)}, {0.3 * U(rng), 0.3 * U(rng), 0.3 * U(rng)});
+    const SE3 T =
+        problems::small_motion(angle, {U(rng), U(rng), 1 + U(rng)}, {0.3 * U(rng), 0.3 * U(rng), 0.3 * U(rng)});
     const Eigen::Vector3d pw = T.inverse() * Eigen::Vector3d(1.5 * U(rng), 1.2 * U(rng), 2.5 + 1.5 * U(rng));
     std::array<double, 6> x = to_param(T);
     PoseLinearizationPoint lp;
@@ -44,17 +45,21 @@ TEST(AnalyticJacobians, PoseAndPointJacobiansMatchNumericDifferences) {
       std::array<double, 6> xp = x, xm = x;
       xp[j] += h;
       xm[j] -= h;
-      const Eigen::Vector3d numeric = (reference_uvr(k, xp.data(), pw.data()) - reference_uvr(k, xm.data(), pw.data())) / (2 * h);
+      const Eigen::Vector3d numeric =
+          (reference_uvr(k, xp.data(), pw.data()) - reference_uvr(k, xm.data(), pw.data())) / (2 * h);
       for (int r = 0; r < 3; ++r, ++checked)
-        EXPECT_NEAR(J_pose(r, j), numeric(r), 1e-5 * std::max(1.0, std::abs(numeric(r)))) << "trial " << trial << " row " << r << " col " << j;
+        EXPECT_NEAR(J_pose(r, j), numeric(r), 1e-5 * std::max(1.0, std::abs(numeric(r))))
+            << "trial " << trial << " row " << r << " col " << j;
     }
     for (int j = 0; j < 3; ++j) {
       Eigen::Vector3d pp = pw, pm = pw;
       pp(j) += h;
       pm(j) -= h;
-      const Eigen::Vector3d numeric = (reference_uvr(k, x.data(), pp.data()) - reference_uvr(k, x.data(), pm.data())) / (2 * h);
+      const Eigen::Vector3d numeric =
+          (reference_uvr(k, x.data(), pp.data()) - reference_uvr(k, x.data(), pm.data())) / (2 * h);
       for (int r = 0; r < 3; ++r, ++checked)
-        EXPECT_NEAR(J_point(r, j), numeric(r), 1e-5 * std::max(1.0, std::abs(numeric(r)))) << "trial " << trial << " row " << r << " col " << j;
+        EXPECT_NEAR(J_point(r, j), numeric(r), 1e-5 * std::max(1.0, std::abs(numeric(r))))
+            << "trial " << trial << " row " << r << " col " << j;
     }
   }
   EXPECT_EQ(checked, 40 * 27);
@@ -72,7 +77,8 @@ TEST(AnalyticJacobians, RightJacobianMatchesNumericExp) {
       Eigen::Vector3d wp = w, wm = w;
       wp(j) += h;
       wm(j) -= h;
-      const Eigen::Matrix3d R = Eigen::AngleAxisd(w.norm(), w.norm() > 0 ? w.normalized() : Eigen::Vector3d::UnitX()).toRotationMatrix();
+      const Eigen::Matrix3d R =
+          Eigen::AngleAxisd(w.norm(), w.norm() > 0 ? w.normalized() : Eigen::Vector3d::UnitX()).toRotationMatrix();
       auto rot = [](const Eigen::Vector3d& v) {
         return Eigen::AngleAxisd(v.norm(), v.norm() > 0 ? v.normalized() : Eigen::Vector3d::UnitX()).toRotationMatrix();
       };

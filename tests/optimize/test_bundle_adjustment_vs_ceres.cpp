@@ -56,13 +56,18 @@ using Solver = BaResult (*)(const BaProblem&, const BaConfig&, const std::atomic
 void compare_with_reference(Solver solver) {
   BaConfig cfg;
   cfg.min_step_decrease = 0;  // step for step with Ceres: its termination rules alone
-  const Case cases[] = {{3, 2, 80, 0.0, 1.0}, {6, 4, 300, 0.05, 0.8}, {10, 5, 600, 0.1, 0.5}, {20, 8, 1500, 0.05, 0.9}, {8, 2, 400, 0.1, 0.3}};
+  const Case cases[] = {{3, 2, 80, 0.0, 1.0},
+                        {6, 4, 300, 0.05, 0.8},
+                        {10, 5, 600, 0.1, 0.5},
+                        {20, 8, 1500, 0.05, 0.9},
+                        {8, 2, 400, 0.1, 0.3}};
   std::mt19937 rng(77);
   double worst_pose = 0, worst_point = 0;
   int borderline_count = 0;
   for (const Case& c : cases) {
     for (int rep = 0; rep < 3; ++rep) {
-      const problems::BaSynthetic s = problems::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
+      const problems::BaSynthetic s =
+          problems::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
       const BaProblem& p = s.problem;
       const BaResult fast = solver(p, cfg, nullptr);
       const BaResult ref = bundle_adjust_ceres(p, cfg);
@@ -87,8 +92,10 @@ void compare_with_reference(Solver solver) {
       int differing = 0;
       for (size_t i = 0; i < p.observations.size(); ++i) {
         if (fast.inlier[i] == ref.inlier[i]) continue;
-        if (borderline(p, fast, ref, i, cfg)) ++borderline_count;
-        else ++differing;
+        if (borderline(p, fast, ref, i, cfg))
+          ++borderline_count;
+        else
+          ++differing;
       }
       EXPECT_EQ(differing, 0) << "case " << c.free_cams << " rep " << rep;
       EXPECT_NEAR(fast.initial_cost, ref.initial_cost, 1e-9 * ref.initial_cost);
@@ -97,15 +104,21 @@ void compare_with_reference(Solver solver) {
       EXPECT_EQ(fast.converged, ref.converged);
       EXPECT_FALSE(fast.aborted);
       // And the solution is good: free keyframes back near the truth.
-      for (int k = 0; k < c.free_cams; ++k) EXPECT_LT((fast.T_cam_world[k].translation() - s.true_poses[k].translation()).norm(), 0.01);
+      for (int k = 0; k < c.free_cams; ++k)
+        EXPECT_LT((fast.T_cam_world[k].translation() - s.true_poses[k].translation()).norm(), 0.01);
     }
   }
   EXPECT_LE(borderline_count, 2);
-  std::printf("worst pose difference %.3g, point difference %.3g whitened px, borderline flips %d\n", worst_pose, worst_point, borderline_count);
+  std::printf("worst pose difference %.3g, point difference %.3g whitened px, borderline flips %d\n", worst_pose,
+              worst_point, borderline_count);
 }
 
-BaResult sparse_solver(const BaProblem& p, const BaConfig& c, const std::atomic<bool>* a) { return bundle_adjust_sparse(p, c, a); }
-BaResult schur_solver(const BaProblem& p, const BaConfig& c, const std::atomic<bool>* a) { return bundle_adjust(p, c, a); }
+BaResult sparse_solver(const BaProblem& p, const BaConfig& c, const std::atomic<bool>* a) {
+  return bundle_adjust_sparse(p, c, a);
+}
+BaResult schur_solver(const BaProblem& p, const BaConfig& c, const std::atomic<bool>* a) {
+  return bundle_adjust(p, c, a);
+}
 
 }  // namespace
 
@@ -173,7 +186,8 @@ TEST(BundleAdjustmentVsCeres, EarlyEndAfterATinyStepStaysAtTheFullSolution) {
   int iterations_full = 0, iterations_early = 0;
   for (const Case& c : cases)
     for (int rep = 0; rep < 3; ++rep) {
-      const problems::BaSynthetic s = problems::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
+      const problems::BaSynthetic s =
+          problems::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
       const BaResult a = bundle_adjust(s.problem, early), b = bundle_adjust(s.problem, full);
       iterations_early += a.iterations;
       iterations_full += b.iterations;

@@ -14,7 +14,8 @@ template <typename Functor, int kRes, int... kBlocks>
 void compare_jacobians(const Functor& f, std::vector<double*> params) {
   ceres::AutoDiffCostFunction<Functor, kRes, kBlocks...> autodiff(new Functor(f));
   ceres::NumericDiffOptions nopts;
-  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, kRes, kBlocks...> numeric(new Functor(f), ceres::TAKE_OWNERSHIP, kRes, nopts);
+  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, kRes, kBlocks...> numeric(new Functor(f),
+                                                                                    ceres::TAKE_OWNERSHIP, kRes, nopts);
   const std::vector<int> sizes = {kBlocks...};
   std::vector<std::vector<double>> ja(sizes.size()), jn(sizes.size());
   std::vector<double*> pa, pn;

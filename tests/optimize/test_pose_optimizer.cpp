@@ -19,8 +19,10 @@ TEST(PoseOptimizer, RecoversPerturbedPoseWithOutliers) {
     const Eigen::Vector3d pw = truth.inverse() * pts[i];
     Eigen::Vector3d uvr = problems::project(k, truth, pw);
     const bool outlier = i % 5 == 0;  // 20% gross outliers
-    if (outlier) uvr = {wild(rng), wild(rng) * 0.75, -1};
-    else uvr += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    if (outlier)
+      uvr = {wild(rng), wild(rng) * 0.75, -1};
+    else
+      uvr += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
     PoseObservation o;
     o.p_world = pw;
     o.uv = uvr.head<2>();

@@ -13,9 +13,11 @@ namespace {
 
 // Observations whose chi2 lies this close to the threshold at either solution may legitimately
 // flip between two solvers that agree to rounding in the pose; they are counted, not compared.
-bool borderline(const SE3& a, const SE3& b, const PoseObservation& o, const StereoIntrinsics& k, const PoseOptimizationConfig& cfg) {
+bool borderline(const SE3& a, const SE3& b, const PoseObservation& o, const StereoIntrinsics& k,
+                const PoseOptimizationConfig& cfg) {
   const double thr = o.u_right >= 0 ? cfg.chi2_stereo : cfg.chi2_mono;
-  return std::abs(observation_chi2(a, o, k) - thr) < 1e-4 * thr || std::abs(observation_chi2(b, o, k) - thr) < 1e-4 * thr;
+  return std::abs(observation_chi2(a, o, k) - thr) < 1e-4 * thr ||
+         std::abs(observation_chi2(b, o, k) - thr) < 1e-4 * thr;
 }
 
 struct Case {
@@ -29,7 +31,8 @@ TEST(PoseOptimizerVsCeres, SameInliersAndPosesOnRandomProblems) {
   const auto k = problems::tum_like_intrinsics();
   PoseOptimizationConfig cfg;
   cfg.min_step_decrease = 0;  // step for step with Ceres: its termination rules alone
-  const Case cases[] = {{30, 0.0, 1.0}, {80, 0.1, 0.8}, {150, 0.2, 0.5}, {300, 0.3, 0.9}, {500, 0.15, 0.0}, {250, 0.05, 1.0}};
+  const Case cases[] = {{30, 0.0, 1.0},  {80, 0.1, 0.8},   {150, 0.2, 0.5},
+                        {300, 0.3, 0.9}, {500, 0.15, 0.0}, {250, 0.05, 1.0}};
   std::mt19937 rng(2024);
   int problems = 0, borderline_count = 0;
   double worst_rot = 0, worst_trans = 0;
@@ -56,13 +59,15 @@ TEST(PoseOptimizerVsCeres, SameInliersAndPosesOnRandomProblems) {
       }
       EXPECT_EQ(differing, 0) << "n " << c.n << " rep " << rep;
       EXPECT_NEAR(fast.num_inliers, ref.num_inliers, 1) << "n " << c.n << " rep " << rep;
-      EXPECT_NEAR(fast.final_cost, ref.final_cost, 1e-6 * std::max(1.0, ref.final_cost)) << "n " << c.n << " rep " << rep;
+      EXPECT_NEAR(fast.final_cost, ref.final_cost, 1e-6 * std::max(1.0, ref.final_cost))
+          << "n " << c.n << " rep " << rep;
       // Both recover the true pose (the problems are well posed).
       EXPECT_LT((fast.T_cam_world.translation() - p.truth.translation()).norm(), 0.05);
     }
   }
   EXPECT_LE(borderline_count, 2) << "out of " << problems << " problems";
-  std::printf("worst rotation difference %.3g rad, translation %.3g m, borderline flips %d\n", worst_rot, worst_trans, borderline_count);
+  std::printf("worst rotation difference %.3g rad, translation %.3g m, borderline flips %d\n", worst_rot, worst_trans,
+              borderline_count);
 }
 
 TEST(PoseOptimizerVsCeres, RepeatedCallsAreBitIdentical) {
@@ -105,7 +110,8 @@ TEST(PoseOptimizerVsCeres, EarlyEndAfterATinyStepStaysAtTheFullSolution) {
   ASSERT_GT(early.min_step_decrease, 0.0);
   std::mt19937 rng(515);
   for (int rep = 0; rep < 40; ++rep) {
-    const problems::PoseProblem p = problems::random_pose_problem(rng, 50 + 10 * rep, 0.1 + 0.005 * rep, rep % 2 ? 0.8 : 0.2);
+    const problems::PoseProblem p =
+        problems::random_pose_problem(rng, 50 + 10 * rep, 0.1 + 0.005 * rep, rep % 2 ? 0.8 : 0.2);
     const auto a = optimize_pose(p.start, p.obs, k, early), b = optimize_pose(p.start, p.obs, k, full);
     EXPECT_NEAR(a.final_cost, b.final_cost, 1e-4 * std::max(1.0, b.final_cost)) << "rep " << rep;
     EXPECT_LT((a.T_cam_world.translation() - b.T_cam_world.translation()).norm(), 1e-4) << "rep " << rep;

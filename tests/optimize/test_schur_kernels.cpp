@@ -81,7 +81,8 @@ void expect_matches_reference(sk::PairProductsFn fn) {
         if (row / 6 < col / 6) {
           ASSERT_EQ(got[k], start[k]) << "upper block written at " << row << "," << col;
         } else {
-          ASSERT_NEAR(got[k], expected[k], 1e-9 * (1.0 + std::abs(expected[k]))) << row << "," << col << " trial " << trial;
+          ASSERT_NEAR(got[k], expected[k], 1e-9 * (1.0 + std::abs(expected[k])))
+              << row << "," << col << " trial " << trial;
         }
       }
   }

@@ -21,7 +21,8 @@ struct SnapshotScene {
   SlamConfig config;
 
   SnapshotScene() {
-    const auto r = run_program("cslam-synth", "--preset test-small --frames 120 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+    const auto r = run_program(
+        "cslam-synth", "--preset test-small --frames 120 --seed 5 --out " + (dir / "scene") + " --log-level warn");
     if (r.status != 0) throw std::runtime_error("cslam-synth failed: " + r.output);
     vocabulary = std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path()));
     robot1 = open_tum_dataset(dir / "scene/robot_1");

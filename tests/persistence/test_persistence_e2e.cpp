@@ -25,15 +25,28 @@ const std::string kBin = CSLAM_BIN_DIR;
 
 std::vector<std::string> server_args(const std::string& bind, const std::string& endpoint_file, const std::string& out,
                                      std::vector<std::string> extra) {
-  std::vector<std::string> a = {kBin + "/cslam-server", "--bind", bind, "--endpoint-file", endpoint_file, "--out-dir", out,
-                                "--http", "off", "--log-interval", "2"};
+  std::vector<std::string> a = {
+      kBin + "/cslam-server", "--bind", bind, "--endpoint-file", endpoint_file, "--out-dir", out, "--http", "off",
+      "--log-interval",       "2"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
 
-std::vector<std::string> client_args(const std::string& endpoint, int id, const std::string& dataset, const std::string& rate) {
-  return {kBin + "/cslam-client", "--server", endpoint, "--id", std::to_string(id), "--dataset", dataset,
-          "--rate", rate, "--reply-timeout", "3", "--rgb-codec", "png"};
+std::vector<std::string> client_args(const std::string& endpoint, int id, const std::string& dataset,
+                                     const std::string& rate) {
+  return {kBin + "/cslam-client",
+          "--server",
+          endpoint,
+          "--id",
+          std::to_string(id),
+          "--dataset",
+          dataset,
+          "--rate",
+          rate,
+          "--reply-timeout",
+          "3",
+          "--rgb-codec",
+          "png"};
 }
 
 std::string read_text(const std::string& path) {
@@ -77,8 +90,9 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   const test::ScratchDir ref_dir("persist_ref");
   const std::string& ref = ref_dir.path();
   {
-    const auto r = test::run_program("cslam-slam", "--datasets " + scene_ + "/robot_1 " + scene_ + "/robot_2 --sync --out-dir " +
-                                                       ref + "/out --quiet --log-level warn");
+    const auto r =
+        test::run_program("cslam-slam", "--datasets " + scene_ + "/robot_1 " + scene_ + "/robot_2 --sync --out-dir " +
+                                            ref + "/out --quiet --log-level warn");
     ASSERT_EQ(r.status, 0) << r.output;
   }
   const double ate_ref = joint_ate(scene_, ref + "/out");
@@ -88,8 +102,9 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   const std::string state = run + "/state";
   std::string endpoint;
   auto server = std::make_unique<test::ChildProcess>(
-      server_args("tcp://127.0.0.1:*", run + "/endpoint1", run + "/out1",
-                  {"--state-dir", state, "--snapshot-interval", "2", "--clients", "2", "--exit-when-done", "--deterministic"}),
+      server_args(
+          "tcp://127.0.0.1:*", run + "/endpoint1", run + "/out1",
+          {"--state-dir", state, "--snapshot-interval", "2", "--clients", "2", "--exit-when-done", "--deterministic"}),
       run + "/server1.log");
   {
     const auto e = test::wait_for_file_line(run + "/endpoint1", 30);
@@ -102,10 +117,10 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   ASSERT_TRUE(std::filesystem::exists(snapshot::current_path(state))) << "no snapshot after 12 s";
   server.reset();  // SIGKILL
   std::filesystem::copy_file(snapshot::current_path(state), run + "/at_kill.snapshot");
-  server = std::make_unique<test::ChildProcess>(
-      server_args(endpoint, run + "/endpoint2", run + "/out2",
-                  {"--state-dir", state, "--snapshot-interval", "2", "--clients", "2", "--exit-when-done", "--deterministic"}),
-      run + "/server2.log");
+  server = std::make_unique<test::ChildProcess>(server_args(endpoint, run + "/endpoint2", run + "/out2",
+                                                            {"--state-dir", state, "--snapshot-interval", "2",
+                                                             "--clients", "2", "--exit-when-done", "--deterministic"}),
+                                                run + "/server2.log");
   // The clients finish by themselves, and successfully: the frames the dead server had acked
   // after its last snapshot, and those in flight, are sent again from the clients' re-send buffers
   // (the resumed Welcome's last_seq says where the restored server stands).
@@ -152,7 +167,8 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   const double ate = joint_ate(scene_, run + "/out2");
   RecordProperty("ate_uninterrupted_m", std::to_string(ate_ref));
   RecordProperty("ate_killed_m", std::to_string(ate));
-  std::printf("joint ATE: uninterrupted %.4f m, killed and restarted %.4f m (ratio %.2f)\n", ate_ref, ate, ate / ate_ref);
+  std::printf("joint ATE: uninterrupted %.4f m, killed and restarted %.4f m (ratio %.2f)\n", ate_ref, ate,
+              ate / ate_ref);
   // The bound. The killed run's servers run --deterministic (mapping inline on each
   // client's worker), so only the interleaving of the two robots' frames differs between runs:
   // killed 0.0339-0.0359 m over 14 runs at cf4b2c0..6e136bc (ratios 0.98-1.04 to the stepped
@@ -177,9 +193,10 @@ std::string run_two_sessions(const std::string& run, const Session& s1, const Se
     const std::string n = std::to_string(k);
     // --deterministic: one client streams at a time, so every session's result depends only on its
     // frames, and the accuracy bounds below hold for the one possible outcome.
-    test::ChildProcess server(server_args("tcp://127.0.0.1:*", run + "/endpoint" + n, run + "/out" + n,
-                                          {"--state-dir", state, "--clients", "1", "--exit-when-done", "--deterministic"}),
-                              run + "/server" + n + ".log");
+    test::ChildProcess server(
+        server_args("tcp://127.0.0.1:*", run + "/endpoint" + n, run + "/out" + n,
+                    {"--state-dir", state, "--clients", "1", "--exit-when-done", "--deterministic"}),
+        run + "/server" + n + ".log");
     const auto endpoint = test::wait_for_file_line(run + "/endpoint" + n, 60);
     EXPECT_TRUE(endpoint) << "see " << run << "/server" << n << ".log";
     if (!endpoint) return run + "/out2";
@@ -225,9 +242,10 @@ TEST(MultiSession, Fr1DeskSecondSessionIsFusedIntoTheLoadedMap) {
   const double ate = compute_ate_joint({{gt, t1}, {gt, t2}}, Alignment::kSE3, 0.02).stats.rmse;
   // What the loaded map itself was worth: session 1 as the first server run left it.
   const std::string out1 = out.substr(0, out.size() - 1) + "1";
-  const double ate_session1 = compute_ate(gt, read_tum_trajectory(out1 + "/client_1.txt"), Alignment::kSE3, 0.02).stats.rmse;
-  std::printf("fr1/desk two sessions: combined ATE %.4f m (%zu + %zu poses); session 1 alone after run 1: %.4f m\n", ate,
-              t1.size(), t2.size(), ate_session1);
+  const double ate_session1 =
+      compute_ate(gt, read_tum_trajectory(out1 + "/client_1.txt"), Alignment::kSE3, 0.02).stats.rmse;
+  std::printf("fr1/desk two sessions: combined ATE %.4f m (%zu + %zu poses); session 1 alone after run 1: %.4f m\n",
+              ate, t1.size(), t2.size(), ate_session1);
   RecordProperty("ate_m", std::to_string(ate));
   RecordProperty("ate_session1_m", std::to_string(ate_session1));
   // Session 2 met session 1's map again after the fusion (re-encounters): that is what keeps it
@@ -247,8 +265,8 @@ TEST_F(Persistence, TwoDaysSecondRobotStartsAwayAndMeetsTheLoadedMapLater) {
   // Day 1: robot 2's arc. Day 2 (a restarted server): robot 1, whose arc starts away from robot 2's
   // path and reaches it only in its last part.
   const test::ScratchDir run_dir("multisession_synth");
-  const std::string out = run_two_sessions(run_dir.path(), {2, scene_ + "/robot_2", "1:", ""},
-                                           {1, scene_ + "/robot_1", "1:", ""});
+  const std::string out =
+      run_two_sessions(run_dir.path(), {2, scene_ + "/robot_2", "1:", ""}, {1, scene_ + "/robot_1", "1:", ""});
   const auto stats = read_json(out + "/stats.json");
   const auto groups = groups_of(stats);
   ASSERT_EQ(groups.size(), 2u) << stats.dump();
@@ -291,8 +309,9 @@ TEST_F(Persistence, DamagedStateFolderRefusesToStartUnlessReset) {
   const std::string state = run + "/state";
   std::filesystem::create_directories(state);
   std::ofstream(snapshot::current_path(state)) << "CSLAMSNP but not really";
-  test::ChildProcess refused(server_args("tcp://127.0.0.1:*", run + "/endpoint1", run + "/out1", {"--state-dir", state}),
-                             run + "/server1.log");
+  test::ChildProcess refused(
+      server_args("tcp://127.0.0.1:*", run + "/endpoint1", run + "/out1", {"--state-dir", state}),
+      run + "/server1.log");
   const auto code = refused.wait(60);
   ASSERT_TRUE(code.has_value());
   EXPECT_NE(*code, 0);

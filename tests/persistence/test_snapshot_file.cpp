@@ -30,12 +30,11 @@ const std::string& snapshot_bytes() {
 
 std::string file_bytes(const std::string& path) { return snapshot::read_bytes(path); }
 
-void write_bytes(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
+void write_bytes(const std::string& path, const std::string& bytes) { std::ofstream(path, std::ios::binary) << bytes; }
 
 // Decoding must throw an InputError whose message is one line naming the source.
-void expect_clear_error(const std::string& bytes, const std::string& source, const std::string& expect_in_message = "") {
+void expect_clear_error(const std::string& bytes, const std::string& source,
+                        const std::string& expect_in_message = "") {
   try {
     snapshot::decode(bytes, source);
     ADD_FAILURE() << "decoded a damaged snapshot (" << source << ")";

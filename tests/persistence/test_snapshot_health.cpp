@@ -55,7 +55,8 @@ TEST(SnapshotHealth, FailuresAreInMetricsAndHealthTurnsUnhealthyThenRecovers) {
   httplib::Client cli("127.0.0.1", http_server.port());
 
   ASSERT_TRUE(store.write());
-  auto m = wait_for(cli, "/metrics", [](const auto& r) { return has(r.body, "cslam_snapshot_writes_total{result=\"ok\"} 1"); });
+  auto m = wait_for(cli, "/metrics",
+                    [](const auto& r) { return has(r.body, "cslam_snapshot_writes_total{result=\"ok\"} 1"); });
   EXPECT_TRUE(has(m->body, "cslam_snapshot_writes_total{result=\"failed\"} 0")) << m->body;
   EXPECT_TRUE(has(m->body, "cslam_snapshot_last_success_age_seconds ")) << m->body;
   EXPECT_TRUE(has(m->body, "cslam_snapshot_failing_seconds 0\n")) << m->body;

@@ -109,7 +109,8 @@ TEST(SnapshotRoundTrip, RollingShutterKeypointsSurviveAndTheRestoredMapAdjustsAs
     std::vector<Eigen::Vector2d> recomputed;
     for (const auto& kp : k.data->features.keypoints) recomputed.emplace_back(kp.pt.x, kp.pt.y);
     if (k.data->camera.has_distortion()) k.data->camera.undistort_pixels(recomputed);
-    for (std::size_t j = 0; j < recomputed.size(); ++j) moved += (recomputed[j] - k.data->features.undistorted[j]).norm() > 1e-3;
+    for (std::size_t j = 0; j < recomputed.size(); ++j)
+      moved += (recomputed[j] - k.data->features.undistorted[j]).norm() > 1e-3;
   }
   ASSERT_GT(moved, 100u) << "the camera's readout time should have moved keypoints";
 
@@ -150,7 +151,8 @@ TEST(SnapshotRoundTrip, SnapshotWithoutUndistortedPositionsRecomputesThem) {
   const std::string payload = proto.SerializeAsString();
   std::string old_file = bytes.substr(0, 32) + payload;
   const std::uint64_t length = payload.size();
-  const std::uint32_t crc = std::uint32_t(crc32(0L, reinterpret_cast<const Bytef*>(payload.data()), uInt(payload.size())));
+  const std::uint32_t crc =
+      std::uint32_t(crc32(0L, reinterpret_cast<const Bytef*>(payload.data()), uInt(payload.size())));
   for (int i = 0; i < 8; ++i) old_file[std::size_t(16 + i)] = char((length >> (8 * i)) & 0xff);
   for (int i = 0; i < 4; ++i) old_file[std::size_t(24 + i)] = char((crc >> (8 * i)) & 0xff);
   const SystemState decoded = snapshot::decode(old_file, "old.snapshot");
@@ -236,8 +238,8 @@ TEST(SnapshotMerge, TwoOverlappingSessionsBecomeOneGroup) {
   EXPECT_EQ(main_group(merged.clients[0]), main_group(merged.clients[1])) << r.output;
   EXPECT_GE(main_group(merged.clients[0]), 0);
   // Merging a file with itself is refused (same client ids) with a clear error.
-  const auto same = test::run_program("cslam-map", "merge " + (dir / "robot1.snapshot") + " " + (dir / "robot1.snapshot") +
-                                                       " -o " + (dir / "x.snapshot"));
+  const auto same = test::run_program("cslam-map", "merge " + (dir / "robot1.snapshot") + " " +
+                                                       (dir / "robot1.snapshot") + " -o " + (dir / "x.snapshot"));
   EXPECT_NE(same.status, 0);
   EXPECT_NE(same.output.find("ids must differ"), std::string::npos) << same.output;
 }
@@ -254,7 +256,8 @@ TEST(SnapshotTrajectory, MapsOfOneFusedGroupAreOneTrajectory) {
     k.T_cam_world = SE3(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-double(m), 0, 0));  // camera at x = m
     c.maps[std::size_t(m)].keyframes.push_back(k);
   }
-  for (int i = 0; i < 5; ++i) c.records.push_back({double(i), i < 3 ? 0 : 1, KeyFrameId{3, std::uint32_t(i < 3 ? 10 : 11)}, SE3()});
+  for (int i = 0; i < 5; ++i)
+    c.records.push_back({double(i), i < 3 ? 0 : 1, KeyFrameId{3, std::uint32_t(i < 3 ? 10 : 11)}, SE3()});
   int main = -1;
   EXPECT_EQ(state_trajectory(c, &main).size(), 3u) << "two frames: only the map with most frames";
   EXPECT_EQ(main, 0);

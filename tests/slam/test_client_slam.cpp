@@ -25,10 +25,11 @@ class ClientSlamTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new test::TempDir("cslam_client_slam");
-    const auto r =
-        test::run_program("cslam-synth", "--preset test-small --seed 5 --out " + (*dir_ / "scene") + " --log-level warn");
+    const auto r = test::run_program("cslam-synth",
+                                     "--preset test-small --seed 5 --out " + (*dir_ / "scene") + " --log-level warn");
     ASSERT_EQ(r.status, 0) << r.output;
-    vocabulary_ = new std::shared_ptr<const Vocabulary>(std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
+    vocabulary_ = new std::shared_ptr<const Vocabulary>(
+        std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
   }
   static void TearDownTestSuite() {
     delete vocabulary_;
@@ -170,7 +171,6 @@ TEST_F(ClientSlamTest, FinalGlobalBaOffByConfig) {
   EXPECT_EQ(slam.final_global_ba(), 0);
 }
 
-
 // A robot that saves bandwidth sends full depth only every few frames (and when asked): the
 // light frames between (no depth, or depth at every 4th pixel of every 4th row spread back to
 // full size) are tracked, a keyframe that falls due on one of them waits for the next frame with
@@ -251,7 +251,7 @@ TEST_F(ClientSlamTest, FlowFramesTrackBetweenFullFramesAsAccuratelyAsTheFullPath
   const int n = int(dataset_.pairs.size());
   EXPECT_EQ(flow_off, 0);
   EXPECT_EQ(flow_idle, 0);
-  EXPECT_EQ(ate_idle, ate_off);  // not behind: exactly the full path
+  EXPECT_EQ(ate_idle, ate_off);             // not behind: exactly the full path
   EXPECT_GE(flow_on, n / 3) << "of " << n;  // measured: 36 of 60, 6 keyframes either way, ATE 0.0080 against 0.0076 m
   EXPECT_EQ(flow_load, flow_on);
   EXPECT_EQ(ate_load, ate_on);

@@ -23,7 +23,8 @@ class SlamIntegration : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new TempDir("cslam_slam_it");
-    const auto r = run_program("cslam-synth", "--preset test-small --seed 3 --out " + (*dir_ / "scene") + " --log-level warn");
+    const auto r =
+        run_program("cslam-synth", "--preset test-small --seed 3 --out " + (*dir_ / "scene") + " --log-level warn");
     ASSERT_EQ(r.status, 0) << r.output;
   }
   static void TearDownTestSuite() {
@@ -71,7 +72,8 @@ TEST_F(SlamIntegration, OfflineTwoClientsFuseIntoOneFrame) {
   const double joint = ate_rmse(scene("robot_1/groundtruth.txt") + " " + tmp("multi/client_1.txt") + " --also " +
                                 scene("robot_2/groundtruth.txt") + " " + tmp("multi/client_2.txt"));
   EXPECT_LT(joint, 0.02);
-  EXPECT_TRUE(std::ifstream(tmp("multi/fused_" + std::to_string(stats["clients"][0]["group"].get<int>()) + ".txt")).good());
+  EXPECT_TRUE(
+      std::ifstream(tmp("multi/fused_" + std::to_string(stats["clients"][0]["group"].get<int>()) + ".txt")).good());
 }
 
 // The threaded system (worker, local-mapping, loop and fusion threads) fuses the same robots; its
@@ -99,7 +101,8 @@ static std::string file_text(const std::string& path) {
 TEST_F(SlamIntegration, SyncRunsAreIdentical) {
   for (const char* run : {"a", "b"}) {
     const std::string single = tmp(std::string("single_") + run + ".txt");
-    auto r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + single + " --sync --quiet --log-level warn");
+    auto r = run_program("cslam-slam",
+                         "--dataset " + scene("robot_1") + " --out " + single + " --sync --quiet --log-level warn");
     ASSERT_EQ(r.status, 0) << r.output;
     r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
                                       tmp(std::string("pair_") + run) + " --sync --log-level warn");
@@ -120,7 +123,8 @@ TEST_F(SlamIntegration, SyncRunsAreIdentical) {
 // the wait, tracking runs ahead of local mapping and the output depends on thread timing.
 TEST_F(SlamIntegration, ThreadedRunWaitingForEachKeyframeEqualsSync) {
   const std::string sync = tmp("wait_sync.txt");
-  auto r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + sync + " --sync --quiet --log-level warn");
+  auto r = run_program("cslam-slam",
+                       "--dataset " + scene("robot_1") + " --out " + sync + " --sync --quiet --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   const std::string expected = file_text(sync);
   ASSERT_GT(expected.size(), 1000u);
@@ -151,14 +155,15 @@ TEST_F(SlamIntegration, ClientsInDifferentRoomsDoNotFuse) {
   // A wrong fusion is worse than none, so nothing may be fused here.
   for (const char* room : {"room_a --seed 3", "room_b --seed 11"}) {
     const std::string name = std::string(room).substr(0, 6);
-    auto r = run_program("cslam-synth", "--preset test-small --seed " + std::string(room).substr(14) +
-                                            " --shared-poster 77 --repeat-texture --out " + tmp(name) + " --log-level warn");
+    auto r =
+        run_program("cslam-synth", "--preset test-small --seed " + std::string(room).substr(14) +
+                                       " --shared-poster 77 --repeat-texture --out " + tmp(name) + " --log-level warn");
     ASSERT_EQ(r.status, 0) << r.output;
   }
   // Clients 1, 3: robots of room a; clients 2, 4: robots of room b. Each room's robots share places.
   auto r = run_program("cslam-slam", "--datasets " + tmp("room_a/robot_1") + " " + tmp("room_b/robot_1") + " " +
-                                         tmp("room_a/robot_2") + " " + tmp("room_b/robot_2") + " --out-dir " + tmp("rooms") +
-                                         " --log-level warn");
+                                         tmp("room_a/robot_2") + " " + tmp("room_b/robot_2") + " --out-dir " +
+                                         tmp("rooms") + " --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   const auto stats = nlohmann::json::parse(std::ifstream(tmp("rooms/stats.json")));
   for (const auto& e : stats["fusion_events"])
@@ -253,7 +258,8 @@ TEST_F(SlamIntegration, BadArgumentsGiveOneLineErrors) {
   auto r = run_program("cslam-slam", "--dataset /nonexistent --out " + tmp("x.txt"));
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("/nonexistent"), std::string::npos) << r.output;
-  r = run_program("cslam-slam", "--dataset " + scene("robot_1") + " --out " + tmp("x.txt") + " --vocab /nonexistent.voc");
+  r = run_program("cslam-slam",
+                  "--dataset " + scene("robot_1") + " --out " + tmp("x.txt") + " --vocab /nonexistent.voc");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("nonexistent.voc"), std::string::npos) << r.output;
 }
@@ -274,8 +280,9 @@ cslam::SE3 gt_at(const cslam::Trajectory& gt, double t) {
 // no accepted loop is wrong (every loop's verified transform within 2 deg / 5 cm of ground truth).
 TEST(LoopClosingIntegration, ClosesTheRealLoopAndIsNotFooledByRepeatedTexture) {
   TempDir dir("cslam_loop_it");
-  auto r = run_program("cslam-synth", "--single --frames 290 --width 320 --height 240 --repeat-texture --seed 4 --out " +
-                                          (dir / "scene") + " --log-level warn");
+  auto r =
+      run_program("cslam-synth", "--single --frames 290 --width 320 --height 240 --repeat-texture --seed 4 --out " +
+                                     (dir / "scene") + " --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   // --sync: local mapping and loop closing inline, so the keyframes (and the loop) do not depend on
   // how busy the machine is (threaded, a loaded CI machine makes fewer keyframes near the end).

@@ -18,15 +18,16 @@ using namespace cslam;
 
 TEST(ClientPipelineFlow, AWorkerBehindItsLiveFramesTracksFlowFramesInsteadOfSkipping) {
   test::TempDir dir("cslam_pipeline_flow");
-  const auto r = test::run_program("cslam-synth", "--preset test-small --frames 90 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::run_program(
+      "cslam-synth", "--preset test-small --frames 90 --seed 5 --out " + (dir / "scene") + " --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset ds = open_tum_dataset(dir / "scene/robot_1");
   ASSERT_GE(ds.pairs.size(), 90u);
 
   SystemConfig sc;
-  sc.slam.threaded = false;    // local mapping inline on the worker: the same map run after run
+  sc.slam.threaded = false;  // local mapping inline on the worker: the same map run after run
   sc.fusion.threaded = false;
-  sc.behind_hold_s = 3600;     // once behind, for the rest of the test (not wall-clock dependent)
+  sc.behind_hold_s = 3600;  // once behind, for the rest of the test (not wall-clock dependent)
   std::mutex mutex;
   std::condition_variable cv;
   std::size_t reported = 0;
@@ -90,7 +91,8 @@ TEST(ClientPipelineFlow, AWorkerBehindItsLiveFramesTracksFlowFramesInsteadOfSkip
   EXPECT_GE(flow_behind, behind / 3) << "of " << behind << " frames while behind";
   // Runs of at most FlowConfig::max_run (3) flow frames while behind, max_run_overloaded (8) after.
   EXPECT_LE(4 * flow_behind, 3 * behind);
-  EXPECT_GT(4 * flow_overloaded, 3 * overloaded) << flow_overloaded << " of " << overloaded << " frames while overloaded";
+  EXPECT_GT(4 * flow_overloaded, 3 * overloaded)
+      << flow_overloaded << " of " << overloaded << " frames while overloaded";
   const auto ate = compute_ate(*ds.groundtruth, system.trajectories().at(1), Alignment::kSE3);
   EXPECT_EQ(ate.stats.n, int(ds.pairs.size() - 4));  // every processed frame has a pose
   EXPECT_LT(ate.stats.rmse, 0.02);

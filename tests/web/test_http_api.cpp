@@ -84,8 +84,8 @@ TEST_F(HttpApiTest, StatusJsonSchema) {
   ASSERT_TRUE(j.at("clients").is_array());
   ASSERT_EQ(j["clients"].size(), 2u);
   const json& a = j["clients"][0];
-  for (const char* key : {"id", "frames_received", "frames_processed", "frames_dropped", "keyframes", "map_points", "group",
-                          "queue_depth"})
+  for (const char* key : {"id", "frames_received", "frames_processed", "frames_dropped", "keyframes", "map_points",
+                          "group", "queue_depth"})
     EXPECT_TRUE(a.at(key).is_number_integer()) << key;
   for (const char* key : {"fps", "input_fps"}) EXPECT_TRUE(a.at(key).is_number()) << key;
   for (const char* key : {"name", "connection", "tracking"}) EXPECT_TRUE(a.at(key).is_string()) << key;
@@ -156,7 +156,8 @@ TEST_F(HttpApiTest, TrajectoriesPointsEventsAndMetrics) {
   ASSERT_TRUE(metrics);
   EXPECT_EQ(metrics->status, 200);
   EXPECT_NE(metrics->body.find("# TYPE cslam_frames_received_total counter"), std::string::npos);
-  EXPECT_NE(metrics->body.find("cslam_frames_received_total{client=\"1\",name=\"alpha\"} 3"), std::string::npos) << metrics->body;
+  EXPECT_NE(metrics->body.find("cslam_frames_received_total{client=\"1\",name=\"alpha\"} 3"), std::string::npos)
+      << metrics->body;
   // Exactly one state line is 1 per client (SLAM off: frames count as tracked).
   EXPECT_NE(metrics->body.find("cslam_tracking_state{client=\"2\",state=\"tracking\"} 1"), std::string::npos)
       << metrics->body;
@@ -360,7 +361,8 @@ TEST_F(HttpApiTest, ErrorRepliesNeverThrowOnBadBytes) {
   const auto thrown = cli.Get("/test/throw");
   ASSERT_TRUE(thrown);
   EXPECT_EQ(thrown->status, 500);
-  EXPECT_NE(json::parse(thrown->body).value("error", "").find("bad \\xff\\xfe bytes"), std::string::npos) << thrown->body;
+  EXPECT_NE(json::parse(thrown->body).value("error", "").find("bad \\xff\\xfe bytes"), std::string::npos)
+      << thrown->body;
   const auto replied = cli.Get("/test/reply");
   ASSERT_TRUE(replied);
   EXPECT_EQ(replied->status, 200);
@@ -396,7 +398,8 @@ TEST_F(HttpApiTest, ReconstructionOverTheBudgetIs413WithTheEstimate) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   EXPECT_EQ(status.at("reconstruction").at("refused_over_budget"), 1);
-  EXPECT_NE(cli.Get("/metrics")->body.find("cslam_recon_jobs_total{outcome=\"refused_over_budget\"} 1"), std::string::npos);
+  EXPECT_NE(cli.Get("/metrics")->body.find("cslam_recon_jobs_total{outcome=\"refused_over_budget\"} 1"),
+            std::string::npos);
 }
 
 // Item 7: snapshot writes in /metrics and /api/health (a store reporting failures).
@@ -406,7 +409,7 @@ class FakeStore : public MapStore {
   std::string write_now(double) override { return "no"; }
   std::size_t load(const std::string&) override { return 0; }
   std::string stats_json() const override { return stats.dump(); }
-  json stats = {{"state_dir", "/state"}, {"written", 3}, {"failed", 0}, {"failing_for_s", 0.0},
+  json stats = {{"state_dir", "/state"},     {"written", 3},    {"failed", 0}, {"failing_for_s", 0.0},
                 {"last_success_age_s", 4.5}, {"last_error", ""}};
 };
 

@@ -34,16 +34,20 @@ nlohmann::json distance_json(const DistanceStats& s) {
 }  // namespace
 
 int cmd_cloud(int argc, char** argv) {
-  CliArgs args("cslam-eval cloud",
-               "Cloud-to-cloud distances of TEST against REF (metres): Hausdorff TEST->REF, REF->TEST and symmetric; "
-               "mean/median/95th percentile of TEST->REF nearest-neighbour distances (C2C); completeness = share of REF "
-               "points within 2 cm / 5 cm of TEST.");
+  CliArgs args(
+      "cslam-eval cloud",
+      "Cloud-to-cloud distances of TEST against REF (metres): Hausdorff TEST->REF, REF->TEST and symmetric; "
+      "mean/median/95th percentile of TEST->REF nearest-neighbour distances (C2C); completeness = share of REF "
+      "points within 2 cm / 5 cm of TEST.");
   args.positional("REF", "reference cloud, PLY (e.g. scene.ply or the ground-truth-pose cloud)")
       .positional("TEST", "cloud to evaluate, PLY")
-      .flag("match-bbox", "first translate TEST so the bounding-box centres coincide and scale it about that centre so the "
-                          "bounding-box diagonals are equal (the paper's CloudCompare step)")
-      .option("move-from", "with --move-to: move TEST by the rigid transform that takes this trajectory (TUM) to the "
-                           "--move-to one (e.g. a SLAM trajectory and its copy aligned by cslam-eval ate --aligned)", "")
+      .flag("match-bbox",
+            "first translate TEST so the bounding-box centres coincide and scale it about that centre so the "
+            "bounding-box diagonals are equal (the paper's CloudCompare step)")
+      .option("move-from",
+              "with --move-to: move TEST by the rigid transform that takes this trajectory (TUM) to the "
+              "--move-to one (e.g. a SLAM trajectory and its copy aligned by cslam-eval ate --aligned)",
+              "")
       .option("move-to", "the aligned trajectory for --move-from", "")
       .option("threads", "threads for the nearest-neighbour queries", "2")
       .flag("json", "print JSON instead of a table");
@@ -71,10 +75,13 @@ int cmd_cloud(int argc, char** argv) {
     nlohmann::json j;
     j["ref_points"] = c.ref_points;
     j["test_points"] = c.test_points;
-    j["hausdorff"] = {{"test_to_ref", c.hausdorff_test_to_ref}, {"ref_to_test", c.hausdorff_ref_to_test}, {"symmetric", c.hausdorff_symmetric}};
+    j["hausdorff"] = {{"test_to_ref", c.hausdorff_test_to_ref},
+                      {"ref_to_test", c.hausdorff_ref_to_test},
+                      {"symmetric", c.hausdorff_symmetric}};
     j["c2c_test_to_ref"] = distance_json(c.test_to_ref);
     j["c2c_ref_to_test"] = distance_json(c.ref_to_test);
-    for (const auto& [thr, share] : c.completeness) j["completeness"][std::to_string(int(thr * 100 + 0.5)) + "cm"] = share;
+    for (const auto& [thr, share] : c.completeness)
+      j["completeness"][std::to_string(int(thr * 100 + 0.5)) + "cm"] = share;
     j["bbox_matched"] = c.bbox_matched;
     if (c.bbox_matched) {
       j["bbox"] = {{"scale", c.bbox.scale},
@@ -85,15 +92,18 @@ int cmd_cloud(int argc, char** argv) {
     std::cout << j.dump(2) << "\n";
     return 0;
   }
-  std::printf("REF  %s: %zu points\nTEST %s: %zu points\n", ref_path.c_str(), c.ref_points, test_path.c_str(), c.test_points);
+  std::printf("REF  %s: %zu points\nTEST %s: %zu points\n", ref_path.c_str(), c.ref_points, test_path.c_str(),
+              c.test_points);
   if (c.bbox_matched) {
     const Eigen::Vector3f d = c.bbox.center_ref - c.bbox.center_test;
-    std::printf("bbox matching: scale %.6f about the TEST centre, translation %.4f %.4f %.4f m\n", c.bbox.scale, d.x(), d.y(), d.z());
+    std::printf("bbox matching: scale %.6f about the TEST centre, translation %.4f %.4f %.4f m\n", c.bbox.scale, d.x(),
+                d.y(), d.z());
   }
-  std::printf("Hausdorff (m): TEST->REF %.6f  REF->TEST %.6f  symmetric %.6f\n", c.hausdorff_test_to_ref, c.hausdorff_ref_to_test,
-              c.hausdorff_symmetric);
+  std::printf("Hausdorff (m): TEST->REF %.6f  REF->TEST %.6f  symmetric %.6f\n", c.hausdorff_test_to_ref,
+              c.hausdorff_ref_to_test, c.hausdorff_symmetric);
   std::printf("%-12s %10s %10s %10s %10s %10s\n", "C2C (m)", "mean", "median", "p95", "max", "rmse");
-  for (const auto& [name, s] : {std::pair<const char*, DistanceStats>{"TEST->REF", c.test_to_ref}, {"REF->TEST", c.ref_to_test}})
+  for (const auto& [name, s] :
+       {std::pair<const char*, DistanceStats>{"TEST->REF", c.test_to_ref}, {"REF->TEST", c.ref_to_test}})
     std::printf("%-12s %10.6f %10.6f %10.6f %10.6f %10.6f\n", name, s.mean, s.median, s.p95, s.max, s.rmse);
   std::printf("completeness (REF points within):");
   for (const auto& [thr, share] : c.completeness) std::printf("  %.0f cm %.2f%%", thr * 100, share * 100);

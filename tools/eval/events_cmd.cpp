@@ -58,11 +58,13 @@ std::vector<Event> read_events(const std::string& path, int single_client) {
   }
   std::vector<Event> out;
   try {
-    for (const auto& e : j.value("loop_events", nlohmann::json::array())) out.push_back(parse_event(e, "loop", single_client, path));
+    for (const auto& e : j.value("loop_events", nlohmann::json::array()))
+      out.push_back(parse_event(e, "loop", single_client, path));
     for (const auto& c : j.value("clients", nlohmann::json::array()))
       for (const auto& e : c.value("loop_events", nlohmann::json::array()))
         out.push_back(parse_event(e, "loop", c.at("id").get<int>(), path));
-    for (const auto& e : j.value("fusion_events", nlohmann::json::array())) out.push_back(parse_event(e, e.value("kind", "fusion"), 0, path));
+    for (const auto& e : j.value("fusion_events", nlohmann::json::array()))
+      out.push_back(parse_event(e, e.value("kind", "fusion"), 0, path));
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path, std::string("unexpected event layout: ") + e.what());
   }
@@ -90,7 +92,8 @@ int cmd_events(int argc, char** argv) {
   if (!args.get("gt").empty()) shared_gt = read_tum_trajectory(args.get("gt"));
   const auto client_gt = args.get_multi("client-gt");
   if (client_gt.size() % 2 != 0) throw ConfigError("--client-gt takes pairs: K PATH [K PATH ...]");
-  for (size_t i = 0; i < client_gt.size(); i += 2) gt_of[std::stoi(client_gt[i])] = read_tum_trajectory(client_gt[i + 1]);
+  for (size_t i = 0; i < client_gt.size(); i += 2)
+    gt_of[std::stoi(client_gt[i])] = read_tum_trajectory(client_gt[i + 1]);
   if (shared_gt.empty() && gt_of.empty()) throw ConfigError("give --gt or --client-gt");
   for (auto& [k, t] : gt_of) sort_by_time(t);
   sort_by_time(shared_gt);
@@ -120,14 +123,19 @@ int cmd_events(int argc, char** argv) {
   int within = 0, checked = 0;
   out["events"] = nlohmann::json::array();
   for (const auto& e : events) {
-    const auto r = relative_pose_error(gt_for(e.client_query), e.query_time, gt_for(e.client_candidate), e.candidate_time,
-                                       e.T_query_candidate, offset);
+    const auto r = relative_pose_error(gt_for(e.client_query), e.query_time, gt_for(e.client_candidate),
+                                       e.candidate_time, e.T_query_candidate, offset);
     const bool ok = r.valid && r.rotation_deg < max_rot && r.translation_m < max_trans;
     checked += r.valid ? 1 : 0;
     within += ok ? 1 : 0;
-    nlohmann::json je = {{"kind", e.kind},         {"client_query", e.client_query}, {"client_candidate", e.client_candidate},
-                         {"query_timestamp", e.query_time}, {"candidate_timestamp", e.candidate_time},
-                         {"inliers", e.inliers},   {"has_ground_truth", r.valid},    {"within_bounds", ok}};
+    nlohmann::json je = {{"kind", e.kind},
+                         {"client_query", e.client_query},
+                         {"client_candidate", e.client_candidate},
+                         {"query_timestamp", e.query_time},
+                         {"candidate_timestamp", e.candidate_time},
+                         {"inliers", e.inliers},
+                         {"has_ground_truth", r.valid},
+                         {"within_bounds", ok}};
     if (r.valid) {
       je["rotation_error_deg"] = r.rotation_deg;
       je["translation_error_m"] = r.translation_m;
@@ -143,10 +151,10 @@ int cmd_events(int argc, char** argv) {
   } else {
     std::printf("time offset %+.3f s", offset);
     if (estimated.ok)
-      std::printf(" (estimated: median 0.5 s relative rotation error %.2f deg, %.2f deg at 0)", estimated.median_rotation_deg,
-                  estimated.median_rotation_deg_at_zero);
-    std::printf("\n%-11s %7s %17s %17s %8s %9s %9s %s\n", "kind", "clients", "query_t", "candidate_t", "inliers", "rot_deg",
-                "trans_m", "ok");
+      std::printf(" (estimated: median 0.5 s relative rotation error %.2f deg, %.2f deg at 0)",
+                  estimated.median_rotation_deg, estimated.median_rotation_deg_at_zero);
+    std::printf("\n%-11s %7s %17s %17s %8s %9s %9s %s\n", "kind", "clients", "query_t", "candidate_t", "inliers",
+                "rot_deg", "trans_m", "ok");
     for (const auto& je : out["events"]) {
       const bool v = je["has_ground_truth"].get<bool>();
       std::printf("%-11s %3d->%-3d %17.3f %17.3f %8d %9s %9s %s\n", je["kind"].get<std::string>().c_str(),

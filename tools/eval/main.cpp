@@ -15,17 +15,19 @@ using namespace cslam;
 namespace cslam {
 int cmd_cloud(int argc, char** argv);   // cloud_cmd.cpp
 int cmd_events(int argc, char** argv);  // events_cmd.cpp
-}
+}  // namespace cslam
 
 namespace {
 
 nlohmann::json stats_json(const ErrorStats& s) {
-  return {{"n", s.n}, {"max", s.max}, {"min", s.min}, {"mean", s.mean}, {"median", s.median}, {"rmse", s.rmse}, {"std", s.std}};
+  return {{"n", s.n},           {"max", s.max},   {"min", s.min}, {"mean", s.mean},
+          {"median", s.median}, {"rmse", s.rmse}, {"std", s.std}};
 }
 
 void print_stats(const char* unit, const ErrorStats& s) {
   std::printf("%-6s %8s %10s %10s %10s %10s %10s %10s\n", unit, "n", "max", "min", "mean", "median", "rmse", "std");
-  std::printf("%-6s %8d %10.6f %10.6f %10.6f %10.6f %10.6f %10.6f\n", "", s.n, s.max, s.min, s.mean, s.median, s.rmse, s.std);
+  std::printf("%-6s %8d %10.6f %10.6f %10.6f %10.6f %10.6f %10.6f\n", "", s.n, s.max, s.min, s.mean, s.median, s.rmse,
+              s.std);
 }
 
 int cmd_ate(int argc, char** argv) {
@@ -35,9 +37,11 @@ int cmd_ate(int argc, char** argv) {
       .option("align", "se3 | sim3 | none", "se3")
       .option("max-dt", "maximum timestamp difference for association (s)", "0.02")
       .option("per-pose", "write 'timestamp error_m' per associated pose to this file", "")
-      .multi_option("also", "more GT EST pairs evaluated with the same single alignment (a fused group: one\n"
-                            "      pair per client, each associated on its own), e.g. --also gt2.txt est2.txt")
-      .multi_option("aligned", "write each estimate (EST, then the --also ones) transformed by the alignment to these files")
+      .multi_option("also",
+                    "more GT EST pairs evaluated with the same single alignment (a fused group: one\n"
+                    "      pair per client, each associated on its own), e.g. --also gt2.txt est2.txt")
+      .multi_option("aligned",
+                    "write each estimate (EST, then the --also ones) transformed by the alignment to these files")
       .flag("json", "print JSON instead of a table");
   if (!args.parse(argc, argv, 2)) return 0;
   std::vector<std::pair<Trajectory, Trajectory>> pairs;
@@ -98,10 +102,14 @@ int cmd_rpe(int argc, char** argv) {
     throw ConfigError("--delta expects seconds, e.g. 1s");
   }
   if (!(delta > 0)) throw ConfigError("--delta must be positive");
-  const auto r = compute_rpe(read_tum_trajectory(args.positionals()[0]), read_tum_trajectory(args.positionals()[1]), delta,
-                             args.get_double("max-dt"));
+  const auto r = compute_rpe(read_tum_trajectory(args.positionals()[0]), read_tum_trajectory(args.positionals()[1]),
+                             delta, args.get_double("max-dt"));
   if (args.flag_set("json")) {
-    std::cout << nlohmann::json{{"delta_s", delta}, {"translation_m", stats_json(r.translation)}, {"rotation_deg", stats_json(r.rotation)}}.dump(2) << "\n";
+    std::cout << nlohmann::json{{"delta_s", delta},
+                                {"translation_m", stats_json(r.translation)},
+                                {"rotation_deg", stats_json(r.rotation)}}
+                     .dump(2)
+              << "\n";
   } else {
     std::printf("RPE over %.3f s\n", delta);
     print_stats("m", r.translation);
@@ -111,7 +119,8 @@ int cmd_rpe(int argc, char** argv) {
 }
 
 int cmd_split(int argc, char** argv) {
-  CliArgs args("cslam-eval split", "Frame ranges (1-based, inclusive) of the paper's K-client split with overlap rate ETA.");
+  CliArgs args("cslam-eval split",
+               "Frame ranges (1-based, inclusive) of the paper's K-client split with overlap rate ETA.");
   args.option("frames", "number of associated RGB-D frames N")
       .option("clients", "number of clients K")
       .option("overlap", "overlap rate eta, as a fraction (0.05) or percent (5%)")
@@ -125,7 +134,8 @@ int cmd_split(int argc, char** argv) {
     for (const auto& fr : r.ranges) j["ranges"].push_back({fr.first, fr.last});
     std::cout << j.dump() << "\n";
   } else {
-    std::printf("# N=%d K=%d eta=%.4f delta=%.2f frames\n", args.get_int("frames"), args.get_int("clients"), eta, r.delta);
+    std::printf("# N=%d K=%d eta=%.4f delta=%.2f frames\n", args.get_int("frames"), args.get_int("clients"), eta,
+                r.delta);
     for (size_t k = 0; k < r.ranges.size(); ++k)
       std::printf("client %zu: %d %d\n", k + 1, r.ranges[k].first, r.ranges[k].last);
   }

@@ -67,7 +67,9 @@ DenseResult CloudEvaluator::slam_cloud(const RunDetail& detail, const std::vecto
 }
 
 CloudEvaluator::CloudEvaluator(ReconOptions options, std::string scene_ply, std::string camera, std::string cache_dir)
-    : options_(options), scene_ply_(std::move(scene_ply)), camera_(std::move(camera)),
+    : options_(options),
+      scene_ply_(std::move(scene_ply)),
+      camera_(std::move(camera)),
       cache_dir_(std::move(cache_dir)) {}
 
 const std::vector<Eigen::Vector3f>& CloudEvaluator::scene_points() {
@@ -131,11 +133,12 @@ void CloudEvaluator::evaluate_live(const RunDetail& detail, const ColoredCloud& 
   const CloudComparison plain = compare_clouds(gt.points, live.points, cc);
   f.live_c2c_median = plain.test_to_ref.median;
   f.live_c2c_p95 = plain.test_to_ref.p95;
-  if (!scene_ply_.empty()) f.live_scene_median = distance_stats(nearest_distances(live.points, scene_points(), 2)).median;
+  if (!scene_ply_.empty())
+    f.live_scene_median = distance_stats(nearest_distances(live.points, scene_points(), 2)).median;
 }
 
-CloudFigures CloudEvaluator::evaluate(const RunDetail& detail, const std::vector<ClientSpec>& specs, DatasetStore& datasets,
-                                      const std::string& run_dir) {
+CloudFigures CloudEvaluator::evaluate(const RunDetail& detail, const std::vector<ClientSpec>& specs,
+                                      DatasetStore& datasets, const std::string& run_dir) {
   CloudFigures f;
   if (!options_.enabled) {
     f.note = "reconstruction off (--no-recon)";
@@ -187,7 +190,8 @@ CloudFigures CloudEvaluator::evaluate(const RunDetail& detail, const std::vector
       f.scene_max = s.max;
       auto it = gt_scene_median_.find(key);
       if (it == gt_scene_median_.end())
-        it = gt_scene_median_.emplace(key, distance_stats(nearest_distances(gt.points, scene_points(), 2)).median).first;
+        it =
+            gt_scene_median_.emplace(key, distance_stats(nearest_distances(gt.points, scene_points(), 2)).median).first;
       f.gt_scene_median = it->second;
     }
     evaluate_live(detail, gt, run_dir, f);

@@ -27,8 +27,8 @@ class CloudEvaluator {
                         const std::string& run_dir);
 
  private:
-  const ColoredCloud& groundtruth_cloud(const RunDetail& detail, const std::vector<ClientSpec>& specs, DatasetStore& datasets,
-                                        std::string& key);
+  const ColoredCloud& groundtruth_cloud(const RunDetail& detail, const std::vector<ClientSpec>& specs,
+                                        DatasetStore& datasets, std::string& key);
   const std::vector<Eigen::Vector3f>& scene_points();
   // Network runs: the server's live dense cloud against the same ground-truth cloud.
   void evaluate_live(const RunDetail& detail, const ColoredCloud& gt, const std::string& run_dir, CloudFigures& f);
@@ -38,7 +38,7 @@ class CloudEvaluator {
   ReconOptions options_;
   std::string scene_ply_, camera_, cache_dir_;
   std::optional<std::vector<Eigen::Vector3f>> scene_;
-  std::map<std::string, ColoredCloud> gt_clouds_;   // by the frames they were built from
+  std::map<std::string, ColoredCloud> gt_clouds_;  // by the frames they were built from
   std::map<std::string, double> gt_scene_median_;
 };
 

@@ -76,8 +76,8 @@ std::vector<int> parse_client_counts(const std::string& text, int max_clients) {
       used = 0;
     }
     if (item.empty() || used != item.size() || v < 1 || v > max_clients)
-      throw ConfigError("cslam-experiment: --clients expects numbers 1.." + std::to_string(max_clients) + " like 1,2,3; bad item '" +
-                        item + "'");
+      throw ConfigError("cslam-experiment: --clients expects numbers 1.." + std::to_string(max_clients) +
+                        " like 1,2,3; bad item '" + item + "'");
     if (std::find(out.begin(), out.end(), v) != out.end())
       throw ConfigError("cslam-experiment: --clients lists " + item + " twice");
     out.push_back(v);

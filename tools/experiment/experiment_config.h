@@ -14,9 +14,9 @@ RunMode parse_mode(const std::string& text);  // "offline" | "network" | "live";
 
 struct ReconOptions {
   bool enabled = true;
-  double voxel = 0.02;     // voxel-grid leaf (m) of both clouds
-  int stride = 4;          // back-project every n-th pixel
-  double max_depth = 4.0;  // metres
+  double voxel = 0.02;       // voxel-grid leaf (m) of both clouds
+  int stride = 4;            // back-project every n-th pixel
+  double max_depth = 4.0;    // metres
   bool keep_clouds = false;  // write each run's SLAM cloud (and the ground-truth cloud) as PLY
 };
 
@@ -35,9 +35,9 @@ struct ExperimentOptions {
   bool quick = false;
   double timeout_s = 900;  // per run (SLAM processes only)
   std::string rate = "max";
-  int depth_every = 1;     // network/live: cslam-client --depth-every (lean stream when > 1)
-  std::string camera;      // passed to the SLAM programs if set
-  std::string bin_dir;     // where cslam-slam, cslam-server, cslam-client, cslam-synth live
+  int depth_every = 1;  // network/live: cslam-client --depth-every (lean stream when > 1)
+  std::string camera;   // passed to the SLAM programs if set
+  std::string bin_dir;  // where cslam-slam, cslam-server, cslam-client, cslam-synth live
   ReconOptions recon;
   std::string command_line;  // as given, for the report
 };
@@ -60,7 +60,7 @@ struct RunConfig {
   std::string label;  // table text: "single", "2 clients", "single (robot_2)"
   int clients = 1;
   double overlap_percent = std::numeric_limits<double>::quiet_NaN();  // NaN: not a split
-  bool split = false;  // clients share one dataset (the paper's split)
+  bool split = false;                                                 // clients share one dataset (the paper's split)
   std::vector<ClientSpec> specs;
 };
 

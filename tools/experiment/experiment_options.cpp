@@ -20,37 +20,57 @@ std::string own_directory() {
 }  // namespace
 
 void declare_options(CliArgs& args) {
-  args.option("dataset", "one TUM-layout sequence, split into K clients with the paper's ranges (e.g. ../shared/data/tum_fr1_rpy)", "")
-      .multi_option("datasets", "one dataset folder per client instead (no split), e.g. cslam-synth's robot_1 robot_2 robot_3")
-      .option("synthetic", "cslam-synth output folder (robot_K + scene.ply); generated with --synth-preset if it does not exist", "")
+  args.option("dataset",
+              "one TUM-layout sequence, split into K clients with the paper's ranges (e.g. ../shared/data/tum_fr1_rpy)",
+              "")
+      .multi_option("datasets",
+                    "one dataset folder per client instead (no split), e.g. cslam-synth's robot_1 robot_2 robot_3")
+      .option("synthetic",
+              "cslam-synth output folder (robot_K + scene.ply); generated with --synth-preset if it does not exist", "")
       .option("synth-preset", "preset for generating --synthetic (demo | test-small)", "")
-      .option("scene", "exact surface (PLY) to measure the reconstructions against; default: scene.ply of --synthetic", "")
+      .option("scene", "exact surface (PLY) to measure the reconstructions against; default: scene.ply of --synthetic",
+              "")
       .option("out", "report folder (report.md, results.csv, results.json, figures/, runs/)")
       .option("clients", "client counts, e.g. 1,2,3 (1 = the single-client baseline); --quick: 1,2", "")
       .option("overlaps", "overlap rates eta in percent, e.g. 0.5,2.5,5,10 (split mode); --quick: 5", "")
-      .option("mode", "network (cslam-server + cslam-client processes over loopback) | live (network, clients streaming live at\n"
-                     "      the dataset's own clock, --rate ignored) | offline (cslam-slam)", "network")
+      .option(
+          "mode",
+          "network (cslam-server + cslam-client processes over loopback) | live (network, clients streaming live at\n"
+          "      the dataset's own clock, --rate ignored) | offline (cslam-slam)",
+          "network")
       .option("repeat", "runs per configuration (medians and min-max are reported); --quick: 1", "")
-      .flag("quick", "reduced matrix for CI: K = 1 and 2 at one eta, 1 repeat, coarse reconstruction; without data options "
-                     "it generates and uses the small synthetic scene (cslam-synth --preset test-small) in OUT")
-      .option("timeout", "seconds per run before its processes are stopped and the run is reported as failed; --quick: 180", "")
+      .flag("quick",
+            "reduced matrix for CI: K = 1 and 2 at one eta, 1 repeat, coarse reconstruction; without data options "
+            "it generates and uses the small synthetic scene (cslam-synth --preset test-small) in OUT")
+      .option("timeout",
+              "seconds per run before its processes are stopped and the run is reported as failed; --quick: 180", "")
       .option("rate", "client send rate in network mode: frames/s or 'max'", "max")
-      .option("depth-every", "network/live: every cslam-client sends a lean stream (cslam-client --depth-every K): full frames every K-th frame and when the server asks, light frames (H.264 colour, depth at 1/4 of each axis) between; 1: every frame full", "1")
-      .option("camera", "camera preset or file for the dataset (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
-      .option("bin-dir", "folder of cslam-slam, cslam-server, cslam-client, cslam-synth (default: this program's folder)", "")
+      .option("depth-every",
+              "network/live: every cslam-client sends a lean stream (cslam-client --depth-every K): full frames every "
+              "K-th frame and when the server asks, light frames (H.264 colour, depth at 1/4 of each axis) between; 1: "
+              "every frame full",
+              "1")
+      .option("camera",
+              "camera preset or file for the dataset (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx "
+              "cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)",
+              "")
+      .option("bin-dir",
+              "folder of cslam-slam, cslam-server, cslam-client, cslam-synth (default: this program's folder)", "")
       .option("recon-voxel", "voxel size (m) of the reconstructions for Table III; --quick: 0.04", "")
       .option("recon-stride", "back-project every n-th pixel; --quick: 8", "")
       .option("recon-max-depth", "maximum depth (m) used in the reconstructions", "4.0")
       .flag("no-recon", "skip the reconstructions (Table III n/a)")
-      .flag("keep-clouds", "also write each run's SLAM-pose cloud and the ground-truth-pose clouds (PLY) under OUT/runs");
+      .flag("keep-clouds",
+            "also write each run's SLAM-pose cloud and the ground-truth-pose clouds (PLY) under OUT/runs");
 }
 
 std::string shell_command(int argc, char** argv) {
   std::string out;
   for (int i = 0; i < argc; ++i) {
     const std::string a = argv[i];
-    const bool plain = !a.empty() && a.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=/.,:%@") ==
-                                         std::string::npos;
+    const bool plain =
+        !a.empty() && a.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=/.,:%@") ==
+                          std::string::npos;
     std::string q = a;
     if (!plain) {
       q = "'";
@@ -74,13 +94,15 @@ ExperimentOptions options_from(const CliArgs& args, int argc, char** argv) {
   const int sources = int(!o.dataset.empty()) + int(!o.datasets.empty()) + int(!o.synthetic_dir.empty());
   if (sources > 1) throw ConfigError(p + "give only one of --dataset, --datasets, --synthetic");
   if (sources == 0) {
-    if (!o.quick) throw ConfigError(p + "no data: give --dataset DIR, --datasets DIR1 DIR2 ... or --synthetic DIR (see --help)");
+    if (!o.quick)
+      throw ConfigError(p + "no data: give --dataset DIR, --datasets DIR1 DIR2 ... or --synthetic DIR (see --help)");
     o.synthetic_dir = o.out_dir + "/synthetic_test-small";  // --quick alone: the small synthetic scene
   }
   o.synth_preset = args.has("synth-preset") ? args.get("synth-preset") : (sources == 0 ? "test-small" : "demo");
   if (o.synth_preset != "demo" && o.synth_preset != "test-small")
     throw ConfigError(p + "--synth-preset must be demo or test-small, got '" + o.synth_preset + "'");
-  if (!o.scene_ply.empty() && !std::filesystem::exists(o.scene_ply)) throw ConfigError(p + "--scene " + o.scene_ply + " does not exist");
+  if (!o.scene_ply.empty() && !std::filesystem::exists(o.scene_ply))
+    throw ConfigError(p + "--scene " + o.scene_ply + " does not exist");
 
   o.clients = parse_client_counts(args.has("clients") ? args.get("clients") : o.quick ? "1,2" : "1,2,3");
   o.overlaps_percent = parse_overlaps(args.has("overlaps") ? args.get("overlaps") : o.quick ? "5" : "0.5,2.5,5,10");
@@ -111,7 +133,8 @@ ExperimentOptions options_from(const CliArgs& args, int argc, char** argv) {
     programs = {"cslam-slam"};
   else
     programs = {"cslam-server", "cslam-client"};
-  if (!o.synthetic_dir.empty() && !std::filesystem::exists(o.synthetic_dir + "/scene.ply")) programs.push_back("cslam-synth");
+  if (!o.synthetic_dir.empty() && !std::filesystem::exists(o.synthetic_dir + "/scene.ply"))
+    programs.push_back("cslam-synth");
   for (const auto& prog : programs) {
     const std::string path = o.bin_dir + "/" + prog;
     if (::access(path.c_str(), X_OK) != 0)

@@ -37,13 +37,16 @@ struct ResolvedData {
 void generate_synthetic(const ExperimentOptions& o) {
   const std::string dir = o.synthetic_dir;
   if (fs::exists(dir + "/scene.ply")) return;
-  if (fs::exists(dir)) throw InputError(dir, "exists but holds no scene.ply (not a cslam-synth output); remove it or pick another folder");
+  if (fs::exists(dir))
+    throw InputError(dir, "exists but holds no scene.ply (not a cslam-synth output); remove it or pick another folder");
   if (fs::path(dir).has_parent_path()) fs::create_directories(fs::path(dir).parent_path());
   fs::create_directories(o.out_dir);
   const std::string log = o.out_dir + "/synth.log";
-  std::printf("generating the synthetic scene: cslam-synth --preset %s --out %s\n", o.synth_preset.c_str(), dir.c_str());
+  std::printf("generating the synthetic scene: cslam-synth --preset %s --out %s\n", o.synth_preset.c_str(),
+              dir.c_str());
   std::fflush(stdout);
-  ChildProcess synth({o.bin_dir + "/cslam-synth", "--preset", o.synth_preset, "--out", dir, "--log-level", "warn"}, log);
+  ChildProcess synth({o.bin_dir + "/cslam-synth", "--preset", o.synth_preset, "--out", dir, "--log-level", "warn"},
+                     log);
   const int r = wait_any({&synth}, Clock::now() + std::chrono::minutes(15));
   if (r != 0) stop_all({&synth}, 2.0);
   if (!synth.succeeded()) throw InputError(dir, "cslam-synth " + synth.status_text() + ": " + log_tail(log, 2));
@@ -58,7 +61,8 @@ ResolvedData resolve_data(const ExperimentOptions& o, DatasetStore& store) {
     std::sort(d.dirs.begin(), d.dirs.end());
     if (d.dirs.empty()) throw InputError(o.synthetic_dir, "no robot_K folders (not a cslam-synth multi-robot output)");
     d.scene = o.scene_ply.empty() ? o.synthetic_dir + "/scene.ply" : o.scene_ply;
-    d.lines.push_back("Synthetic scene `" + o.synthetic_dir + "` (cslam-synth, exact ground truth), one dataset per client, no split.");
+    d.lines.push_back("Synthetic scene `" + o.synthetic_dir +
+                      "` (cslam-synth, exact ground truth), one dataset per client, no split.");
   } else if (!o.datasets.empty()) {
     d.dirs = o.datasets;
     d.scene = o.scene_ply;
@@ -66,11 +70,14 @@ ResolvedData resolve_data(const ExperimentOptions& o, DatasetStore& store) {
   } else {
     d.dirs = {o.dataset};
     d.scene = o.scene_ply;
-    d.lines.push_back("One sequence split into K clients with the paper's ranges (`cslam-eval split`), frames = associated RGB-D pairs.");
+    d.lines.push_back(
+        "One sequence split into K clients with the paper's ranges (`cslam-eval split`), frames = associated RGB-D "
+        "pairs.");
   }
   for (const auto& dir : d.dirs) {
     const TumDataset& ds = store.get(dir);
-    if (ds.pairs.size() < 10) throw InputError(dir, "only " + std::to_string(ds.pairs.size()) + " associated RGB-D pairs");
+    if (ds.pairs.size() < 10)
+      throw InputError(dir, "only " + std::to_string(ds.pairs.size()) + " associated RGB-D pairs");
     d.frame_counts.push_back(int(ds.pairs.size()));
     char buf[256];
     std::snprintf(buf, sizeof buf, ": %zu associated RGB-D pairs over %.1f s; ", ds.pairs.size(),
@@ -84,7 +91,8 @@ ResolvedData resolve_data(const ExperimentOptions& o, DatasetStore& store) {
 }
 
 std::string ranges_line(const RunConfig& c) {
-  std::string s = c.label + (std::isfinite(c.overlap_percent) ? " at η = " + overlap_text(c.overlap_percent) + " %" : "") + ": ";
+  std::string s =
+      c.label + (std::isfinite(c.overlap_percent) ? " at η = " + overlap_text(c.overlap_percent) + " %" : "") + ": ";
   for (std::size_t i = 0; i < c.specs.size(); ++i)
     s += (i ? ", " : "") + ("c" + std::to_string(c.specs[i].id) + " frames ") + std::to_string(c.specs[i].first) + "–" +
          std::to_string(c.specs[i].last) + (c.split ? "" : " of " + fs::path(c.specs[i].dataset).filename().string());
@@ -94,15 +102,19 @@ std::string ranges_line(const RunConfig& c) {
 std::string progress_line(int index, int total, const RunRecord& r) {
   char buf[512];
   if (!r.ok) {
-    std::snprintf(buf, sizeof buf, "[%d/%d] %s r%d: FAILED (%s)", index, total, r.config.c_str(), r.repeat, r.error.c_str());
+    std::snprintf(buf, sizeof buf, "[%d/%d] %s r%d: FAILED (%s)", index, total, r.config.c_str(), r.repeat,
+                  r.error.c_str());
     return buf;
   }
   std::snprintf(buf, sizeof buf,
                 "[%d/%d] %s r%d: SLAM %.2f s (CPU %.1f s), APE RMSE %s m, %s, frames lost %d, Hausdorff(bbox) %s m, "
                 "other processes %.2f cores",
-                index, total, r.config.c_str(), r.repeat, r.slam_time_s, r.slam_cpu_s, report::format_number(r.ate.rmse, 4).c_str(),
-                r.clients == 1 ? "single" : r.all_fused ? "fused" : "NOT fused", r.frames_lost,
-                report::format_number(r.cloud.hausdorff_bbox, 4).c_str(), r.other_cpu_cores);
+                index, total, r.config.c_str(), r.repeat, r.slam_time_s, r.slam_cpu_s,
+                report::format_number(r.ate.rmse, 4).c_str(),
+                r.clients == 1 ? "single"
+                : r.all_fused  ? "fused"
+                               : "NOT fused",
+                r.frames_lost, report::format_number(r.cloud.hausdorff_bbox, 4).c_str(), r.other_cpu_cores);
   return buf;
 }
 
@@ -118,8 +130,9 @@ int run_experiment(const ExperimentOptions& o) {
 
   ReportMeta meta;
   meta.options = &o;
-  meta.title = "cslam experiment — " + fs::path(o.synthetic_dir.empty() ? data.dirs.front() : o.synthetic_dir).filename().string() +
-               " (" + to_string(o.mode) + " mode)";
+  meta.title = "cslam experiment — " +
+               fs::path(o.synthetic_dir.empty() ? data.dirs.front() : o.synthetic_dir).filename().string() + " (" +
+               to_string(o.mode) + " mode)";
   meta.data_lines = data.lines;
   for (const auto& c : configs)
     if (c.clients > 1) meta.data_lines.push_back(ranges_line(c));
@@ -131,9 +144,10 @@ int run_experiment(const ExperimentOptions& o) {
   meta.has_scene = !data.scene.empty();
 
   const int runs_total = int(configs.size()) * o.repeat;
-  std::printf("cslam-experiment: %zu configurations x %d repeat(s) = %d runs, %s mode, report in %s\n", configs.size(), o.repeat,
-              runs_total, to_string(o.mode), o.out_dir.c_str());
-  std::printf("machine: %d cores, %s, load %s\n", meta.machine.cores, meta.machine.cpu_model.c_str(), meta.load_before.c_str());
+  std::printf("cslam-experiment: %zu configurations x %d repeat(s) = %d runs, %s mode, report in %s\n", configs.size(),
+              o.repeat, runs_total, to_string(o.mode), o.out_dir.c_str());
+  std::printf("machine: %d cores, %s, load %s\n", meta.machine.cores, meta.machine.cpu_model.c_str(),
+              meta.load_before.c_str());
   std::fflush(stdout);
 
   CloudEvaluator clouds(o.recon, data.scene, o.camera, o.out_dir + "/runs/gt_clouds");
@@ -212,7 +226,8 @@ int run_experiment(const ExperimentOptions& o) {
   write_json(o.out_dir + "/results.json", meta, summaries);
   write_markdown(o.out_dir + "/report.md", meta, summaries);
 
-  std::printf("\n%-22s %6s %22s %8s %24s %8s\n", "configuration", "ok", "SLAM time (s)", "/single", "APE RMSE (m)", "fused");
+  std::printf("\n%-22s %6s %22s %8s %24s %8s\n", "configuration", "ok", "SLAM time (s)", "/single", "APE RMSE (m)",
+              "fused");
   for (const auto& s : summaries) {
     std::vector<double> t, a;
     int fused = 0;
@@ -226,8 +241,8 @@ int run_experiment(const ExperimentOptions& o) {
                 report::format_spread(report::spread(t), 2).c_str(), report::format_number(s.time_ratio, 2).c_str(),
                 report::format_spread(report::spread(a), 4).c_str(), fused, s.ok);
   }
-  std::printf("\nreport: %s/report.md (%d of %d runs failed; %.1f min)\nreproduce: %s\n", o.out_dir.c_str(), failed, runs_total,
-              total.ms() / 60000.0, o.command_line.c_str());
+  std::printf("\nreport: %s/report.md (%d of %d runs failed; %.1f min)\nreproduce: %s\n", o.out_dir.c_str(), failed,
+              runs_total, total.ms() / 60000.0, o.command_line.c_str());
   return failed;
 }
 

@@ -12,11 +12,12 @@ using namespace cslam::experiment;
 namespace {
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-experiment",
-               "Runs the paper's experiment matrix (single client; K clients x overlap rate eta) with the cslam programs, "
-               "evaluates SLAM time, APE of the combined trajectory, map fusion and dense reconstruction accuracy, and writes "
-               "OUT/report.md (Tables II and III), OUT/results.csv, OUT/results.json and OUT/figures/*.svg. "
-               "Exit code 0: every run succeeded; 3: report written but some runs failed; 1/2: error.");
+  CliArgs args(
+      "cslam-experiment",
+      "Runs the paper's experiment matrix (single client; K clients x overlap rate eta) with the cslam programs, "
+      "evaluates SLAM time, APE of the combined trajectory, map fusion and dense reconstruction accuracy, and writes "
+      "OUT/report.md (Tables II and III), OUT/results.csv, OUT/results.json and OUT/figures/*.svg. "
+      "Exit code 0: every run succeeded; 3: report written but some runs failed; 1/2: error.");
   declare_options(args);
   if (!args.parse(argc, argv)) return 0;
   ExperimentOptions options = options_from(args, argc, argv);

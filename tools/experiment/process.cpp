@@ -73,7 +73,8 @@ ChildProcess::ChildProcess(const std::vector<std::string>& argv, const std::stri
   const int rc = posix_spawn(&pid_, argv[0].c_str(), &actions, &attr, args.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   posix_spawnattr_destroy(&attr);
-  if (rc != 0) throw std::runtime_error("cannot start " + argv[0] + ": " + std::strerror(rc) + " (log " + log_path + ")");
+  if (rc != 0)
+    throw std::runtime_error("cannot start " + argv[0] + ": " + std::strerror(rc) + " (log " + log_path + ")");
   running_ = true;
   pidfd_ = open_pidfd(pid_);
 }
@@ -157,7 +158,8 @@ int wait_any(const std::vector<ChildProcess*>& children, Clock::time_point deadl
 
 void stop_all(const std::vector<ChildProcess*>& children, double grace_s) {
   for (auto* c : children) c->send_signal(SIGTERM);
-  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(grace_s));
+  const auto deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(grace_s));
   for (;;) {
     bool any = false;
     for (auto* c : children) any = any || !c->poll_exit();

@@ -50,7 +50,8 @@ std::string fused_at_cell(const ConfigSummary& s) {
     for (const auto* r : s.runs)
       for (const auto& c : r->client_records)
         if (r->ok && c.id == spec.id && c.fused_at_frame > 0) v.push_back(c.fused_at_frame);
-    out += (out.empty() ? "" : ", ") + ("c" + std::to_string(spec.id) + " ") + (v.empty() ? "never" : format_spread(spread(v), 0));
+    out += (out.empty() ? "" : ", ") + ("c" + std::to_string(spec.id) + " ") +
+           (v.empty() ? "never" : format_spread(spread(v), 0));
   }
   return out;
 }
@@ -65,9 +66,22 @@ std::string m(double v) { return format_number(v, 4); }
 
 void table_two(std::ostream& md, const std::vector<ConfigSummary>& summaries) {
   report::Table t;
-  t.header = {"simulation", "η", "runs ok", "SLAM time (s)", "SLAM time, no other load (s)", "CPU (s)", "time / single",
-              "APE max (m)", "APE min (m)", "APE mean (m)", "APE RMSE (m)", "APE std (m)", "fused", "first fusion (s)",
-              "fused at frame", "frames lost"};
+  t.header = {"simulation",
+              "η",
+              "runs ok",
+              "SLAM time (s)",
+              "SLAM time, no other load (s)",
+              "CPU (s)",
+              "time / single",
+              "APE max (m)",
+              "APE min (m)",
+              "APE mean (m)",
+              "APE RMSE (m)",
+              "APE std (m)",
+              "fused",
+              "first fusion (s)",
+              "fused at frame",
+              "frames lost"};
   t.align = {'l', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'r', 'l', 'r', 'l', 'r'};
   for (const auto& s : summaries) {
     const RunConfig& c = *s.config;
@@ -78,35 +92,49 @@ void table_two(std::ostream& md, const std::vector<ConfigSummary>& summaries) {
     std::vector<double> quiet;
     for (const auto* r : s.runs)
       if (r->ok && is_quiet(*r)) quiet.push_back(r->slam_time_s);
-    const std::string quiet_cell = quiet.empty() ? "none" : format_spread(spread(quiet), 2) + " (" + std::to_string(quiet.size()) + " run" + (quiet.size() > 1 ? "s" : "") + ")";
-    t.rows.push_back({c.label, eta_cell(c), runs_cell(s), format_spread(over_ok(s, [](const RunRecord& r) { return r.slam_time_s; }), 2),
-                      quiet_cell, format_spread(over_ok(s, [](const RunRecord& r) { return r.slam_cpu_s; }), 1),
-                      format_number(s.time_ratio, 2) + (std::isfinite(s.time_ratio) && !s.time_ratio_quiet ? " †" : ""), format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.max; }), 4),
-                      format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.min; }), 4),
-                      format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.mean; }), 4),
-                      format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.rmse; }), 4),
-                      format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.std; }), 4), fused_cell(s),
-                      c.clients == 1 ? "–"
-                                     : format_spread(over_ok(s, [](const RunRecord& r) {
-                                                       return r.fusions.empty() ? kNaN : r.fusions.front().wall_time_s;
-                                                     }),
-                                                     2),
-                      fused_at_cell(s), format_spread(over_ok(s, [](const RunRecord& r) { return double(r.frames_lost); }), 0)});
+    const std::string quiet_cell = quiet.empty()
+                                       ? "none"
+                                       : format_spread(spread(quiet), 2) + " (" + std::to_string(quiet.size()) +
+                                             " run" + (quiet.size() > 1 ? "s" : "") + ")";
+    t.rows.push_back(
+        {c.label, eta_cell(c), runs_cell(s),
+         format_spread(over_ok(s, [](const RunRecord& r) { return r.slam_time_s; }), 2), quiet_cell,
+         format_spread(over_ok(s, [](const RunRecord& r) { return r.slam_cpu_s; }), 1),
+         format_number(s.time_ratio, 2) + (std::isfinite(s.time_ratio) && !s.time_ratio_quiet ? " †" : ""),
+         format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.max; }), 4),
+         format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.min; }), 4),
+         format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.mean; }), 4),
+         format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.rmse; }), 4),
+         format_spread(over_ok(s, [](const RunRecord& r) { return r.ate.std; }), 4), fused_cell(s),
+         c.clients == 1 ? "–"
+                        : format_spread(over_ok(s,
+                                                [](const RunRecord& r) {
+                                                  return r.fusions.empty() ? kNaN : r.fusions.front().wall_time_s;
+                                                }),
+                                        2),
+         fused_at_cell(s), format_spread(over_ok(s, [](const RunRecord& r) { return double(r.frames_lost); }), 0)});
   }
   md << report::to_markdown(t);
 }
 
 void table_three(std::ostream& md, const std::vector<ConfigSummary>& summaries, bool scene) {
   report::Table t;
-  t.header = {"simulation", "η", "Hausdorff, bbox matched (m)", "C2C mean, bbox (m)", "C2C median, bbox (m)", "bbox scale",
-              "Hausdorff, no bbox (m)", "C2C mean, no bbox (m)", "C2C median, no bbox (m)"};
+  t.header = {"simulation",
+              "η",
+              "Hausdorff, bbox matched (m)",
+              "C2C mean, bbox (m)",
+              "C2C median, bbox (m)",
+              "bbox scale",
+              "Hausdorff, no bbox (m)",
+              "C2C mean, no bbox (m)",
+              "C2C median, no bbox (m)"};
   if (scene) {
-    for (const char* h : {"vs scene.ply: C2C median (m)", "C2C mean (m)", "p95 (m)", "Hausdorff SLAM→scene (m)"}) t.header.push_back(h);
+    for (const char* h : {"vs scene.ply: C2C median (m)", "C2C mean (m)", "p95 (m)", "Hausdorff SLAM→scene (m)"})
+      t.header.push_back(h);
   }
   bool live = false;
   for (const auto& s : summaries)
-    for (const RunRecord* r : s.runs)
-      live = live || r->cloud.live_points > 0;
+    for (const RunRecord* r : s.runs) live = live || r->cloud.live_points > 0;
   if (live)
     for (const char* h : {"live dense map: C2C median, no bbox (m)", "C2C p95, no bbox (m)", "Hausdorff, bbox (m)"})
       t.header.push_back(h);
@@ -146,8 +174,9 @@ double single_baseline_rmse(const std::vector<ConfigSummary>& summaries, const C
   double sum_sq = 0, n = 0;
   for (const auto& s : summaries) {
     if (s.config->clients != 1) continue;
-    const bool relevant = s.config->split || std::any_of(collab.config->specs.begin(), collab.config->specs.end(),
-                                                         [&](const ClientSpec& c) { return c.dataset == s.config->specs.at(0).dataset; });
+    const bool relevant =
+        s.config->split || std::any_of(collab.config->specs.begin(), collab.config->specs.end(),
+                                       [&](const ClientSpec& c) { return c.dataset == s.config->specs.at(0).dataset; });
     if (!relevant) continue;
     const auto rmse = over_ok(s, [](const RunRecord& r) { return r.ate.rmse; });
     const auto count = over_ok(s, [](const RunRecord& r) { return r.ate.n > 0 ? double(r.ate.n) : kNaN; });
@@ -170,8 +199,9 @@ void expectations(std::ostream& md, const std::vector<ConfigSummary>& summaries)
     int fused = 0;
     for (const auto* r : s.runs) fused += r->ok && r->all_fused;
     if (fused < int(s.runs.size()))
-      not_fused.push_back(s.config->label + (std::isfinite(s.config->overlap_percent) ? " η " + eta_cell(*s.config) : "") + " (" +
-                          std::to_string(int(s.runs.size()) - fused) + " of " + std::to_string(s.runs.size()) + " runs)");
+      not_fused.push_back(
+          s.config->label + (std::isfinite(s.config->overlap_percent) ? " η " + eta_cell(*s.config) : "") + " (" +
+          std::to_string(int(s.runs.size()) - fused) + " of " + std::to_string(s.runs.size()) + " runs)");
   }
   const report::Spread r = spread(ratios);
   md << "- **SLAM time, collaborative / single** (time / single in Table II): ";
@@ -180,9 +210,12 @@ void expectations(std::ostream& md, const std::vector<ConfigSummary>& summaries)
   else
     md << "median over configurations " << format_number(r.median, 2) << " (" << format_number(r.min, 2) << "–"
        << format_number(r.max, 2) << "); "
-       << (r.max < 1 ? "every collaborative configuration" : r.min < 1 ? "some collaborative configurations" : "no collaborative configuration")
+       << (r.max < 1   ? "every collaborative configuration"
+           : r.min < 1 ? "some collaborative configurations"
+                       : "no collaborative configuration")
        << " finished faster than "
-       << (split ? "the single-client run" : "the single runs of its datasets one after the other") << " on this machine"
+       << (split ? "the single-client run" : "the single runs of its datasets one after the other")
+       << " on this machine"
        << (loaded ? " — **measured with other work on the machine** (ratios marked †), so this is indicative only; CPU "
                     "seconds in Table II do not depend on the load"
                   : "")
@@ -197,18 +230,22 @@ void expectations(std::ostream& md, const std::vector<ConfigSummary>& summaries)
     ++total;
     better_or_equal += a.median <= base;
     pairs += (pairs.empty() ? "" : "; ") + s.config->label +
-             (std::isfinite(s.config->overlap_percent) ? " η " + eta_cell(*s.config) : "") + " " + m(a.median) + " vs " + m(base);
+             (std::isfinite(s.config->overlap_percent) ? " η " + eta_cell(*s.config) : "") + " " + m(a.median) +
+             " vs " + m(base);
   }
   if (total > 0)
     md << "- **Combined APE RMSE vs single-client** (median, metres; single: "
-       << (split ? "the whole sequence by one client" : "the same datasets run alone, pooled over their poses, each aligned on its own")
+       << (split ? "the whole sequence by one client"
+                 : "the same datasets run alone, pooled over their poses, each aligned on its own")
        << "): " << better_or_equal << " of " << total << " collaborative configurations are at or below it — " << pairs
        << ". See the min–max ranges in Table II for the noise.\n";
-  md << "- **Fusion**: " << (not_fused.empty() ? std::string("every collaborative run fused all its clients into one group.")
-                                                : "not every client fused in: ")
+  md << "- **Fusion**: "
+     << (not_fused.empty() ? std::string("every collaborative run fused all its clients into one group.")
+                           : "not every client fused in: ")
      << "";
   for (std::size_t i = 0; i < not_fused.size(); ++i) md << (i ? "; " : "") << not_fused[i];
-  md << (not_fused.empty() ? "\n" : ". Their APE is then computed with one alignment per group (marked in results.csv).\n");
+  md << (not_fused.empty() ? "\n"
+                           : ". Their APE is then computed with one alignment per group (marked in results.csv).\n");
 }
 
 }  // namespace
@@ -220,15 +257,18 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
   for (const auto& l : meta.data_lines) md << "- " << l << "\n";
   md << "\n**Reproduce** (revision " << meta.revision << "):\n\n```sh\n" << meta.reproduce << "\n```\n\n";
   md << "- Mode: **" << to_string(o.mode) << "**"
-     << (o.mode == RunMode::kLive      ? std::string(" — cslam-server and one cslam-client process per client over loopback, "
-                                                           "streaming live (--live --preload: the dataset's clock, stale frames skipped)")
-         : o.mode == RunMode::kNetwork ? " — cslam-server and one cslam-client process per client over loopback, --rate " + o.rate
-                                     : " — cslam-slam in-process (one feeder thread per client)")
-     << "; " << o.repeat << " repeat(s), run in rounds (every configuration once, then again) so that load changes spread "
+     << (o.mode == RunMode::kLive
+             ? std::string(" — cslam-server and one cslam-client process per client over loopback, "
+                           "streaming live (--live --preload: the dataset's clock, stale frames skipped)")
+         : o.mode == RunMode::kNetwork
+             ? " — cslam-server and one cslam-client process per client over loopback, --rate " + o.rate
+             : " — cslam-slam in-process (one feeder thread per client)")
+     << "; " << o.repeat
+     << " repeat(s), run in rounds (every configuration once, then again) so that load changes spread "
      << "over all configurations" << (o.quick ? "; **--quick** (reduced matrix and reconstruction)" : "") << ".\n";
-  md << "- Machine: " << meta.machine.cores << " cores, " << meta.machine.cpu_model << ", " << format_number(meta.machine.memory_gb, 1)
-     << " GB, " << meta.machine.kernel << ". Load average (1/5/15 min) before: " << meta.load_before
-     << ", after: " << meta.load_after << ".";
+  md << "- Machine: " << meta.machine.cores << " cores, " << meta.machine.cpu_model << ", "
+     << format_number(meta.machine.memory_gb, 1) << " GB, " << meta.machine.kernel
+     << ". Load average (1/5/15 min) before: " << meta.load_before << ", after: " << meta.load_after << ".";
   std::vector<double> others;
   for (const auto& s : summaries)
     for (const auto* r : s.runs) others.push_back(r->other_cpu_cores);
@@ -237,26 +277,34 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
     md << " CPU used by other processes while the SLAM ran (machine busy time minus the runs' own): "
        << format_spread(os, 2) << " cores (median, min–max over runs).";
   if (os.n && os.max > 0.25)
-    md << " **Other work shared these cores during some runs**, so their times are pessimistic; compare the CPU seconds "
+    md << " **Other work shared these cores during some runs**, so their times are pessimistic; compare the CPU "
+          "seconds "
           "(All runs) and the `other_cpu_cores` column of results.csv.";
-  md << "\n- Started " << meta.started << ", finished " << meta.finished << " (" << format_number(meta.total_s / 60.0, 1)
-     << " min in total, including reconstruction and evaluation).\n";
-  md << "- Reconstruction for Table III: voxel " << format_number(o.recon.voxel, 3) << " m, pixel stride " << o.recon.stride
-     << " (every " << o.recon.stride << "th pixel in u and v), depth ≤ " << format_number(o.recon.max_depth, 1) << " m" << (o.recon.enabled ? "" : " (**off**)") << ".\n\n";
+  md << "\n- Started " << meta.started << ", finished " << meta.finished << " ("
+     << format_number(meta.total_s / 60.0, 1) << " min in total, including reconstruction and evaluation).\n";
+  md << "- Reconstruction for Table III: voxel " << format_number(o.recon.voxel, 3) << " m, pixel stride "
+     << o.recon.stride << " (every " << o.recon.stride << "th pixel in u and v), depth ≤ "
+     << format_number(o.recon.max_depth, 1) << " m" << (o.recon.enabled ? "" : " (**off**)") << ".\n\n";
   md << "Definitions (details: `docs/experiments.md`): **SLAM time** = "
-     << (o.mode != RunMode::kOffline ? "the server's wall time from listening (clients start right after) until every received "
-                                       "frame is processed (`network_stats.json` `wall_s`)"
-                                     : "cslam-slam's wall time from the first frame submitted until every frame is processed "
-                                       "(`wall_time_s` / `slam_time_s`)")
-     << "; **APE** = translation error after ONE SE3 alignment of all clients' poses together (the combined trajectory); "
-     << "**fused at frame** = the frame (1-based, within the client's own frames) of the client's keyframe in the fusion "
+     << (o.mode != RunMode::kOffline
+             ? "the server's wall time from listening (clients start right after) until every received "
+               "frame is processed (`network_stats.json` `wall_s`)"
+             : "cslam-slam's wall time from the first frame submitted until every frame is processed "
+               "(`wall_time_s` / `slam_time_s`)")
+     << "; **APE** = translation error after ONE SE3 alignment of all clients' poses together (the combined "
+        "trajectory); "
+     << "**fused at frame** = the frame (1-based, within the client's own frames) of the client's keyframe in the "
+        "fusion "
      << "that first joined it to another client; **frames lost** = frames tracking failed on, summed over clients; "
-     << "**Hausdorff** = symmetric Hausdorff distance between the cloud from SLAM poses (moved into the ground-truth frame "
+     << "**Hausdorff** = symmetric Hausdorff distance between the cloud from SLAM poses (moved into the ground-truth "
+        "frame "
      << "by one rigid transform per group fitted to camera positions and orientations) and the cloud from ground-truth "
      << "poses of the same frames, after the paper's bounding-box matching (centres + diagonal scale); C2C = "
      << "nearest-neighbour distances SLAM cloud → ground-truth cloud; **time / single** = median SLAM time over the "
      << "single-client baseline's"
-     << (summaries.empty() || summaries.front().config->split ? "" : " (here the sum of the single runs of every dataset: one robot covering every path)")
+     << (summaries.empty() || summaries.front().config->split
+             ? ""
+             : " (here the sum of the single runs of every dataset: one robot covering every path)")
      << ".\n\n";
 
   md << "## Table II — SLAM time and accuracy\n\nMedian over successful runs, (min–max) when they differ. "
@@ -271,7 +319,8 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
     md << "\n**Failed runs:**\n\n";
     for (const auto& s : summaries)
       for (const auto* r : s.runs)
-        if (!r->ok) md << "- " << r->label << " " << eta_cell(*s.config) << ", repeat " << r->repeat << ": " << r->error << "\n";
+        if (!r->ok)
+          md << "- " << r->label << " " << eta_cell(*s.config) << ", repeat " << r->repeat << ": " << r->error << "\n";
   }
   md << "\n## Table III — reconstruction accuracy\n\n";
   table_three(md, summaries, meta.has_scene);
@@ -293,19 +342,35 @@ void write_markdown(const std::string& path, const ReportMeta& meta, const std::
     md << "### " << s.config->label << (std::isfinite(s.config->overlap_percent) ? ", η = " + eta_cell(*s.config) : "")
        << " (repeat " << s.representative->repeat << ", the median-APE run)\n\n";
     md << "![APE over time](" << s.figures[0] << ")\n\n";
-    for (std::size_t i = 1; i < s.figures.size(); ++i) md << (i > 1 ? " · " : "") << "[" << (i == 1 ? "X-Y trajectories" : "x/y/z and rotation over time") << "](" << s.figures[i] << ")";
+    for (std::size_t i = 1; i < s.figures.size(); ++i)
+      md << (i > 1 ? " · " : "") << "[" << (i == 1 ? "X-Y trajectories" : "x/y/z and rotation over time") << "]("
+         << s.figures[i] << ")";
     md << "\n\n";
   }
 
   md << "## All runs\n\n";
   report::Table t;
-  t.header = {"simulation", "η", "repeat", "status", "SLAM time (s)", "CPU (s)", "other processes (cores)", "APE RMSE (m)", "fused",
-              "fusion events (query c@frame ↔ candidate c@frame, time)", "Hausdorff bbox (m)", "error"};
+  t.header = {"simulation",
+              "η",
+              "repeat",
+              "status",
+              "SLAM time (s)",
+              "CPU (s)",
+              "other processes (cores)",
+              "APE RMSE (m)",
+              "fused",
+              "fusion events (query c@frame ↔ candidate c@frame, time)",
+              "Hausdorff bbox (m)",
+              "error"};
   for (const auto& s : summaries)
     for (const auto* r : s.runs)
       t.rows.push_back({r->label, eta_cell(*s.config), std::to_string(r->repeat), r->ok ? "ok" : "**failed**",
-                        format_number(r->slam_time_s, 2), format_number(r->slam_cpu_s, 1), format_number(r->other_cpu_cores, 2),
-                        m(r->ate.rmse), r->ok ? (r->clients == 1 ? "–" : r->all_fused ? "yes" : "no") : "",
+                        format_number(r->slam_time_s, 2), format_number(r->slam_cpu_s, 1),
+                        format_number(r->other_cpu_cores, 2), m(r->ate.rmse),
+                        r->ok ? (r->clients == 1 ? "–"
+                                 : r->all_fused  ? "yes"
+                                                 : "no")
+                              : "",
                         fusion_events_text(*r), m(r->cloud.hausdorff_bbox), r->error.empty() ? r->ate.note : r->error});
   md << report::to_markdown(t);
   md << "\nMachine-readable: [results.csv](results.csv) (one row per run, then median/min/max rows per configuration), "

@@ -55,7 +55,9 @@ std::vector<Trajectory> groundtruth_lines(const RunDetail& d, bool split) {
   Trajectory all;
   for (const auto& t : d.tracks) all.insert(all.end(), t.groundtruth.begin(), t.groundtruth.end());
   sort_by_time(all);
-  all.erase(std::unique(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.timestamp == b.timestamp; }), all.end());
+  all.erase(
+      std::unique(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.timestamp == b.timestamp; }),
+      all.end());
   out.push_back(all);
   return out;
 }
@@ -109,14 +111,16 @@ void add_fusion_vlines(Panel& p, const RunRecord& r, double origin) {
 
 std::string client_label(const RunRecord& r, int id) {
   for (const auto& c : r.client_records)
-    if (c.id == id) return "client " + std::to_string(id) + " (" + std::to_string(c.first) + "–" + std::to_string(c.last) + ")";
+    if (c.id == id)
+      return "client " + std::to_string(id) + " (" + std::to_string(c.first) + "–" + std::to_string(c.last) + ")";
   return "client " + std::to_string(id);
 }
 
 Panel ape_panel(const ConfigSummary& s, const RunDetail& d) {
   const RunRecord& r = *s.representative;
   Panel p;
-  p.title = d.aligned ? "APE per pose (" + r.ate.alignment + "), F = map fusion (query keyframe time)" : "APE: no ground truth";
+  p.title = d.aligned ? "APE per pose (" + r.ate.alignment + "), F = map fusion (query keyframe time)"
+                      : "APE: no ground truth";
   p.x_label = "time since the sequence start (s)";
   p.y_label = "APE (m)";
   p.y_from_zero = true;
@@ -133,10 +137,12 @@ Panel ape_panel(const ConfigSummary& s, const RunDetail& d) {
   add_fusion_vlines(p, r, d.time_origin);
   for (std::size_t i = 0; i < r.fusions.size(); ++i) {
     const auto& f = r.fusions[i];
-    for (const auto& [id, t] : {std::pair{f.client_a, f.query_timestamp}, std::pair{f.client_b, f.candidate_timestamp}}) {
+    for (const auto& [id, t] :
+         {std::pair{f.client_a, f.query_timestamp}, std::pair{f.client_b, f.candidate_timestamp}}) {
       const ClientTrack* tr = track_of(d, id);
       if (!tr || tr->ape.empty()) continue;
-      p.markers.push_back({t - d.time_origin, value_at(tr->ape_time, tr->ape, t), client_color(id), "F" + std::to_string(i + 1)});
+      p.markers.push_back(
+          {t - d.time_origin, value_at(tr->ape_time, tr->ape, t), client_color(id), "F" + std::to_string(i + 1)});
     }
   }
   return p;
@@ -145,7 +151,8 @@ Panel ape_panel(const ConfigSummary& s, const RunDetail& d) {
 Panel xy_panel(const ConfigSummary& s, const RunDetail& d) {
   const RunRecord& r = *s.representative;
   Panel p;
-  p.title = d.aligned ? "X-Y, ground-truth frame (" + r.ate.alignment + "); dots = keyframes" : "X-Y in the SLAM frame (no ground truth)";
+  p.title = d.aligned ? "X-Y, ground-truth frame (" + r.ate.alignment + "); dots = keyframes"
+                      : "X-Y in the SLAM frame (no ground truth)";
   p.x_label = "x (m)";
   p.y_label = "y (m)";
   p.equal_aspect = true;
@@ -166,7 +173,8 @@ Panel xy_panel(const ConfigSummary& s, const RunDetail& d) {
   }
   for (std::size_t i = 0; i < r.fusions.size(); ++i) {
     const auto& f = r.fusions[i];
-    for (const auto& [id, t] : {std::pair{f.client_a, f.query_timestamp}, std::pair{f.client_b, f.candidate_timestamp}}) {
+    for (const auto& [id, t] :
+         {std::pair{f.client_a, f.query_timestamp}, std::pair{f.client_b, f.candidate_timestamp}}) {
       const ClientTrack* tr = track_of(d, id);
       const StampedPose* pose = tr ? pose_at(tr->estimate, t) : nullptr;
       if (pose)
@@ -178,7 +186,11 @@ Panel xy_panel(const ConfigSummary& s, const RunDetail& d) {
 }
 
 std::vector<Panel> pose_panels(const ConfigSummary& s, const RunDetail& d) {
-  static const char* kNames[] = {"x (m)", "y (m)", "z (m)", "rotation about camera x (tilt)", "rotation about camera y (pan)",
+  static const char* kNames[] = {"x (m)",
+                                 "y (m)",
+                                 "z (m)",
+                                 "rotation about camera x (tilt)",
+                                 "rotation about camera y (pan)",
                                  "rotation about camera z (roll)"};
   const RunRecord& r = *s.representative;
   // Rotations relative to the first ground-truth pose (or the first estimate without ground truth).
@@ -193,7 +205,8 @@ std::vector<Panel> pose_panels(const ConfigSummary& s, const RunDetail& d) {
   std::vector<Panel> panels;
   for (int which : {0, 3, 1, 4, 2, 5}) {  // two columns: position left, rotation right
     Panel p;
-    p.title = which < 3 ? std::string(kNames[which]) : std::string(kNames[which]) + " since the first pose, rotation vector";
+    p.title =
+        which < 3 ? std::string(kNames[which]) : std::string(kNames[which]) + " since the first pose, rotation vector";
     p.x_label = "time since the sequence start (s)";
     static const char* kShort[] = {"x (m)", "y (m)", "z (m)", "tilt (deg)", "pan (deg)", "roll (deg)"};
     p.y_label = kShort[which];
@@ -206,7 +219,8 @@ std::vector<Panel> pose_panels(const ConfigSummary& s, const RunDetail& d) {
       p.series.push_back(g);
     }
     for (const auto& t : d.tracks)
-      p.series.push_back(component(t.estimate, d.time_origin, which, reference, client_color(t.id), "client " + std::to_string(t.id)));
+      p.series.push_back(
+          component(t.estimate, d.time_origin, which, reference, client_color(t.id), "client " + std::to_string(t.id)));
     add_fusion_vlines(p, r, d.time_origin);
     panels.push_back(p);
   }
@@ -294,8 +308,8 @@ Rpy roll_pitch_yaw_deg(const SE3& T) {
   return r;
 }
 
-std::vector<std::string> write_figures(const std::string& out_dir, std::vector<ConfigSummary>& summaries, const DetailMap& details,
-                                       std::size_t max_points) {
+std::vector<std::string> write_figures(const std::string& out_dir, std::vector<ConfigSummary>& summaries,
+                                       const DetailMap& details, std::size_t max_points) {
   std::filesystem::create_directories(out_dir + "/figures");
   for (auto& s : summaries) {
     s.figures.clear();

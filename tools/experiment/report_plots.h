@@ -17,8 +17,8 @@ using DetailMap = std::map<std::pair<std::string, int>, RunDetail>;  // (config,
 
 // Writes OUT_DIR/figures/*.svg, sets each summary's figures (paths relative to OUT_DIR) and
 // returns the overview figures' paths. max_points: points kept per plotted line.
-std::vector<std::string> write_figures(const std::string& out_dir, std::vector<ConfigSummary>& summaries, const DetailMap& details,
-                                       std::size_t max_points = 400);
+std::vector<std::string> write_figures(const std::string& out_dir, std::vector<ConfigSummary>& summaries,
+                                       const DetailMap& details, std::size_t max_points = 400);
 
 // Rotation vector (axis times angle, degrees; angle in [0, 180]) of a rotation.
 Eigen::Vector3d rotation_vector_deg(const Eigen::Quaterniond& q);

@@ -34,16 +34,28 @@ nlohmann::json record_json(const RunRecord& r) {
   j["all_fused"] = r.all_fused;
   j["client_records"] = nlohmann::json::array();
   for (const auto& c : r.client_records)
-    j["client_records"].push_back({{"id", c.id}, {"dataset", c.dataset}, {"first_frame", c.first}, {"last_frame", c.last},
-                                   {"frames_processed", c.frames_processed}, {"frames_lost", c.frames_lost},
-                                   {"keyframes", c.keyframes}, {"poses", c.poses}, {"group", c.group}, {"fused", c.fused},
-                                   {"fused_at_frame", c.fused_at_frame}, {"ate_rmse_m", number(c.ate_rmse)}});
+    j["client_records"].push_back({{"id", c.id},
+                                   {"dataset", c.dataset},
+                                   {"first_frame", c.first},
+                                   {"last_frame", c.last},
+                                   {"frames_processed", c.frames_processed},
+                                   {"frames_lost", c.frames_lost},
+                                   {"keyframes", c.keyframes},
+                                   {"poses", c.poses},
+                                   {"group", c.group},
+                                   {"fused", c.fused},
+                                   {"fused_at_frame", c.fused_at_frame},
+                                   {"ate_rmse_m", number(c.ate_rmse)}});
   j["fusion_events"] = nlohmann::json::array();
   for (const auto& f : r.fusions)
-    j["fusion_events"].push_back({{"time_s", number(f.wall_time_s)}, {"query_client", f.client_a}, {"candidate_client", f.client_b},
-                                  {"query_frame", f.frame_a}, {"candidate_frame", f.frame_b},
+    j["fusion_events"].push_back({{"time_s", number(f.wall_time_s)},
+                                  {"query_client", f.client_a},
+                                  {"candidate_client", f.client_b},
+                                  {"query_frame", f.frame_a},
+                                  {"candidate_frame", f.frame_b},
                                   {"query_timestamp", number(f.query_timestamp)},
-                                  {"candidate_timestamp", number(f.candidate_timestamp)}, {"inliers", f.inliers},
+                                  {"candidate_timestamp", number(f.candidate_timestamp)},
+                                  {"inliers", f.inliers},
                                   {"duration_ms", number(f.duration_ms)}});
   return j;
 }
@@ -87,7 +99,8 @@ const std::vector<Metric>& metrics() {
       {"scene_hausdorff_slam_to_scene_m", 4, [](const RunRecord& r) { return r.cloud.scene_max; }},
       {"gt_cloud_scene_c2c_median_m", 4, [](const RunRecord& r) { return r.cloud.gt_scene_median; }},
       {"cloud_alignment_vs_ate_alignment_deg", 2, [](const RunRecord& r) { return r.cloud.alignment_rotation_deg; }},
-      {"slam_cloud_points", 0, [](const RunRecord& r) { return r.cloud.computed ? double(r.cloud.slam_points) : kNaN; }},
+      {"slam_cloud_points", 0,
+       [](const RunRecord& r) { return r.cloud.computed ? double(r.cloud.slam_points) : kNaN; }},
       {"gt_cloud_points", 0, [](const RunRecord& r) { return r.cloud.computed ? double(r.cloud.gt_points) : kNaN; }},
       {"recon_eval_s", 1, [](const RunRecord& r) { return r.cloud.seconds; }},
   };
@@ -132,7 +145,9 @@ std::vector<ConfigSummary> summarize(const std::vector<RunConfig>& configs, cons
       if (s.config->clients != 1) continue;
       if (c.config->clients == 1 ? &s == &c
                                  : s.config->split || std::any_of(c.config->specs.begin(), c.config->specs.end(),
-                                                                  [&](const ClientSpec& x) { return x.dataset == s.config->specs.at(0).dataset; }))
+                                                                  [&](const ClientSpec& x) {
+                                                                    return x.dataset == s.config->specs.at(0).dataset;
+                                                                  }))
         base.push_back(&s);
     }
     return base;
@@ -162,7 +177,8 @@ bool is_quiet(const RunRecord& r) { return std::isfinite(r.other_cpu_cores) && r
 std::string fused_frames_text(const RunRecord& r) {
   std::string out;
   for (const auto& c : r.client_records)
-    if (c.fused_at_frame > 0) out += (out.empty() ? "" : ";") + std::to_string(c.id) + ":" + std::to_string(c.fused_at_frame);
+    if (c.fused_at_frame > 0)
+      out += (out.empty() ? "" : ";") + std::to_string(c.id) + ":" + std::to_string(c.fused_at_frame);
   return out;
 }
 
@@ -170,7 +186,8 @@ std::string fusion_events_text(const RunRecord& r) {
   std::string out;
   char buf[160];
   for (const auto& f : r.fusions) {
-    std::snprintf(buf, sizeof buf, "c%d@%d<->c%d@%d %.2fs", f.client_a, f.frame_a, f.client_b, f.frame_b, f.wall_time_s);
+    std::snprintf(buf, sizeof buf, "c%d@%d<->c%d@%d %.2fs", f.client_a, f.frame_a, f.client_b, f.frame_b,
+                  f.wall_time_s);
     out += (out.empty() ? "" : "; ") + std::string(buf);
   }
   return out;
@@ -178,8 +195,8 @@ std::string fusion_events_text(const RunRecord& r) {
 
 void write_csv(const std::string& path, const std::vector<ConfigSummary>& summaries) {
   report::Table t;
-  t.header = {"row", "config", "label", "clients", "overlap_percent", "repeat", "status", "error", "all_fused", "fused_at_frames",
-              "fusion_events", "ate_alignment"};
+  t.header = {"row",    "config", "label",     "clients",         "overlap_percent", "repeat",
+              "status", "error",  "all_fused", "fused_at_frames", "fusion_events",   "ate_alignment"};
   for (const Metric& m : metrics()) t.header.push_back(m.name);
   for (const auto& s : summaries) {
     for (const auto* r : s.runs) {
@@ -200,9 +217,18 @@ void write_csv(const std::string& path, const std::vector<ConfigSummary>& summar
     }
     for (int which = 0; which < 3; ++which) {
       const char* stat = which == 0 ? "median" : which == 1 ? "min" : "max";
-      std::vector<std::string> row{stat, s.config->name, s.config->label, std::to_string(s.config->clients),
-                                   report::format_number(s.config->overlap_percent, 2), "", std::to_string(s.ok) + "/" +
-                                   std::to_string(s.runs.size()) + " ok", "", "", "", "", ""};
+      std::vector<std::string> row{stat,
+                                   s.config->name,
+                                   s.config->label,
+                                   std::to_string(s.config->clients),
+                                   report::format_number(s.config->overlap_percent, 2),
+                                   "",
+                                   std::to_string(s.ok) + "/" + std::to_string(s.runs.size()) + " ok",
+                                   "",
+                                   "",
+                                   "",
+                                   "",
+                                   ""};
       for (const Metric& m : metrics()) {
         std::vector<double> v;
         for (const auto* r : s.runs)
@@ -226,21 +252,34 @@ void write_json(const std::string& path, const ReportMeta& meta, const std::vect
   j["started"] = meta.started;
   j["finished"] = meta.finished;
   j["total_s"] = meta.total_s;
-  j["machine"] = {{"cores", meta.machine.cores}, {"cpu", meta.machine.cpu_model}, {"kernel", meta.machine.kernel},
-                  {"memory_gb", meta.machine.memory_gb}, {"load_before", meta.load_before}, {"load_after", meta.load_after}};
+  j["machine"] = {{"cores", meta.machine.cores},     {"cpu", meta.machine.cpu_model},
+                  {"kernel", meta.machine.kernel},   {"memory_gb", meta.machine.memory_gb},
+                  {"load_before", meta.load_before}, {"load_after", meta.load_after}};
   j["data"] = meta.data_lines;
-  j["options"] = {{"mode", to_string(o.mode)}, {"repeat", o.repeat}, {"quick", o.quick}, {"rate", o.rate},
-                  {"timeout_s", o.timeout_s}, {"recon_voxel_m", o.recon.voxel}, {"recon_stride", o.recon.stride},
-                  {"recon_max_depth_m", o.recon.max_depth}, {"recon", o.recon.enabled}};
+  j["options"] = {{"mode", to_string(o.mode)},
+                  {"repeat", o.repeat},
+                  {"quick", o.quick},
+                  {"rate", o.rate},
+                  {"timeout_s", o.timeout_s},
+                  {"recon_voxel_m", o.recon.voxel},
+                  {"recon_stride", o.recon.stride},
+                  {"recon_max_depth_m", o.recon.max_depth},
+                  {"recon", o.recon.enabled}};
   j["configs"] = nlohmann::json::array();
   j["runs"] = nlohmann::json::array();
   for (const auto& s : summaries) {
-    nlohmann::json c = {{"config", s.config->name}, {"label", s.config->label}, {"clients", s.config->clients},
-                        {"overlap_percent", number(s.config->overlap_percent)}, {"runs", s.runs.size()}, {"ok", s.ok},
-                        {"slam_time_ratio_to_single", number(s.time_ratio)},
-                        {"slam_time_ratio_basis", std::isfinite(s.time_ratio) ? (s.time_ratio_quiet ? "runs without other load" : "all runs") : ""},
-                        {"figures", s.figures},
-                        {"representative_repeat", s.representative ? s.representative->repeat : 0}};
+    nlohmann::json c = {
+        {"config", s.config->name},
+        {"label", s.config->label},
+        {"clients", s.config->clients},
+        {"overlap_percent", number(s.config->overlap_percent)},
+        {"runs", s.runs.size()},
+        {"ok", s.ok},
+        {"slam_time_ratio_to_single", number(s.time_ratio)},
+        {"slam_time_ratio_basis",
+         std::isfinite(s.time_ratio) ? (s.time_ratio_quiet ? "runs without other load" : "all runs") : ""},
+        {"figures", s.figures},
+        {"representative_repeat", s.representative ? s.representative->repeat : 0}};
     int fused = 0;
     for (const auto* r : s.runs) fused += r->ok && r->all_fused && r->clients > 1;
     c["fused_runs"] = fused;
@@ -249,7 +288,8 @@ void write_json(const std::string& path, const ReportMeta& meta, const std::vect
       for (const auto* r : s.runs)
         if (r->ok) v.push_back(m.get(*r));
       const report::Spread sp = report::spread(v);
-      c[m.name] = sp.n == 0 ? nlohmann::json(nullptr) : nlohmann::json{{"median", sp.median}, {"min", sp.min}, {"max", sp.max}, {"n", sp.n}};
+      c[m.name] = sp.n == 0 ? nlohmann::json(nullptr)
+                            : nlohmann::json{{"median", sp.median}, {"min", sp.min}, {"max", sp.max}, {"n", sp.n}};
     }
     j["configs"].push_back(c);
     for (const auto* r : s.runs) j["runs"].push_back(record_json(*r));

@@ -33,7 +33,9 @@ Trajectory read_trajectory(const std::string& path) {
   return read_tum_trajectory(path);
 }
 
-Trajectory read_optional(const std::string& path) { return fs::exists(path) ? read_tum_trajectory(path) : Trajectory{}; }
+Trajectory read_optional(const std::string& path) {
+  return fs::exists(path) ? read_tum_trajectory(path) : Trajectory{};
+}
 
 template <typename T>
 T value_or(const nlohmann::json& j, const char* key, T fallback) {
@@ -91,7 +93,8 @@ void read_statistics(const RunConfig& cfg, RunMode mode, const std::string& out,
     f.duration_ms = value_or(e, "duration_ms", kNaN);
     rec.fusions.push_back(f);
   }
-  std::sort(rec.fusions.begin(), rec.fusions.end(), [](const auto& a, const auto& b) { return a.wall_time_s < b.wall_time_s; });
+  std::sort(rec.fusions.begin(), rec.fusions.end(),
+            [](const auto& a, const auto& b) { return a.wall_time_s < b.wall_time_s; });
 }
 
 // APE of every group with one SE3 alignment per group (one for all clients when all are fused);
@@ -148,8 +151,9 @@ void evaluate_accuracy(const RunConfig& cfg, DatasetStore& datasets, RunRecord& 
   rec.ate.median = s.median;
   rec.ate.rmse = s.rmse;
   rec.ate.std = s.std;
-  rec.ate.alignment = groups.size() == 1 ? (cfg.clients == 1 ? "SE3" : "one SE3 for all clients")
-                                         : "one SE3 per group (" + std::to_string(groups.size()) + " groups: not all fused)";
+  rec.ate.alignment = groups.size() == 1
+                          ? (cfg.clients == 1 ? "SE3" : "one SE3 for all clients")
+                          : "one SE3 per group (" + std::to_string(groups.size()) + " groups: not all fused)";
 }
 
 }  // namespace
@@ -208,7 +212,8 @@ Trajectory groundtruth_at(const Trajectory& groundtruth, const std::vector<doubl
     if (const auto T = interpolate_pose(gt, t, 5 * max_dt)) {
       p.T_world_cam = *T;
     } else {  // across a gap in the ground truth: the nearest sample within max_dt, if any
-      auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const StampedPose& q, double v) { return q.timestamp < v; });
+      auto it =
+          std::lower_bound(gt.begin(), gt.end(), t, [](const StampedPose& q, double v) { return q.timestamp < v; });
       const StampedPose* nearest = nullptr;
       if (it != gt.end() && it->timestamp - t <= max_dt) nearest = &*it;
       if (it != gt.begin() && t - (it - 1)->timestamp <= max_dt &&
@@ -241,7 +246,8 @@ void evaluate_run(const RunConfig& cfg, RunMode mode, const std::string& out, Da
     const std::string id = std::to_string(s.id);
     t.estimate = read_trajectory(single_offline ? out + "/traj.txt" : out + "/client_" + id + ".txt");
     t.keyframes = read_optional(single_offline ? out + "/keyframes.txt" : out + "/keyframes_" + id + ".txt");
-    const double t0 = ds.pairs.at(std::size_t(s.first - 1)).rgb_time, t1 = ds.pairs.at(std::size_t(s.last - 1)).rgb_time;
+    const double t0 = ds.pairs.at(std::size_t(s.first - 1)).rgb_time,
+                 t1 = ds.pairs.at(std::size_t(s.last - 1)).rgb_time;
     if (ds.groundtruth) t.groundtruth = time_window(*ds.groundtruth, t0 - 0.05, t1 + 0.05);
     detail.time_origin = std::min(detail.time_origin, cfg.split ? ds.pairs.front().rgb_time : t0);
     rec.client_records.back().poses = t.estimate.size();
@@ -257,7 +263,8 @@ void evaluate_run(const RunConfig& cfg, RunMode mode, const std::string& out, Da
     return nullptr;
   };
   for (auto& f : rec.fusions) {
-    if (const ClientSpec* a = spec_of(f.client_a)) f.frame_a = frame_number_at(datasets.get(a->dataset), a->first, a->last, f.query_timestamp);
+    if (const ClientSpec* a = spec_of(f.client_a))
+      f.frame_a = frame_number_at(datasets.get(a->dataset), a->first, a->last, f.query_timestamp);
     if (const ClientSpec* b = spec_of(f.client_b))
       f.frame_b = frame_number_at(datasets.get(b->dataset), b->first, b->last, f.candidate_timestamp);
   }

@@ -22,8 +22,8 @@ class DatasetStore {
 
 // Fills everything in record except `cloud`, and the figures' data in detail. Throws InputError
 // naming the file if an output is missing or malformed (the run then counts as failed).
-void evaluate_run(const RunConfig& config, RunMode mode, const std::string& out_dir, DatasetStore& datasets, RunRecord& record,
-                  RunDetail& detail);
+void evaluate_run(const RunConfig& config, RunMode mode, const std::string& out_dir, DatasetStore& datasets,
+                  RunRecord& record, RunDetail& detail);
 
 // The 1-based position, among frames [first, last] of the dataset, of the pair whose RGB
 // timestamp is nearest to t (within max_dt); -1 if none is.
@@ -34,7 +34,8 @@ int frame_number_at(const TumDataset& dataset, int first, int last, double t, do
 // A position-only fit (the APE alignment) leaves the rotation about a nearly straight path, or
 // every rotation of a camera turning in place, badly constrained; a cloud rendered with such
 // an alignment is tilted even if the positions fit. Throws InputError if < 3 poses associate.
-Sim3 pose_alignment(const std::vector<std::pair<Trajectory, Trajectory>>& gt_est_pairs, double reach = 1.0, double max_dt = 0.02);
+Sim3 pose_alignment(const std::vector<std::pair<Trajectory, Trajectory>>& gt_est_pairs, double reach = 1.0,
+                    double max_dt = 0.02);
 
 // Ground-truth poses at the given timestamps (linear/slerp interpolation between the samples
 // around t, or the nearest sample within max_dt at the ends); timestamps without ground truth

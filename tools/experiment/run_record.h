@@ -13,7 +13,7 @@ namespace cslam::experiment {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 struct FusionRecord {
-  double wall_time_s = kNaN;  // seconds after the SLAM system started
+  double wall_time_s = kNaN;       // seconds after the SLAM system started
   int client_a = 0, client_b = 0;  // a: the client whose new keyframe found the overlap (query)
   double query_timestamp = kNaN, candidate_timestamp = kNaN;
   int frame_a = -1, frame_b = -1;  // those keyframes' frame numbers within each client's own frames (1-based)
@@ -26,11 +26,11 @@ struct ClientRecord {
   std::string dataset;
   int first = 0, last = 0;  // frames of the dataset (1-based, inclusive)
   int frames_processed = -1, frames_lost = -1, keyframes = -1;
-  std::size_t poses = 0;     // poses in the written trajectory
+  std::size_t poses = 0;  // poses in the written trajectory
   int group = -1;
   bool fused = false;
-  int fused_at_frame = -1;   // this client's keyframe in the first fusion that joined it (1-based), -1: never
-  double ate_rmse = kNaN;    // under the combined alignment
+  int fused_at_frame = -1;  // this client's keyframe in the first fusion that joined it (1-based), -1: never
+  double ate_rmse = kNaN;   // under the combined alignment
 };
 
 struct AteFigures {
@@ -57,8 +57,8 @@ struct CloudFigures {
   std::size_t live_points = 0;
   double live_hausdorff_bbox = kNaN, live_c2c_mean_bbox = kNaN, live_c2c_median_bbox = kNaN, live_scene_median = kNaN;
   double live_c2c_median = kNaN, live_c2c_p95 = kNaN;  // without bbox matching (its extent differs: keyframes only)
-  double alignment_rotation_deg = kNaN;  // pose alignment vs the APE (position-only) alignment
-  double seconds = kNaN;          // reconstruction + metrics time
+  double alignment_rotation_deg = kNaN;                // pose alignment vs the APE (position-only) alignment
+  double seconds = kNaN;                               // reconstruction + metrics time
 };
 
 struct RunRecord {
@@ -68,19 +68,19 @@ struct RunRecord {
   int repeat = 1;
   std::string mode;
   bool ok = false;
-  std::string error;       // why the run failed (exit status, timeout, missing output)
+  std::string error;  // why the run failed (exit status, timeout, missing output)
   std::string run_dir;
-  double load_before = kNaN;  // 1-minute load average when the run started (includes the previous run)
-  double slam_cpu_s = kNaN;   // CPU seconds of the run's processes (all threads, user + system)
+  double load_before = kNaN;      // 1-minute load average when the run started (includes the previous run)
+  double slam_cpu_s = kNaN;       // CPU seconds of the run's processes (all threads, user + system)
   double other_cpu_cores = kNaN;  // cores used by everything else on the machine meanwhile
-  double slam_time_s = kNaN;  // see docs/experiments.md: start of SLAM to the last frame processed
-  double process_wall_s = kNaN;  // harness clock: first process started to last process exited
-  double receive_span_s = kNaN;  // network: first to last frame accepted by the server
+  double slam_time_s = kNaN;      // see docs/experiments.md: start of SLAM to the last frame processed
+  double process_wall_s = kNaN;   // harness clock: first process started to last process exited
+  double receive_span_s = kNaN;   // network: first to last frame accepted by the server
   std::vector<ClientRecord> client_records;
   std::vector<FusionRecord> fusions;
   bool all_fused = false;  // every client in one group (always true for one client)
   int groups = 0;
-  int frames_lost = 0;     // summed over clients
+  int frames_lost = 0;  // summed over clients
   AteFigures ate;
   CloudFigures cloud;
 };

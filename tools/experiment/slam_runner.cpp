@@ -64,7 +64,8 @@ std::string wait_for_all(const std::vector<ChildProcess*>& children, const std::
           if (!c->running()) continue;
           if (wait_any({c}, std::min(deadline, grace)) < 0 && c->running()) {
             stop_all(children, 5.0);
-            return "the server exited (" + done.status_text() + ") while " + c->name() + " was still running 20 s later";
+            return "the server exited (" + done.status_text() + ") while " + c->name() +
+                   " was still running 20 s later";
           }
           if (!c->succeeded()) {
             const std::string what = describe_failure(*c, roles[k]);
@@ -85,11 +86,12 @@ RunOutcome run_offline(const RunConfig& cfg, const ExperimentOptions& opt, const
   std::vector<std::string> argv{opt.bin_dir + "/cslam-slam"};
   if (cfg.clients == 1) {
     const ClientSpec& s = cfg.specs.at(0);
-    argv.insert(argv.end(), {"--dataset", s.dataset, "--range", std::to_string(s.first) + ":" + std::to_string(s.last), "--out",
-                             out + "/traj.txt", "--keyframes", out + "/keyframes.txt", "--stats", out + "/stats.json", "--quiet"});
+    argv.insert(argv.end(),
+                {"--dataset", s.dataset, "--range", std::to_string(s.first) + ":" + std::to_string(s.last), "--out",
+                 out + "/traj.txt", "--keyframes", out + "/keyframes.txt", "--stats", out + "/stats.json", "--quiet"});
   } else if (cfg.split) {
-    argv.insert(argv.end(), {"--dataset", cfg.specs.at(0).dataset, "--clients", std::to_string(cfg.clients), "--overlap",
-                             fraction_text(cfg.overlap_percent), "--out-dir", out});
+    argv.insert(argv.end(), {"--dataset", cfg.specs.at(0).dataset, "--clients", std::to_string(cfg.clients),
+                             "--overlap", fraction_text(cfg.overlap_percent), "--out-dir", out});
   } else {
     argv.push_back("--datasets");
     for (const auto& s : cfg.specs) argv.push_back(s.dataset);
@@ -124,9 +126,9 @@ RunOutcome run_network(const RunConfig& cfg, const ExperimentOptions& opt, const
   std::vector<std::string> roles;
   try {
     owned.push_back(std::make_unique<ChildProcess>(
-        std::vector<std::string>{opt.bin_dir + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file", endpoint_file,
-                                 "--clients", std::to_string(cfg.clients), "--exit-when-done", "--http", "off", "--out-dir",
-                                 out, "--log-interval", "10"},
+        std::vector<std::string>{opt.bin_dir + "/cslam-server", "--bind", "tcp://127.0.0.1:*", "--endpoint-file",
+                                 endpoint_file, "--clients", std::to_string(cfg.clients), "--exit-when-done", "--http",
+                                 "off", "--out-dir", out, "--log-interval", "10"},
         dir + "/server.log"));
     children.push_back(owned.back().get());
     roles.push_back("server");
@@ -147,9 +149,19 @@ RunOutcome run_network(const RunConfig& cfg, const ExperimentOptions& opt, const
     }
     if (r.error.empty()) {
       for (const auto& s : cfg.specs) {
-        std::vector<std::string> argv{opt.bin_dir + "/cslam-client", "--server", endpoint, "--id", std::to_string(s.id), "--name",
-                                      "client" + std::to_string(s.id), "--dataset", s.dataset, "--range",
-                                      std::to_string(s.first) + ":" + std::to_string(s.last), "--progress-interval", "10"};
+        std::vector<std::string> argv{opt.bin_dir + "/cslam-client",
+                                      "--server",
+                                      endpoint,
+                                      "--id",
+                                      std::to_string(s.id),
+                                      "--name",
+                                      "client" + std::to_string(s.id),
+                                      "--dataset",
+                                      s.dataset,
+                                      "--range",
+                                      std::to_string(s.first) + ":" + std::to_string(s.last),
+                                      "--progress-interval",
+                                      "10"};
         if (opt.mode == RunMode::kLive) argv.push_back("--live");
         // A lean stream encodes each frame when it leaves, so it cannot be preloaded.
         if (opt.mode == RunMode::kLive && opt.depth_every == 1) argv.push_back("--preload");
@@ -181,7 +193,8 @@ std::string run_output_dir(const std::string& run_dir) { return run_dir + "/out"
 
 RunOutcome run_slam(const RunConfig& config, const ExperimentOptions& options, const std::string& run_dir) {
   fs::create_directories(run_output_dir(run_dir));
-  return options.mode == RunMode::kOffline ? run_offline(config, options, run_dir) : run_network(config, options, run_dir);
+  return options.mode == RunMode::kOffline ? run_offline(config, options, run_dir)
+                                           : run_network(config, options, run_dir);
 }
 
 }  // namespace cslam::experiment

@@ -30,7 +30,6 @@ using namespace cslam;
 
 namespace {
 
-
 std::shared_ptr<Map> build_map(const std::string& dir, const std::string& range, const std::string& camera, ClientId id,
                                const std::shared_ptr<const Vocabulary>& voc) {
   const TumDataset ds = open_tum_dataset(dir);
@@ -54,7 +53,8 @@ void print(const char* name, const std::vector<double>& wall, const std::vector<
 }
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-bench-fusion", "Time of a map fusion (hit to fused map) and of the group global BA on two complete maps.");
+  CliArgs args("cslam-bench-fusion",
+               "Time of a map fusion (hit to fused map) and of the group global BA on two complete maps.");
   args.option("dataset-a", "dataset of client A (the map that stays)")
       .option("dataset-b", "dataset of client B (the map that moves)")
       .option("range-a", "frames of A, a:b (1-based)", "1:")
@@ -67,8 +67,8 @@ int run(int argc, char** argv) {
   auto voc = std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path()));
   auto a = build_map(args.get("dataset-a"), args.get("range-a"), args.get("camera"), 1, voc);
   auto b = build_map(args.get("dataset-b"), args.get("range-b"), args.get("camera"), 2, voc);
-  std::printf("map A: %zu keyframes, %zu points; map B: %zu keyframes, %zu points\n", a->num_keyframes(), a->num_map_points(),
-              b->num_keyframes(), b->num_map_points());
+  std::printf("map A: %zu keyframes, %zu points; map B: %zu keyframes, %zu points\n", a->num_keyframes(),
+              a->num_map_points(), b->num_keyframes(), b->num_map_points());
 
   // The detection hit: newest keyframe of B with a verified candidate in A.
   KeyFramePtr query, candidate;
@@ -79,7 +79,8 @@ int run(int argc, char** argv) {
     std::sort(kfs.begin(), kfs.end(), [](const auto& x, const auto& y) { return x->id.seq > y->id.seq; });
     for (const auto& kf : kfs) {
       if (kf->bad || kf->covisibles().empty()) continue;
-      const auto groups = query_candidate_groups(*a, kf->data->bow, min_covisible_score(*kf), [](KeyFrameId) { return false; });
+      const auto groups =
+          query_candidate_groups(*a, kf->data->bow, min_covisible_score(*kf), [](KeyFrameId) { return false; });
       for (const auto& g : groups) {
         KeyFramePtr c = a->keyframe(g.candidate);
         if (!c || c->bad) continue;
@@ -93,8 +94,8 @@ int run(int argc, char** argv) {
     }
   }
   if (!query) throw InputError("cslam-bench-fusion", "no verified overlap between the two maps");
-  std::printf("hit: B keyframe %u (t=%.3f) -> A keyframe %u (t=%.3f)\n", query->id.seq, query->timestamp(), candidate->id.seq,
-              candidate->timestamp());
+  std::printf("hit: B keyframe %u (t=%.3f) -> A keyframe %u (t=%.3f)\n", query->id.seq, query->timestamp(),
+              candidate->id.seq, candidate->timestamp());
 
   const int runs = args.get_int("runs");
   std::vector<double> wv, cv, wt, ct, ws, cs, wtot, ctot;
@@ -170,8 +171,8 @@ int run(int argc, char** argv) {
       cg.push_back(process_cpu_ms() - c0);
       points = gba.num_points();
     }
-    std::printf("group global BA: %zu keyframes, %zu points, %zu linked pairs\n", a->num_keyframes() + b->num_keyframes(), points,
-                links.size());
+    std::printf("group global BA: %zu keyframes, %zu points, %zu linked pairs\n",
+                a->num_keyframes() + b->num_keyframes(), points, links.size());
     print("group global BA", wg, cg);
   }
   return 0;

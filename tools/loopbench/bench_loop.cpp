@@ -42,7 +42,8 @@ Graph make_graph(int n, int covis, bool sim3, std::uint64_t seed) {
   Graph g;
   for (int i = 0; i < n; ++i) {
     const double a = 2.0 * M_PI * i / n;
-    g.truth.push_back(rot(a + M_PI / 2, Eigen::Vector3d::UnitZ(), Eigen::Vector3d(10 * std::cos(a), 10 * std::sin(a), 0.5 * std::sin(3 * a))));
+    g.truth.push_back(rot(a + M_PI / 2, Eigen::Vector3d::UnitZ(),
+                          Eigen::Vector3d(10 * std::cos(a), 10 * std::sin(a), 0.5 * std::sin(3 * a))));
   }
   const double drift = sim3 ? 1.002 : 1.0;
   double units = 1.0;
@@ -50,14 +51,16 @@ Graph make_graph(int n, int covis, bool sim3, std::uint64_t seed) {
   for (int i = 0; i + 1 < n; ++i) {
     if (i > 0) units *= drift;
     const Sim3 rigid = g.truth[i].inverse() * g.truth[i + 1] *
-                       rot(0.005 + 0.001 * N(rng), Eigen::Vector3d(0.1 * N(rng), 0.1 * N(rng), 1), 0.003 * Eigen::Vector3d(N(rng), N(rng), N(rng)));
+                       rot(0.005 + 0.001 * N(rng), Eigen::Vector3d(0.1 * N(rng), 0.1 * N(rng), 1),
+                           0.003 * Eigen::Vector3d(N(rng), N(rng), N(rng)));
     g.nodes.push_back({g.nodes.back().S_world_node * Sim3(rigid.rotation(), units * rigid.translation(), 1.0), false});
   }
   // Chain and covisibility edges from the drifted poses (plus a little noise), one true loop edge.
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j <= std::min(n - 1, i + covis); ++j) {
       const Sim3 meas = g.nodes[i].S_world_node.inverse() * g.nodes[j].S_world_node *
-                        rot(0.0005 * N(rng), Eigen::Vector3d(N(rng), N(rng), N(rng)), 0.001 * Eigen::Vector3d(N(rng), N(rng), N(rng)));
+                        rot(0.0005 * N(rng), Eigen::Vector3d(N(rng), N(rng), N(rng)),
+                            0.001 * Eigen::Vector3d(N(rng), N(rng), N(rng)));
       g.edges.push_back({i, j, meas, j == i + 1 ? 1.0 : 0.5});
     }
   const Sim3 loop = g.truth[n - 1].inverse() * g.truth[0];
@@ -71,7 +74,8 @@ double max_error(const std::vector<Sim3>& est, const std::vector<Sim3>& truth) {
   return m;
 }
 
-std::vector<Sim3Correspondence> make_matches(const StereoIntrinsics& k, const Sim3& S_12, int n, double outliers, std::uint64_t seed) {
+std::vector<Sim3Correspondence> make_matches(const StereoIntrinsics& k, const Sim3& S_12, int n, double outliers,
+                                             std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> U(0.0, 1.0);
   std::normal_distribution<double> N(0.0, 1.0);
@@ -100,16 +104,15 @@ std::vector<Sim3Correspondence> make_matches(const StereoIntrinsics& k, const Si
   return out;
 }
 
-
-
 void print(const char* what, const RepeatTiming& t) {
   const Summary w = summarize(t.wall), c = summarize(t.cpu);
-  std::printf("%-46s wall median %7.2f [%7.2f, %7.2f]  cpu median %7.2f [%7.2f, %7.2f] ms (n=%d)\n", what, w.median, w.min,
-              w.max, c.median, c.min, c.max, w.n);
+  std::printf("%-46s wall median %7.2f [%7.2f, %7.2f]  cpu median %7.2f [%7.2f, %7.2f] ms (n=%d)\n", what, w.median,
+              w.min, w.max, c.median, c.min, c.max, w.n);
 }
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-bench-loop", "Benchmark of essential-graph optimisation, Sim3 RANSAC and Sim3 refinement on synthetic data.");
+  CliArgs args("cslam-bench-loop",
+               "Benchmark of essential-graph optimisation, Sim3 RANSAC and Sim3 refinement on synthetic data.");
   args.option("runs", "repetitions of each measurement", "15")
       .option("nodes", "keyframes in the essential graph", "200")
       .option("covis", "covisibility edges from each keyframe to the next K", "4")
@@ -136,10 +139,12 @@ int run(int argc, char** argv) {
     std::vector<Sim3> before;
     for (const auto& n : g.nodes) before.push_back(n.S_world_node);
     char label[128];
-    std::snprintf(label, sizeof label, "pose graph %s, %d nodes, %zu edges", sim3 ? "Sim3" : "SE3", nodes, g.edges.size());
+    std::snprintf(label, sizeof label, "pose graph %s, %d nodes, %zu edges", sim3 ? "Sim3" : "SE3", nodes,
+                  g.edges.size());
     print(label, ms);
     std::printf("    iterations %d, converged %d, cost %.4g -> %.4g, max position error %.3f -> %.3f m\n", r.iterations,
-                int(r.converged), r.initial_cost, r.final_cost, max_error(before, g.truth), max_error(r.S_world_node, g.truth));
+                int(r.converged), r.initial_cost, r.final_cost, max_error(before, g.truth),
+                max_error(r.S_world_node, g.truth));
   }
 
   const StereoIntrinsics k{517.3, 516.5, 318.6, 255.3, 40.0};
@@ -159,17 +164,23 @@ int run(int argc, char** argv) {
       ms_refine.measure([&] { rf = refine_sim3(rr.S_12, matches, k, k, fix_scale); });
     }
     char label[128];
-    std::snprintf(label, sizeof label, "sim3_ransac %s, %d matches, %.0f%% wrong", fix_scale ? "SE3" : "Sim3", nmatches, 100 * outliers);
+    std::snprintf(label, sizeof label, "sim3_ransac %s, %d matches, %.0f%% wrong", fix_scale ? "SE3" : "Sim3", nmatches,
+                  100 * outliers);
     print(label, ms);
-    std::printf("    last run: success %d, inliers %d, mean samples %.1f, rot err %.3f deg, trans err %.4f m, scale %.4f (true %.2f)\n",
-                int(rr.success), rr.num_inliers, double(iterations_sum) / runs,
-                rr.S_12.rotation().angularDistance(truth.rotation()) * 180 / M_PI,
-                (rr.S_12.translation() - truth.translation()).norm(), rr.S_12.scale(), truth.scale());
+    std::printf(
+        "    last run: success %d, inliers %d, mean samples %.1f, rot err %.3f deg, trans err %.4f m, scale %.4f (true "
+        "%.2f)\n",
+        int(rr.success), rr.num_inliers, double(iterations_sum) / runs,
+        rr.S_12.rotation().angularDistance(truth.rotation()) * 180 / M_PI,
+        (rr.S_12.translation() - truth.translation()).norm(), rr.S_12.scale(), truth.scale());
     std::snprintf(label, sizeof label, "refine_sim3 %s, %d matches", fix_scale ? "SE3" : "Sim3", nmatches);
     print(label, ms_refine);
-    std::printf("    last run: inliers %d, Huber cost of inliers %.4g -> %.4g, rot err %.3f deg, trans err %.4f m, scale %.4f\n", rf.num_inliers,
-                rf.initial_cost, rf.final_cost, rf.S_12.rotation().angularDistance(truth.rotation()) * 180 / M_PI,
-                (rf.S_12.translation() - truth.translation()).norm(), rf.S_12.scale());
+    std::printf(
+        "    last run: inliers %d, Huber cost of inliers %.4g -> %.4g, rot err %.3f deg, trans err %.4f m, scale "
+        "%.4f\n",
+        rf.num_inliers, rf.initial_cost, rf.final_cost,
+        rf.S_12.rotation().angularDistance(truth.rotation()) * 180 / M_PI,
+        (rf.S_12.translation() - truth.translation()).norm(), rf.S_12.scale());
   }
   return 0;
 }

@@ -114,37 +114,49 @@ int stall_test(const ClientInfo& info, const std::shared_ptr<const Vocabulary>& 
       std::shared_lock<std::shared_mutex> map_lock(map->mutex);
       for (const auto& w : map->recorded_write_waits()) {
         wait_ms.push_back(w.ms);
-        const auto end = w.asked + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double, std::milli>(w.ms));
-        const bool overlaps = std::any_of(copy_spans.begin(), copy_spans.end(), [&](const auto& c) { return c.first < end && w.asked < c.second; });
+        const auto end = w.asked + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                       std::chrono::duration<double, std::milli>(w.ms));
+        const bool overlaps = std::any_of(copy_spans.begin(), copy_spans.end(),
+                                          [&](const auto& c) { return c.first < end && w.asked < c.second; });
         (overlaps ? overlapping_ms : apart_ms).push_back(w.ms);
         double held = 0;
         for (const auto& h : holds)
           if (h.first < end && w.asked < h.second)
-            held += std::chrono::duration<double, std::milli>(std::min(end, h.second) - std::max(w.asked, h.first)).count();
+            held +=
+                std::chrono::duration<double, std::milli>(std::min(end, h.second) - std::max(w.asked, h.first)).count();
         held_during_ms.push_back(held);
       }
     }
     const Summary s = summarize(frame_ms);
-    const char* name = mode == kNone ? "without snapshots" : mode == kYielding ? "with snapshots (yielding)" : "with snapshots (not yielding)";
-    std::printf("%-30s frames %zu: process() median %.2f ms, p99 %.2f ms, max %.2f ms\n", name, frame_ms.size(), s.median,
-                percentile(frame_ms, 0.99), s.max);
+    const char* name = mode == kNone       ? "without snapshots"
+                       : mode == kYielding ? "with snapshots (yielding)"
+                                           : "with snapshots (not yielding)";
+    std::printf("%-30s frames %zu: process() median %.2f ms, p99 %.2f ms, max %.2f ms\n", name, frame_ms.size(),
+                s.median, percentile(frame_ms, 0.99), s.max);
     const Summary w = summarize(wait_ms.empty() ? std::vector<double>{0.0} : wait_ms);
     const auto over5 = std::count_if(wait_ms.begin(), wait_ms.end(), [](double v) { return v > 5.0; });
-    std::printf("%-30s tracker exclusive-lock wait (%zu keyframe insertions): median %.3f ms, p99 %.3f ms, max %.3f ms, %ld over 5 ms\n",
-                "", wait_ms.size(), w.median, percentile(wait_ms, 0.99), w.max, long(over5));
+    std::printf(
+        "%-30s tracker exclusive-lock wait (%zu keyframe insertions): median %.3f ms, p99 %.3f ms, max %.3f ms, %ld "
+        "over 5 ms\n",
+        "", wait_ms.size(), w.median, percentile(wait_ms, 0.99), w.max, long(over5));
     if (with_snapshots) {
-      auto max_of = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
+      auto max_of = [](const std::vector<double>& v) {
+        return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end());
+      };
       std::printf("%-30s of these, %zu overlapped a snapshot copy (max %.3f ms), %zu did not (max %.3f ms)\n", "",
                   overlapping_ms.size(), max_of(overlapping_ms), apart_ms.size(), max_of(apart_ms));
       std::printf("%-30s snapshot shared-lock hold within a wait: max %.3f ms (%zu holds, longest %.3f ms)\n", "",
                   max_of(held_during_ms), holds.size(), [&] {
                     double m = 0;
-                    for (const auto& h : holds) m = std::max(m, std::chrono::duration<double, std::milli>(h.second - h.first).count());
+                    for (const auto& h : holds)
+                      m = std::max(m, std::chrono::duration<double, std::milli>(h.second - h.first).count());
                     return m;
                   }());
       const Summary c = summarize(copy_ms.empty() ? std::vector<double>{0.0} : copy_ms);
-      std::printf("%-30s %zu snapshot copies every %.2f s, copy median %.1f ms, max %.1f ms", "", copy_ms.size(), period_s, c.median, c.max);
-      if (mode == kYielding) std::printf(", %llu yields, %llu forced copies", (unsigned long long)yields, (unsigned long long)forced);
+      std::printf("%-30s %zu snapshot copies every %.2f s, copy median %.1f ms, max %.1f ms", "", copy_ms.size(),
+                  period_s, c.median, c.max);
+      if (mode == kYielding)
+        std::printf(", %llu yields, %llu forced copies", (unsigned long long)yields, (unsigned long long)forced);
       std::printf("\n");
     }
   }
@@ -160,8 +172,10 @@ int run(int argc, char** argv) {
       .option("repeats", "measurements of each step", "10")
       .option("state-dir", "folder for the snapshot files", "/tmp/cslam-bench-snapshot")
       .option("json", "also write the figures to this JSON file", "")
-      .option("stall-test", "instead: per-frame tracking time of threaded SLAM over --dataset without and with a "
-              "snapshot copy every this many seconds", "0")
+      .option("stall-test",
+              "instead: per-frame tracking time of threaded SLAM over --dataset without and with a "
+              "snapshot copy every this many seconds",
+              "0")
       .option("stall-blocking", "with --stall-test: also a run whose copies do not yield to writers (yes/no)", "no")
       .option("log-level", "trace, debug, info, warn, error, off", "warn");
   if (!args.parse(argc, argv)) return 0;
@@ -239,8 +253,8 @@ int run(int argc, char** argv) {
     restored.restore_state(loaded.clients[0], snapshot::current_path(dir));
     restore_ms.push_back(sw.ms());
   }
-  nlohmann::json j = {{"frames", poses}, {"keyframes", keyframes}, {"points", points}, {"poses", poses},
-                      {"bytes", bytes}, {"repeats", repeats}};
+  nlohmann::json j = {{"frames", poses}, {"keyframes", keyframes}, {"points", points},
+                      {"poses", poses},  {"bytes", bytes},         {"repeats", repeats}};
   auto line = [&](const char* name, const std::vector<double>& v) {
     const Summary s = summarize(v);
     std::printf("%-34s median %8.1f ms   min %8.1f   max %8.1f\n", name, s.median, s.min, s.max);

@@ -50,15 +50,23 @@ int cmd_info(int argc, char** argv) {
   for (const auto& c : s.clients) {
     int main_map = -1;
     const Trajectory t = state_trajectory(c, &main_map);
-    nlohmann::json cj = {{"id", c.info.id}, {"name", c.info.name}, {"camera", c.info.camera.name},
-                         {"last_seq", c.last_seq}, {"frames_processed", c.frames_processed},
-                         {"trajectory_poses", t.size()}, {"main_map", main_map}, {"group", group_of(c, main_map)},
+    nlohmann::json cj = {{"id", c.info.id},
+                         {"name", c.info.name},
+                         {"camera", c.info.camera.name},
+                         {"last_seq", c.last_seq},
+                         {"frames_processed", c.frames_processed},
+                         {"trajectory_poses", t.size()},
+                         {"main_map", main_map},
+                         {"group", group_of(c, main_map)},
                          {"maps", nlohmann::json::array()}};
     for (const auto& m : c.maps) {
       std::size_t obs = 0;
       for (const auto& p : m.points) obs += p.observations.size();
-      cj["maps"].push_back({{"index", m.index}, {"group", group_of(c, m.index)}, {"keyframes", m.keyframes.size()},
-                            {"points", m.points.size()}, {"observations", obs}});
+      cj["maps"].push_back({{"index", m.index},
+                            {"group", group_of(c, m.index)},
+                            {"keyframes", m.keyframes.size()},
+                            {"points", m.points.size()},
+                            {"observations", obs}});
     }
     groups[group_of(c, main_map)].push_back(c.info.id);
     j["clients"].push_back(cj);
@@ -158,7 +166,8 @@ int cmd_merge(int argc, char** argv) {
   for (const auto& ca : sa.clients)
     for (const auto& cb : sb.clients)
       if (ca.info.id == cb.info.id)
-        throw InputError(b, "client " + std::to_string(cb.info.id) + " is also in " + a + " (ids must differ to merge)");
+        throw InputError(b,
+                         "client " + std::to_string(cb.info.id) + " is also in " + a + " (ids must differ to merge)");
   SystemConfig config;
   config.vocabulary_path = args.get("vocab");
   config.fusion.queue_capacity = std::size_t(1) << 24;  // every keyframe is offered at once

@@ -26,12 +26,10 @@ using namespace cslam;
 
 namespace {
 
-
-
 void print(const std::string& what, const RepeatTiming& t) {
   const Summary w = summarize(t.wall), c = summarize(t.cpu);
-  std::printf("  %-34s wall median %8.3f [%8.3f, %8.3f]  cpu median %8.3f [%8.3f, %8.3f] ms (n=%d)\n", what.c_str(), w.median,
-              w.min, w.max, c.median, c.min, c.max, w.n);
+  std::printf("  %-34s wall median %8.3f [%8.3f, %8.3f]  cpu median %8.3f [%8.3f, %8.3f] ms (n=%d)\n", what.c_str(),
+              w.median, w.min, w.max, c.median, c.min, c.max, w.n);
 }
 
 void bench_pose(int n, int runs, double outliers, double stereo, bool with_reference) {
@@ -68,18 +66,24 @@ struct BaSolver {
 
 const BaSolver kBaSolvers[] = {
     {"bundle_adjust", [](const BaProblem& p) { return bundle_adjust(p); }},
-    {"sparse", [](const BaProblem& p) { return bundle_adjust_sparse(p, {}, nullptr, SparseBaLinearSolver::kSparseSchur); }},
-    {"sparse-dense-schur", [](const BaProblem& p) { return bundle_adjust_sparse(p, {}, nullptr, SparseBaLinearSolver::kDenseSchur); }},
-    {"sparse-iterative-schur", [](const BaProblem& p) { return bundle_adjust_sparse(p, {}, nullptr, SparseBaLinearSolver::kIterativeSchur); }},
+    {"sparse",
+     [](const BaProblem& p) { return bundle_adjust_sparse(p, {}, nullptr, SparseBaLinearSolver::kSparseSchur); }},
+    {"sparse-dense-schur",
+     [](const BaProblem& p) { return bundle_adjust_sparse(p, {}, nullptr, SparseBaLinearSolver::kDenseSchur); }},
+    {"sparse-iterative-schur",
+     [](const BaProblem& p) { return bundle_adjust_sparse(p, {}, nullptr, SparseBaLinearSolver::kIterativeSchur); }},
     {"reference", [](const BaProblem& p) { return bundle_adjust_ceres(p); }},
 };
 
-void bench_ba(int free_cams, int fixed_cams, int points, double visibility, int runs, const std::vector<std::string>& solvers) {
+void bench_ba(int free_cams, int fixed_cams, int points, double visibility, int runs,
+              const std::vector<std::string>& solvers) {
   std::mt19937 rng(7 + free_cams);
-  const problems::BaSynthetic s = problems::random_ba_problem(rng, free_cams, fixed_cams, points, 0.05, 0.85, visibility);
+  const problems::BaSynthetic s =
+      problems::random_ba_problem(rng, free_cams, fixed_cams, points, 0.05, 0.85, visibility);
   const BaProblem& p = s.problem;
-  std::printf("bundle adjustment, %d free + %d fixed keyframes, %zu points, %zu observations (%.1f per point):\n", free_cams,
-              fixed_cams, p.points.size(), p.observations.size(), double(p.observations.size()) / p.points.size());
+  std::printf("bundle adjustment, %d free + %d fixed keyframes, %zu points, %zu observations (%.1f per point):\n",
+              free_cams, fixed_cams, p.points.size(), p.observations.size(),
+              double(p.observations.size()) / p.points.size());
   std::vector<std::pair<std::string, RepeatTiming>> timings;
   std::vector<BaResult> results;
   for (const std::string& name : solvers) {
@@ -107,10 +111,12 @@ void bench_ba(int free_cams, int fixed_cams, int points, double visibility, int 
                              a.T_cam_world[c].rotation().angularDistance(b.T_cam_world[c].rotation())});
     int inlier_diff = 0;
     for (size_t i = 0; i < a.inlier.size(); ++i) inlier_diff += a.inlier[i] != b.inlier[i];
-    std::printf("    %s / %s: cpu %.1fx; iterations %d vs %d; cost %.6g vs %.6g; largest pose difference %.2g; inlier flags differing %d\n",
-                timings[k].first.c_str(), timings[0].first.c_str(),
-                summarize(timings[k].second.cpu).median / std::max(1e-9, summarize(timings[0].second.cpu).median), b.iterations,
-                a.iterations, b.final_cost, a.final_cost, worst_pose, inlier_diff);
+    std::printf(
+        "    %s / %s: cpu %.1fx; iterations %d vs %d; cost %.6g vs %.6g; largest pose difference %.2g; inlier flags "
+        "differing %d\n",
+        timings[k].first.c_str(), timings[0].first.c_str(),
+        summarize(timings[k].second.cpu).median / std::max(1e-9, summarize(timings[0].second.cpu).median), b.iterations,
+        a.iterations, b.final_cost, a.final_cost, worst_pose, inlier_diff);
   }
 }
 
@@ -123,19 +129,23 @@ std::vector<std::string> split_names(const std::string& s) {
 }
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-bench-optimize", "Time per call of the pose-only and bundle-adjustment solvers against their Ceres references.");
+  CliArgs args("cslam-bench-optimize",
+               "Time per call of the pose-only and bundle-adjustment solvers against their Ceres references.");
   args.option("runs", "repetitions of each measurement", "30")
       .option("pose-sizes", "observation counts of the pose-only problems (comma-separated)", "100,300,600")
       .option("outliers", "fraction of gross outliers in the pose-only problems", "0.15")
       .option("stereo", "fraction of observations with depth", "0.85")
-      .option("ba", "bundle-adjustment problems as FREExFIXEDxPOINTS, comma-separated", "10x5x1000,20x10x3000,40x10x6000")
+      .option("ba", "bundle-adjustment problems as FREExFIXEDxPOINTS, comma-separated",
+              "10x5x1000,20x10x3000,40x10x6000")
       .option("visibility", "probability that a keyframe which could see a point observes it", "0.35")
-      .option("ba-solvers", "bundle adjusters to time: bundle_adjust, sparse, sparse-dense-schur, sparse-iterative-schur, reference",
+      .option("ba-solvers",
+              "bundle adjusters to time: bundle_adjust, sparse, sparse-dense-schur, sparse-iterative-schur, reference",
               "bundle_adjust,reference")
       .flag("no-reference", "time only the fast pose solver (the BA solvers are chosen by --ba-solvers)");
   if (!args.parse(argc, argv)) return 0;
   const int runs = args.get_int("runs");
-  const double outliers = args.get_double("outliers"), stereo = args.get_double("stereo"), visibility = args.get_double("visibility");
+  const double outliers = args.get_double("outliers"), stereo = args.get_double("stereo"),
+               visibility = args.get_double("visibility");
   if (runs < 1 || outliers < 0 || outliers >= 1 || stereo < 0 || stereo > 1 || visibility <= 0 || visibility > 1)
     throw ConfigError("need --runs >= 1, 0 <= --outliers < 1, 0 <= --stereo <= 1, 0 < --visibility <= 1");
   const bool reference = !args.flag_set("no-reference");

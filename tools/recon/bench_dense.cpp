@@ -38,14 +38,19 @@ struct Frame {
 };
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-bench-dense", "Benchmark of back-projection + voxel filtering and TSDF fusion on a TUM sequence with ground-truth poses.");
+  CliArgs args(
+      "cslam-bench-dense",
+      "Benchmark of back-projection + voxel filtering and TSDF fusion on a TUM sequence with ground-truth poses.");
   args.option("dataset", "TUM dataset folder with groundtruth.txt")
       .option("frames", "number of frames (0 = all associated)", "0")
       .option("repeats", "repetitions of the back-projection + filter run", "3")
       .option("stride", "pixel stride", "2")
       .option("voxel", "voxel-grid leaf (m)", "0.01")
       .option("threads", "threads", "2")
-      .option("camera", "camera preset or file (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera the folder name says, else tum1)", "")
+      .option("camera",
+              "camera preset or file (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the "
+              "TUM camera the folder name says, else tum1)",
+              "")
       .option("tsdf-voxel", "TSDF voxel (m)", "0.01")
       .option("tsdf-trunc", "TSDF truncation (m)", "0.04")
       .option("tsdf-frames", "frames fused in the TSDF run (0 = all loaded)", "0")
@@ -88,10 +93,11 @@ int run(int argc, char** argv) {
     fps.push_back(1000.0 * double(n) / wall);
     cpu_per_frame.push_back(cpu / double(n));
     points = res.cloud.size();
-    std::printf("  run %d: %.1f frames/s wall, %.2f CPU-ms/frame, back-projection %.0f ms, filtering %.0f ms (filter thread), "
-                "%zu raw -> %zu points, peak buffered %zu\n",
-                r + 1, fps.back(), cpu_per_frame.back(), res.timing.backproject, res.timing.filter, res.raw_points, points,
-                res.peak_buffered_points);
+    std::printf(
+        "  run %d: %.1f frames/s wall, %.2f CPU-ms/frame, back-projection %.0f ms, filtering %.0f ms (filter thread), "
+        "%zu raw -> %zu points, peak buffered %zu\n",
+        r + 1, fps.back(), cpu_per_frame.back(), res.timing.backproject, res.timing.filter, res.raw_points, points,
+        res.peak_buffered_points);
   }
   char what[128];
   std::snprintf(what, sizeof what, "back-projection + voxel filter (stride %d, %d thr)", cfg.stride, cfg.threads);
@@ -118,11 +124,12 @@ int run(int argc, char** argv) {
     const double cpu = process_cpu_ms() - c0;
     const Summary s = summarize(ms);
     print_summary("TSDF integration per frame", s, "ms wall");
-    std::printf("  TSDF: %zu frames, %.1f frames/s wall (mean), %.1f CPU-ms/frame, %zu blocks, %.1f MB\n", nt, 1000.0 / s.mean,
-                cpu / double(nt), volume.block_count(), volume.memory_bytes() / 1e6);
+    std::printf("  TSDF: %zu frames, %.1f frames/s wall (mean), %.1f CPU-ms/frame, %zu blocks, %.1f MB\n", nt,
+                1000.0 / s.mean, cpu / double(nt), volume.block_count(), volume.memory_bytes() / 1e6);
     Stopwatch sw;
     const TriangleMesh mesh = volume.extract_mesh();
-    std::printf("  mesh extraction: %.0f ms, %zu vertices, %zu triangles\n", sw.ms(), mesh.vertices.size(), mesh.triangles.size());
+    std::printf("  mesh extraction: %.0f ms, %zu vertices, %zu triangles\n", sw.ms(), mesh.vertices.size(),
+                mesh.triangles.size());
   }
   std::printf("peak RSS %.0f MB (includes the %zu decoded frames held in memory)\n", peak_rss_mb(), frames.size());
   return 0;

@@ -26,7 +26,8 @@ namespace {
 const RgbdPair* pair_at(const TumDataset& ds, double t, double max_dt) {
   const RgbdPair* best = nullptr;
   for (const RgbdPair& p : ds.pairs)
-    if (std::abs(p.rgb_time - t) <= max_dt && (!best || std::abs(p.rgb_time - t) < std::abs(best->rgb_time - t))) best = &p;
+    if (std::abs(p.rgb_time - t) <= max_dt && (!best || std::abs(p.rgb_time - t) < std::abs(best->rgb_time - t)))
+      best = &p;
   return best;
 }
 
@@ -90,7 +91,8 @@ int run(int argc, char** argv) {
   write_ply(args.get("out"), cloud);
   if (!args.get("mesh").empty()) write_ply_mesh(args.get("mesh"), merge_meshes(placed));
   std::printf("%zu keyframes integrated into %zu submaps (%d without images); cloud %zu points -> %s\n",
-              view->keyframes_integrated, view->submaps.size(), r.missing_images, cloud.size(), args.get("out").c_str());
+              view->keyframes_integrated, view->submaps.size(), r.missing_images, cloud.size(),
+              args.get("out").c_str());
   return 0;
 }
 

@@ -33,10 +33,11 @@ void print_counts(const DenseCounts& c) {
 }
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-recon",
-               "Dense reconstruction: back-projects each posed RGB-D frame, voxel-filters per chunk, writes a coloured "
-               "cloud (binary PLY, or PCD if --out ends in .pcd) and optionally a TSDF mesh. With one --dataset every "
-               "trajectory refers to it (client lists are merged, any order); with several, trajectory k goes with dataset k.");
+  CliArgs args(
+      "cslam-recon",
+      "Dense reconstruction: back-projects each posed RGB-D frame, voxel-filters per chunk, writes a coloured "
+      "cloud (binary PLY, or PCD if --out ends in .pcd) and optionally a TSDF mesh. With one --dataset every "
+      "trajectory refers to it (client lists are merged, any order); with several, trajectory k goes with dataset k.");
   args.multi_option("dataset", "TUM-layout dataset folder(s) (rgb.txt, depth.txt)")
       .multi_option("poses", "trajectory file(s), TUM format 'timestamp x y z qx qy qz qw', camera-to-world")
       .option("out", "output cloud (.ply or .pcd)")
@@ -56,9 +57,14 @@ int run(int argc, char** argv) {
       .option("tsdf-voxel", "TSDF voxel size (m)", "0.01")
       .option("tsdf-trunc", "TSDF truncation distance (m)", "0.04")
       .option("tsdf-every", "fuse every n-th used frame into the TSDF", "1")
-      .option("camera", "camera preset or file for every dataset (default: each DIR/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)", "")
-      .option("align-to", "evaluation aid: SE3-align the poses to this ground-truth trajectory first (Umeyama over "
-                          "timestamp-associated positions), so SLAM-pose and ground-truth-pose clouds share a frame", "")
+      .option("camera",
+              "camera preset or file for every dataset (default: each DIR/camera.yaml, else its calibration.txt (fx fy "
+              "cx cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)",
+              "")
+      .option("align-to",
+              "evaluation aid: SE3-align the poses to this ground-truth trajectory first (Umeyama over "
+              "timestamp-associated positions), so SLAM-pose and ground-truth-pose clouds share a frame",
+              "")
       .option("log-level", "trace|debug|info|warn|error|off", "info");
   if (!args.parse(argc, argv)) return 0;
   set_log_level(args.get("log-level"));
@@ -113,12 +119,12 @@ int run(int argc, char** argv) {
     for (auto& s : sources) {
       const AteResult ate = compute_ate(gt, s.poses, Alignment::kSE3, cfg.max_time_gap);
       for (auto& p : s.poses) p.T_world_cam = apply_sim3_to_pose(ate.T_gt_est, p.T_world_cam);
-      std::fprintf(stderr, "aligned %s to %s: ATE rmse %.4f m over %d poses\n", s.dataset_dir.c_str(), args.get("align-to").c_str(),
-                   ate.stats.rmse, ate.stats.n);
+      std::fprintf(stderr, "aligned %s to %s: ATE rmse %.4f m over %d poses\n", s.dataset_dir.c_str(),
+                   args.get("align-to").c_str(), ate.stats.rmse, ate.stats.n);
     }
   }
-  std::fprintf(stderr, "cslam-recon: %zu poses from %zu trajectory file(s), %zu dataset(s)\n", total_poses, pose_files.size(),
-               datasets.size());
+  std::fprintf(stderr, "cslam-recon: %zu poses from %zu trajectory file(s), %zu dataset(s)\n", total_poses,
+               pose_files.size(), datasets.size());
 
   std::optional<Progress> progress;  // created at the first frame, when the frame count is known
   const DenseResult r = reconstruct_from_trajectories(sources, cfg, [&](const DenseProgress& p) {
@@ -128,18 +134,21 @@ int run(int argc, char** argv) {
   });
   print_counts(r.counts);
   if (r.cloud.empty())
-    throw InputError(datasets.front(), "no points reconstructed (" + std::to_string(r.counts.used) + " frames used of " +
-                                           std::to_string(total_poses) + " poses); nothing written");
+    throw InputError(datasets.front(), "no points reconstructed (" + std::to_string(r.counts.used) +
+                                           " frames used of " + std::to_string(total_poses) +
+                                           " poses); nothing written");
   if (ends_with(out, ".pcd"))
     write_pcd(out, r.cloud);
   else
     write_ply(out, r.cloud);
   if (!args.get("pcd").empty()) write_pcd(args.get("pcd"), r.cloud);
   const BoundingBox bb = bounding_box(r.cloud.points);
-  std::fprintf(stderr, "cloud: %zu points (from %zu raw), bbox [%.2f %.2f %.2f] - [%.2f %.2f %.2f] m -> %s\n", r.cloud.size(),
-               r.raw_points, bb.min.x(), bb.min.y(), bb.min.z(), bb.max.x(), bb.max.y(), bb.max.z(), out.c_str());
+  std::fprintf(stderr, "cloud: %zu points (from %zu raw), bbox [%.2f %.2f %.2f] - [%.2f %.2f %.2f] m -> %s\n",
+               r.cloud.size(), r.raw_points, bb.min.x(), bb.min.y(), bb.min.z(), bb.max.x(), bb.max.y(), bb.max.z(),
+               out.c_str());
   if (cfg.build_mesh) {
-    if (r.mesh.triangles.empty()) throw InputError(datasets.front(), "TSDF produced an empty mesh; nothing written to " + mesh_path);
+    if (r.mesh.triangles.empty())
+      throw InputError(datasets.front(), "TSDF produced an empty mesh; nothing written to " + mesh_path);
     write_ply_mesh(mesh_path, r.mesh);
     std::fprintf(stderr, "mesh: %zu vertices, %zu triangles, %zu TSDF blocks (%.1f MB) -> %s\n", r.mesh.vertices.size(),
                  r.mesh.triangles.size(), r.tsdf_blocks, r.tsdf_bytes / 1e6, mesh_path.c_str());

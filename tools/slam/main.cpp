@@ -34,7 +34,6 @@ using namespace cslam;
 
 namespace {
 
-
 double peak_rss_mb() {
   rusage ru{};
   getrusage(RUSAGE_SELF, &ru);
@@ -44,33 +43,63 @@ double peak_rss_mb() {
 int run(int argc, char** argv) {
   CliArgs args("cslam-slam", "Runs one client's RGB-D SLAM offline on a TUM-layout dataset.");
   args.option("dataset", "dataset folder (rgb.txt, depth.txt, ...)", "")
-      .multi_option("datasets", "multi-client mode: one dataset folder per client (e.g. cslam-synth robot_1 robot_2 ...)")
+      .multi_option("datasets",
+                    "multi-client mode: one dataset folder per client (e.g. cslam-synth robot_1 robot_2 ...)")
       .option("clients", "multi-client mode: split --dataset into K clients with the paper's ranges", "1")
       .option("overlap", "overlap rate eta of the split, e.g. 0.05 or 5%", "5%")
       .option("out-dir", "multi-client mode: output folder (client_K.txt, fused_G.txt, stats.json)", "")
-      .option("camera", "camera preset (tum1, tum2, tum2-corrected, tum3, synthetic) or file; default: DATASET/camera.yaml, else its calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1", "")
-      .option("readout", "rolling-shutter readout time of the colour camera in seconds, first to last row (0: global shutter); default: the camera's (TUM presets 0.020, camera files' readout_time key, else 0)", "")
+      .option(
+          "camera",
+          "camera preset (tum1, tum2, tum2-corrected, tum3, synthetic) or file; default: DATASET/camera.yaml, else its "
+          "calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1",
+          "")
+      .option("readout",
+              "rolling-shutter readout time of the colour camera in seconds, first to last row (0: global shutter); "
+              "default: the camera's (TUM presets 0.020, camera files' readout_time key, else 0)",
+              "")
       .option("range", "frames a:b (1-based, inclusive, of the associated RGB-D pairs)", "")
-      .option("association", "colour-depth pairing: nearest (every colour frame, a depth image may serve two) | unique (TUM associate.py)", "nearest")
+      .option(
+          "association",
+          "colour-depth pairing: nearest (every colour frame, a depth image may serve two) | unique (TUM associate.py)",
+          "nearest")
       .option("vocab", "vocabulary file", "")
       .option("out", "frame trajectory output (TUM format), single-client mode", "")
       .option("keyframes", "keyframe trajectory output (TUM format)", "")
       .option("stats", "timing statistics output (JSON)", "")
       .option("client", "client id", "1")
-      .flag("sync", "step every stage on one thread (local mapping, loop closing, fusion): the same input gives the same output")
+      .flag(
+          "sync",
+          "step every stage on one thread (local mapping, loop closing, fusion): the same input gives the same output")
       .flag("no-local-ba", "disable local bundle adjustment (ablation)")
       .flag("no-triangulation", "local mapping creates no points from keyframe pairs (ablation)")
-      .flag("no-fusion", "disable map fusion (ablation): across clients, and of one client's maps after a long tracking loss")
+      .flag("no-fusion",
+            "disable map fusion (ablation): across clients, and of one client's maps after a long tracking loss")
       .flag("no-group-ba", "multi-client mode: no global BA over a fused group after fusion (ablation)")
-      .flag("no-reencounter", "multi-client mode: maps of one fused group are not matched against each other again (ablation)")
+      .flag("no-reencounter",
+            "multi-client mode: maps of one fused group are not matched against each other again (ablation)")
       .flag("no-loop", "disable loop closing (ablation)")
       .flag("no-final-ba", "no global BA over each map at the end of the run (ablation)")
-      .option("flow", "flow frames (KLT tracking between full frames, no ORB extraction): off, under-load (a live server falling behind; offline: never), always", "under-load")
-      .flag("depth-time", "read keypoint depth where the predicted motion carried it over the depth image's time offset")
-      .option("tracking-wait", "threaded: after a new keyframe, tracking waits until local mapping has fully processed it (keyframe: the same output as --sync, run after run), created and fused its points (new-points: the server's choice, lower latency) or not at all (none)", "keyframe")
-      .option("depth-every", "full depth with every K-th frame only, as a lean stream sends it (the light frames between: --light-depth); 1: every frame", "1")
-      .option("light-depth", "with --depth-every: the light frames carry depth at every S-th pixel of every S-th row (0: none)", "4")
-      .option("depth-request-delay", "with --depth-every: frames between tracking asking for full depth and the robot sending it (the acks in flight)", "3")
+      .option("flow",
+              "flow frames (KLT tracking between full frames, no ORB extraction): off, under-load (a live server "
+              "falling behind; offline: never), always",
+              "under-load")
+      .flag("depth-time",
+            "read keypoint depth where the predicted motion carried it over the depth image's time offset")
+      .option("tracking-wait",
+              "threaded: after a new keyframe, tracking waits until local mapping has fully processed it (keyframe: "
+              "the same output as --sync, run after run), created and fused its points (new-points: the server's "
+              "choice, lower latency) or not at all (none)",
+              "keyframe")
+      .option("depth-every",
+              "full depth with every K-th frame only, as a lean stream sends it (the light frames between: "
+              "--light-depth); 1: every frame",
+              "1")
+      .option("light-depth",
+              "with --depth-every: the light frames carry depth at every S-th pixel of every S-th row (0: none)", "4")
+      .option("depth-request-delay",
+              "with --depth-every: frames between tracking asking for full depth and the robot sending it (the acks in "
+              "flight)",
+              "3")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -112,8 +141,9 @@ int run(int argc, char** argv) {
   fusion_config.enabled = !args.flag_set("no-fusion");
   FusionManager fusion(fusion_config, vocabulary);
   const MapFrameOf frame_of = [&fusion](const Map* m) { return fusion.group_of(m); };
-  ClientSlam slam(info, config, vocabulary,
-                  [&fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion.notify(c, m, kf); });
+  ClientSlam slam(
+      info, config, vocabulary,
+      [&fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion.notify(c, m, kf); });
 
   // Images are decoded on a second thread, ahead of tracking.
   BoundedQueue<std::pair<RgbdPair, RgbdImages>> loaded(4);
@@ -136,16 +166,19 @@ int run(int argc, char** argv) {
   const bool quiet = args.flag_set("quiet");
   const int depth_every = args.get_int("depth-every"), depth_delay = args.get_int("depth-request-delay");
   const int light_depth = args.get_int("light-depth");
-  if (depth_every < 1 || depth_delay < 0) throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
+  if (depth_every < 1 || depth_delay < 0)
+    throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
   int depth_requested_at = -1, light_frames = 0;
   while (auto item = loaded.pop()) {
     RgbdFrame frame = dataset_frame(item->first, std::move(item->second), info.id, std::uint64_t(n));
     if (const std::string why = frame_problem(frame, info.camera); !why.empty())  // the dataset is this tool's boundary
-      throw InputError(args.get("dataset"), "frame " + std::to_string(n) + ": " + why + " (does --camera match the dataset?)");
+      throw InputError(args.get("dataset"),
+                       "frame " + std::to_string(n) + ": " + why + " (does --camera match the dataset?)");
     const bool requested = depth_requested_at >= 0 && n > depth_requested_at + depth_delay;
     if (n % depth_every != 0 && !requested) {
       if (light_depth > 1) {  // what the server makes of a light frame's depth
-        frame.depth = expand_depth(subsample_depth(frame.depth, light_depth), light_depth, frame.depth.cols, frame.depth.rows);
+        frame.depth =
+            expand_depth(subsample_depth(frame.depth, light_depth), light_depth, frame.depth.cols, frame.depth.rows);
         frame.depth_subsample = light_depth;
       } else {
         frame.depth = cv::Mat();
@@ -158,7 +191,9 @@ int run(int argc, char** argv) {
     if (r.wants_depth && depth_requested_at < 0) depth_requested_at = n;
     inliers.push_back(r.inliers);
     features.push_back(r.features);
-    if (std::getenv("CSLAM_TRACE")) std::fprintf(stderr, "frame %d feats %d inliers %d kf %d flow %d t %.6f\n", n, r.features, r.inliers, int(r.new_keyframe), int(r.flow), frame.timestamp);
+    if (std::getenv("CSLAM_TRACE"))
+      std::fprintf(stderr, "frame %d feats %d inliers %d kf %d flow %d t %.6f\n", n, r.features, r.inliers,
+                   int(r.new_keyframe), int(r.flow), frame.timestamp);
     ++n;
     if (r.fate == FrameFate::kLost) ++lost;
     if (r.fate == FrameFate::kRejected) {
@@ -178,7 +213,8 @@ int run(int argc, char** argv) {
   const auto all_maps = slam.maps();
   auto fused = [&](const Map& m) {
     const GroupId g = fusion.group_of(&m);
-    return g.valid() && std::count_if(all_maps.begin(), all_maps.end(), [&](const auto& o) { return fusion.group_of(o.get()) == g; }) > 1;
+    return g.valid() && std::count_if(all_maps.begin(), all_maps.end(),
+                                      [&](const auto& o) { return fusion.group_of(o.get()) == g; }) > 1;
   };
   slam.final_global_ba(fused);
   const double wall_s = wall.ms() / 1000.0;
@@ -186,7 +222,8 @@ int run(int argc, char** argv) {
 
   const Trajectory traj = slam.trajectory(frame_of);
   write_tum_trajectory(args.get("out"), traj, "cslam-slam " + dir);
-  if (args.has("keyframes")) write_tum_trajectory(args.get("keyframes"), slam.keyframe_trajectory(frame_of), "cslam-slam keyframes");
+  if (args.has("keyframes"))
+    write_tum_trajectory(args.get("keyframes"), slam.keyframe_trajectory(frame_of), "cslam-slam keyframes");
   const auto snap = slam.snapshot();
   const auto fusion_events = fusion.events();
   for (const auto& e : fusion_events)
@@ -233,11 +270,15 @@ int run(int argc, char** argv) {
                 l.query_timestamp, l.candidate_timestamp, l.inliers, l.T_correction.translation().norm(),
                 l.T_correction.rotation_angle() * 180.0 / M_PI, l.correction_ms);
   if (args.has("stats")) std::ofstream(args.get("stats")) << stats.dump(2) << "\n";
-  if (light_frames > 0) std::printf("light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d)\n", light_frames, n, depth_every, depth_delay, light_depth);
-  std::printf("frames %d tracked %llu (flow %llu) lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
-              "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",
-              n, (unsigned long long)snap.frames_tracked, (unsigned long long)snap.frames_flow, lost, rejected, snap.keyframes, snap.map_points, snap.maps, wall_s,
-              summarize(tracking_total).median, summarize(t.mapper.ba_ms).median, peak_rss_mb());
+  if (light_frames > 0)
+    std::printf("light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d)\n", light_frames, n,
+                depth_every, depth_delay, light_depth);
+  std::printf(
+      "frames %d tracked %llu (flow %llu) lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
+      "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",
+      n, (unsigned long long)snap.frames_tracked, (unsigned long long)snap.frames_flow, lost, rejected, snap.keyframes,
+      snap.map_points, snap.maps, wall_s, summarize(tracking_total).median, summarize(t.mapper.ba_ms).median,
+      peak_rss_mb());
   return 0;
 }
 

@@ -68,7 +68,8 @@ int run_multi_client(const CliArgs& args) {
       j.info.camera = camera_for(args, dir);
       j.pairs = select_range(ds.pairs, split.ranges[c].first, split.ranges[c].last);
       j.groundtruth = ds.groundtruth;
-      std::printf("client %d: frames %d-%d (%d)\n", c + 1, split.ranges[c].first, split.ranges[c].last, split.ranges[c].count());
+      std::printf("client %d: frames %d-%d (%d)\n", c + 1, split.ranges[c].first, split.ranges[c].last,
+                  split.ranges[c].count());
       jobs.push_back(std::move(j));
     }
   }
@@ -133,10 +134,11 @@ int run_multi_client(const CliArgs& args) {
   nlohmann::json summary = {{"slam_time_s", slam_time}, {"clients", jobs.size()}};
   std::printf("SLAM time %.2f s for %zu clients\n", slam_time, jobs.size());
   for (const auto& e : snap.events)
-    std::printf("fusion: client %u + client %u -> group %d at %.2f s (frame time %.3f), %d inliers, %d + %d keyframes, "
-                "%d seam points, %d cross-map edges, %.1f ms\n",
-                e.client_a, e.client_b, e.group, e.wall_time_s, e.query_timestamp, e.inliers, e.keyframes_moved,
-                e.keyframes_kept, e.seam_points, e.seam_edges, e.duration_ms);
+    std::printf(
+        "fusion: client %u + client %u -> group %d at %.2f s (frame time %.3f), %d inliers, %d + %d keyframes, "
+        "%d seam points, %d cross-map edges, %.1f ms\n",
+        e.client_a, e.client_b, e.group, e.wall_time_s, e.query_timestamp, e.inliers, e.keyframes_moved,
+        e.keyframes_kept, e.seam_points, e.seam_edges, e.duration_ms);
   if (snap.group_ba.started > 0) {
     const Summary gba = summarize(snap.group_ba.ms);
     std::printf("group global BA: %d started, %d completed, %d discarded, median %.0f ms\n", snap.group_ba.started,
@@ -162,7 +164,8 @@ int run_multi_client(const CliArgs& args) {
     if (pairs.size() != members.size()) continue;
     try {
       const auto r = compute_ate_joint(pairs, Alignment::kSE3);
-      std::printf("fused group %d (%zu clients) combined ATE rmse %.4f m (n=%d)\n", g.value(), members.size(), r.stats.rmse, r.stats.n);
+      std::printf("fused group %d (%zu clients) combined ATE rmse %.4f m (n=%d)\n", g.value(), members.size(),
+                  r.stats.rmse, r.stats.n);
       summary["ate_rmse_group_" + std::to_string(g.value())] = r.stats.rmse;
     } catch (const InputError& e) {
       std::printf("group %d ATE n/a: %s\n", g.value(), e.what());

@@ -56,12 +56,17 @@ int run(int argc, char** argv) {
   std::sort(cpu.begin(), cpu.end());
   const double median = ms[ms.size() / 2];
   std::printf("scene: %zu faces, %zu textures, made in %.0f ms\n", scene.faces.size(), scene.textures.size(), scene_ms);
-  std::printf("render %dx%d, %d thread(s), noise %s: %d frames, ms/frame median %.2f min %.2f max %.2f -> %.1f frames/s (median), %.1f-%.1f\n",
-              c.camera.width, c.camera.height, c.render.threads, c.render.degradation.enabled ? "on" : "off", n, median, ms.front(),
-              ms.back(), 1000.0 / median, 1000.0 / ms.back(), 1000.0 / ms.front());
+  std::printf(
+      "render %dx%d, %d thread(s), noise %s: %d frames, ms/frame median %.2f min %.2f max %.2f -> %.1f frames/s "
+      "(median), %.1f-%.1f\n",
+      c.camera.width, c.camera.height, c.render.threads, c.render.degradation.enabled ? "on" : "off", n, median,
+      ms.front(), ms.back(), 1000.0 / median, 1000.0 / ms.back(), 1000.0 / ms.front());
   if (c.render.threads == 1)
-    std::printf("CPU time of the rendering thread: ms/frame median %.2f min %.2f max %.2f -> %.1f frames/s per core (median), %.1f-%.1f\n",
-                cpu[cpu.size() / 2], cpu.front(), cpu.back(), 1000.0 / cpu[cpu.size() / 2], 1000.0 / cpu.back(), 1000.0 / cpu.front());
+    std::printf(
+        "CPU time of the rendering thread: ms/frame median %.2f min %.2f max %.2f -> %.1f frames/s per core (median), "
+        "%.1f-%.1f\n",
+        cpu[cpu.size() / 2], cpu.front(), cpu.back(), 1000.0 / cpu[cpu.size() / 2], 1000.0 / cpu.back(),
+        1000.0 / cpu.front());
   return 0;
 }
 

@@ -26,10 +26,11 @@ void parse_room(const std::string& text, SceneConfig& scene) {
 }
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-synth",
-               "Renders RGB-D sequences of a procedurally generated room for K robots in the TUM RGB-D layout:\n"
-               "OUT/robot_<k>/{rgb,depth,rgb.txt,depth.txt,groundtruth.txt,camera.yaml}, OUT/scene.ply, OUT/scene.json.\n"
-               "Options left empty take the preset's value.");
+  CliArgs args(
+      "cslam-synth",
+      "Renders RGB-D sequences of a procedurally generated room for K robots in the TUM RGB-D layout:\n"
+      "OUT/robot_<k>/{rgb,depth,rgb.txt,depth.txt,groundtruth.txt,camera.yaml}, OUT/scene.ply, OUT/scene.json.\n"
+      "Options left empty take the preset's value.");
   args.option("out", "output folder OUT (must not exist unless --force)")
       .option("preset", "demo (3 robots x 300 frames, 640x480, loop) | test-small (2 x 60, 320x240)", "demo")
       .option("robots", "number of robots K", "")
@@ -49,8 +50,10 @@ int run(int argc, char** argv) {
       .flag("single", "single-robot mode (one robot, with a loop unless --no-loop)")
       .flag("whole", "one long sequence OUT/whole/ visiting every robot's path in turn (for cslam-eval split)")
       .flag("repeat-texture", "copy one poster-sized texture patch onto two different walls (place-recognition trap)")
-      .option("shared-poster", "put a poster generated from this seed (not the room's) every ~2 m along both long walls: rooms of\n"
-                               "      different --seed with the same --shared-poster share it (cross-room place-recognition trap)", "")
+      .option("shared-poster",
+              "put a poster generated from this seed (not the room's) every ~2 m along both long walls: rooms of\n"
+              "      different --seed with the same --shared-poster share it (cross-room place-recognition trap)",
+              "")
       .flag("force", "replace OUT if it exists");
   if (!args.parse(argc, argv)) return 0;
   set_log_level(args.get("log-level"));
@@ -65,7 +68,8 @@ int run(int argc, char** argv) {
     c.scene.seed = static_cast<std::uint64_t>(std::stoull(text));
   }
   if (given("width") || given("height"))
-    c.camera = synthetic_camera(given("width") ? args.get_int("width") : c.camera.width, given("height") ? args.get_int("height") : c.camera.height);
+    c.camera = synthetic_camera(given("width") ? args.get_int("width") : c.camera.width,
+                                given("height") ? args.get_int("height") : c.camera.height);
   if (given("room")) parse_room(args.get("room"), c.scene);
   if (given("furniture")) c.scene.furniture = args.get_int("furniture");
   if (given("overlap")) c.trajectory.overlap = args.get_double("overlap");
@@ -79,7 +83,8 @@ int run(int argc, char** argv) {
   c.scene.repeat_texture = args.flag_set("repeat-texture");
   if (given("shared-poster")) {
     const std::string text = args.get("shared-poster");
-    if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos || text.size() > 19 || std::stoull(text) == 0)
+    if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos || text.size() > 19 ||
+        std::stoull(text) == 0)
       throw ConfigError("cslam-synth: --shared-poster expects a positive integer seed, got '" + text + "'");
     c.scene.shared_poster_seed = static_cast<std::uint64_t>(std::stoull(text));
   }
@@ -92,11 +97,12 @@ int run(int argc, char** argv) {
 
   auto log = logger("synth");
   log->info("preset {}: {} robot(s) x {} frames, {}x{}, room {}x{}x{} m, {} furniture, seed {}, loop {}, noise {}",
-            c.preset, c.trajectory.robots, c.trajectory.frames, c.camera.width, c.camera.height, c.scene.width, c.scene.depth,
-            c.scene.height, c.scene.furniture, c.scene.seed, c.trajectory.loop ? "on" : "off", c.render.degradation.enabled ? "on" : "off");
+            c.preset, c.trajectory.robots, c.trajectory.frames, c.camera.width, c.camera.height, c.scene.width,
+            c.scene.depth, c.scene.height, c.scene.furniture, c.scene.seed, c.trajectory.loop ? "on" : "off",
+            c.render.degradation.enabled ? "on" : "off");
   const DatasetResult r = generate_dataset(c);
-  log->info("wrote {} frames in {} sequence(s), {} surface points to {} in {:.1f} s", r.frames, r.sequences.size(), r.surface_points,
-            r.out_dir, r.seconds);
+  log->info("wrote {} frames in {} sequence(s), {} surface points to {} in {:.1f} s", r.frames, r.sequences.size(),
+            r.surface_points, r.out_dir, r.seconds);
   for (const auto& s : r.sequences) std::cout << s << "\n";
   return 0;
 }

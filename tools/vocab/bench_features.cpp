@@ -25,8 +25,9 @@ void report(const char* what, const std::vector<double>& values, const char* uni
 }
 
 int run(int argc, char** argv) {
-  CliArgs args("cslam-bench-features", "Benchmarks ORB extraction, BoW transform, vocabulary load, keyframe database "
-                                       "queries and matching on a TUM sequence (single thread).");
+  CliArgs args("cslam-bench-features",
+               "Benchmarks ORB extraction, BoW transform, vocabulary load, keyframe database "
+               "queries and matching on a TUM sequence (single thread).");
   args.option("tum", "TUM dataset folder", std::string(CSLAM_SHARED_DATA_DIR) + "/tum_fr1_rpy")
       .option("every", "use every n-th frame", "1")
       .option("vocabulary", "vocabulary file ('default' = the committed one)", "default")
@@ -99,11 +100,13 @@ int run(int argc, char** argv) {
     auto neighbours = [&](KeyFrameId id) {
       std::vector<KeyFrameId> n;
       for (int d = -3; d <= 3; ++d)
-        if (d != 0 && int(id.seq) + d >= 0 && int(id.seq) + d < int(bows.size())) n.push_back({0, std::uint32_t(int(id.seq) + d)});
+        if (d != 0 && int(id.seq) + d >= 0 && int(id.seq) + d < int(bows.size()))
+          n.push_back({0, std::uint32_t(int(id.seq) + d)});
       return n;
     };
     Stopwatch sw;
-    db.query(bows[i], qp, [&](KeyFrameId id) { return id == self; }, neighbours);
+    db.query(
+        bows[i], qp, [&](KeyFrameId id) { return id == self; }, neighbours);
     t_query.push_back(sw.ms());
   }
   char label[64];

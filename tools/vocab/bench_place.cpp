@@ -28,7 +28,8 @@ const SE3* pose_at(const Trajectory& gt, double t, double max_dt = 0.02) {
   auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const StampedPose& p, double v) { return p.timestamp < v; });
   const StampedPose* best = nullptr;
   if (it != gt.end()) best = &*it;
-  if (it != gt.begin() && (!best || std::abs(std::prev(it)->timestamp - t) < std::abs(best->timestamp - t))) best = &*std::prev(it);
+  if (it != gt.begin() && (!best || std::abs(std::prev(it)->timestamp - t) < std::abs(best->timestamp - t)))
+    best = &*std::prev(it);
   if (!best || std::abs(best->timestamp - t) > max_dt) return nullptr;
   return &best->T_world_cam;
 }
@@ -43,10 +44,11 @@ struct Outcome {
 };
 
 void print_outcome(const char* name, const Outcome& o) {
-  std::printf("%-28s queries %d, with a true match %d, recall@1 %.3f (%d/%d), precision of top candidate %.3f (%d/%d)\n",
-              name, o.queries, o.with_true_match,
-              o.with_true_match ? double(o.correct_top1_with_match) / o.with_true_match : 0.0, o.correct_top1_with_match,
-              o.with_true_match, o.answered ? double(o.correct_top1) / o.answered : 0.0, o.correct_top1, o.answered);
+  std::printf(
+      "%-28s queries %d, with a true match %d, recall@1 %.3f (%d/%d), precision of top candidate %.3f (%d/%d)\n", name,
+      o.queries, o.with_true_match, o.with_true_match ? double(o.correct_top1_with_match) / o.with_true_match : 0.0,
+      o.correct_top1_with_match, o.with_true_match, o.answered ? double(o.correct_top1) / o.answered : 0.0,
+      o.correct_top1, o.answered);
 }
 
 struct PosedImage {
@@ -72,8 +74,9 @@ Trajectory groundtruth_of(const TumDataset& ds, const std::string& root) {
 }
 
 // Database from `keyframes` (client 1), queries from `queries`; prints recall@1 and precision.
-void evaluate(const std::vector<PosedImage>& keyframes, const PinholeCamera& kf_camera, const std::vector<PosedImage>& queries,
-              const PinholeCamera& q_camera, const CliArgs& args, const Vocabulary& voc, const OrbExtractor& extractor) {
+void evaluate(const std::vector<PosedImage>& keyframes, const PinholeCamera& kf_camera,
+              const std::vector<PosedImage>& queries, const PinholeCamera& q_camera, const CliArgs& args,
+              const Vocabulary& voc, const OrbExtractor& extractor) {
   const double max_angle = args.get_double("max-angle"), max_dist = args.get_double("max-dist");
   const int levels_up = args.get_int("levels-up");
   auto bow_of = [&](const std::string& path, const PinholeCamera& cam) {
@@ -84,7 +87,8 @@ void evaluate(const std::vector<PosedImage>& keyframes, const PinholeCamera& kf_
     return bow;
   };
   KeyFrameDatabase db;
-  for (std::size_t k = 0; k < keyframes.size(); ++k) db.add(KeyFrameId{1, std::uint32_t(k)}, bow_of(keyframes[k].path, kf_camera));
+  for (std::size_t k = 0; k < keyframes.size(); ++k)
+    db.add(KeyFrameId{1, std::uint32_t(k)}, bow_of(keyframes[k].path, kf_camera));
   auto neighbours = [&](KeyFrameId id) {  // stand-in covisibility: adjacent keyframes
     std::vector<KeyFrameId> out;
     if (id.seq > 0) out.push_back({1, id.seq - 1});
@@ -107,8 +111,8 @@ void evaluate(const std::vector<PosedImage>& keyframes, const PinholeCamera& kf_
     const BowVector bow = bow_of(q.path, q_camera);
     const auto ranked = db.rank(bow, 1);
     const auto groups = db.query(bow, {}, nullptr, neighbours);
-    for (auto [o, top] : {std::pair<Outcome*, const std::vector<KeyFrameDatabase::Candidate>*>{&plain, &ranked},
-                          {&grouped, &groups}}) {
+    for (auto [o, top] :
+         {std::pair<Outcome*, const std::vector<KeyFrameDatabase::Candidate>*>{&plain, &ranked}, {&grouped, &groups}}) {
       ++o->queries;
       o->with_true_match += has_true;
       if (top->empty()) continue;
@@ -145,10 +149,11 @@ int real_sequence(const CliArgs& args, const Vocabulary& voc, const OrbExtractor
     const TumDataset db_ds = open_tum_dataset(db_root), q_ds = open_tum_dataset(q_root);
     const auto kfs = posed_frames(db_ds, groundtruth_of(db_ds, db_root), 0, int(db_ds.rgb.size()), db_every);
     const auto qs = posed_frames(q_ds, groundtruth_of(q_ds, q_root), 0, int(q_ds.rgb.size()), q_every);
-    std::printf("cross-dataset: %zu keyframes of %s (every %d-th frame), %zu queries of %s (every %d-th); true match = "
-                "angle < %.0f deg and distance < %.2f m\n",
-                kfs.size(), db_root.c_str(), db_every, qs.size(), q_root.c_str(), q_every, args.get_double("max-angle"),
-                args.get_double("max-dist"));
+    std::printf(
+        "cross-dataset: %zu keyframes of %s (every %d-th frame), %zu queries of %s (every %d-th); true match = "
+        "angle < %.0f deg and distance < %.2f m\n",
+        kfs.size(), db_root.c_str(), db_every, qs.size(), q_root.c_str(), q_every, args.get_double("max-angle"),
+        args.get_double("max-dist"));
     evaluate(kfs, camera_of(db_root), qs, camera_of(q_root), args, voc, extractor);
     return 0;
   }
@@ -158,10 +163,11 @@ int real_sequence(const CliArgs& args, const Vocabulary& voc, const OrbExtractor
   const int n = int(ds.rgb.size()), half = n / 2;
   const auto kfs = posed_frames(ds, gt, 0, half, db_every);
   const auto qs = posed_frames(ds, gt, half, n, q_every);
-  std::printf("real sequence %s: %zu keyframes (every %d-th frame of the first %d), %zu queries (every %d-th frame of the "
-              "second half); true match = angle < %.0f deg and distance < %.2f m\n",
-              root.c_str(), kfs.size(), db_every, half, qs.size(), q_every, args.get_double("max-angle"),
-              args.get_double("max-dist"));
+  std::printf(
+      "real sequence %s: %zu keyframes (every %d-th frame of the first %d), %zu queries (every %d-th frame of the "
+      "second half); true match = angle < %.0f deg and distance < %.2f m\n",
+      root.c_str(), kfs.size(), db_every, half, qs.size(), q_every, args.get_double("max-angle"),
+      args.get_double("max-dist"));
   const PinholeCamera cam = camera_of(root);
   evaluate(kfs, cam, qs, cam, args, voc, extractor);
   return 0;
@@ -200,9 +206,10 @@ int synthetic_crossing(const Vocabulary& voc, const OrbExtractor& extractor, int
     first += ok;
     if (y == 900) crossing_ok = !top.empty() && a_x[top.front().id.seq] == 1200;
   }
-  std::printf("synthetic crossing: robot B's crossing frame -> robot A's crossing keyframe ranks first: %s; "
-              "B frames within 150 px of the crossing with A's crossing keyframe first: %d/%d\n",
-              crossing_ok ? "yes" : "NO", first, overlapping);
+  std::printf(
+      "synthetic crossing: robot B's crossing frame -> robot A's crossing keyframe ranks first: %s; "
+      "B frames within 150 px of the crossing with A's crossing keyframe first: %d/%d\n",
+      crossing_ok ? "yes" : "NO", first, overlapping);
   return crossing_ok ? 0 : 1;
 }
 

@@ -11,9 +11,9 @@
 namespace cslam {
 
 struct ImageSource {
-  std::string path;           // file path, or "procedural:<seed>"
-  double timestamp = 0;       // TUM frames only
-  std::uint64_t seed = 0;     // procedural only
+  std::string path;        // file path, or "procedural:<seed>"
+  double timestamp = 0;    // TUM frames only
+  std::uint64_t seed = 0;  // procedural only
 };
 
 // Every `every`-th RGB frame listed in <root>/rgb.txt. Throws InputError on a missing dataset.

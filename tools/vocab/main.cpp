@@ -100,7 +100,8 @@ int cmd_info(int argc, char** argv) {
   const VocabularyStats s = voc.stats();
   std::printf("file        %s\n", path.c_str());
   std::printf("load time   %.1f ms\n", load_ms);
-  std::printf("branching   %d\ndepth       %d\nnodes       %zu\nwords       %zu\n", s.branching, s.depth, s.num_nodes, s.num_words);
+  std::printf("branching   %d\ndepth       %d\nnodes       %zu\nwords       %zu\n", s.branching, s.depth, s.num_nodes,
+              s.num_words);
   std::printf("words per depth:");
   for (std::size_t l = 0; l < s.words_per_level.size(); ++l) std::printf(" %zu:%zu", l, s.words_per_level[l]);
   std::printf("\nmean word depth %.2f\n", s.mean_word_depth);

@@ -35,7 +35,8 @@ class KeyFrameDatabase {
     int common_words = 0;
   };
   struct QueryParams {
-    double min_score = 0;                 // loop/overlap detection: the lowest score between the keyframe and its covisible neighbours; 0 for relocalisation
+    double min_score = 0;  // loop/overlap detection: the lowest score between the keyframe and its covisible
+                           // neighbours; 0 for relocalisation
     double min_common_words_ratio = 0.8;  // of the best candidate's common words
     double min_accumulated_ratio = 0.75;  // of the best group score
     std::size_t max_results = 0;          // 0 = no limit

@@ -84,8 +84,7 @@ std::size_t assign(const std::vector<Descriptor>& all, const std::vector<std::ui
   }
   std::vector<std::size_t> changed(threads, 0);
   std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t)
-    pool.emplace_back(work, n * t / threads, n * (t + 1) / threads, &changed[t]);
+  for (int t = 0; t < threads; ++t) pool.emplace_back(work, n * t / threads, n * (t + 1) / threads, &changed[t]);
   for (std::thread& th : pool) th.join();
   std::size_t total = 0;
   for (std::size_t c : changed) total += c;

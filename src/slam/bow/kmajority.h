@@ -13,8 +13,8 @@ namespace cslam {
 Descriptor majority_descriptor(const std::vector<Descriptor>& all, const std::vector<std::uint32_t>& members);
 
 struct KMajorityResult {
-  std::vector<Descriptor> centers;                    // non-empty clusters only
-  std::vector<std::vector<std::uint32_t>> clusters;   // members of each centre (indices into `all`)
+  std::vector<Descriptor> centers;                   // non-empty clusters only
+  std::vector<std::vector<std::uint32_t>> clusters;  // members of each centre (indices into `all`)
   int iterations = 0;
 };
 

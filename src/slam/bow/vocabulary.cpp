@@ -55,7 +55,8 @@ std::string Vocabulary::index_tree() {
   for (std::size_t i = 0; i < n; ++i) {
     if (i > 0 && i >= next) return "node " + std::to_string(i) + " has no parent";
     first_child_[i] = std::uint32_t(next);
-    if (num_children_[i] > branching_) return "node " + std::to_string(i) + " has more children than the branching factor";
+    if (num_children_[i] > branching_)
+      return "node " + std::to_string(i) + " has more children than the branching factor";
     if (num_children_[i] == 0) {
       if (i == 0) return "the root has no children";
       node_word_[i] = WordId(word_node_.size());
@@ -75,22 +76,28 @@ Vocabulary Vocabulary::load(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open vocabulary file");
   std::vector<std::uint8_t> buf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (buf.size() < kHeaderBytes) throw InputError(path, "truncated vocabulary file (" + std::to_string(buf.size()) + " bytes, header needs " + std::to_string(kHeaderBytes) + ")");
+  if (buf.size() < kHeaderBytes)
+    throw InputError(path, "truncated vocabulary file (" + std::to_string(buf.size()) + " bytes, header needs " +
+                               std::to_string(kHeaderBytes) + ")");
   if (std::memcmp(buf.data(), kMagic, 8) != 0) throw InputError(path, "not a cslam vocabulary file (bad magic)");
   const std::uint8_t* p = buf.data() + 8;
   const auto version = get<std::uint32_t>(p);
   if (version != kVersion)
-    throw InputError(path, "unsupported vocabulary version " + std::to_string(version) + " (expected " + std::to_string(kVersion) + ")");
+    throw InputError(path, "unsupported vocabulary version " + std::to_string(version) + " (expected " +
+                               std::to_string(kVersion) + ")");
   Vocabulary v;
   const auto k = get<std::uint32_t>(p + 4), L = get<std::uint32_t>(p + 8);
   const auto num_nodes = get<std::uint32_t>(p + 12), num_words = get<std::uint32_t>(p + 16);
   const auto payload = get<std::uint64_t>(p + 20), checksum = get<std::uint64_t>(p + 28);
   if (k < 2 || k > 255 || L < 1 || L > 10 || num_nodes < 2 || num_words < 1 || num_words >= num_nodes)
-    throw InputError(path, "corrupt vocabulary header (k=" + std::to_string(k) + " L=" + std::to_string(L) + " nodes=" + std::to_string(num_nodes) + " words=" + std::to_string(num_words) + ")");
+    throw InputError(path, "corrupt vocabulary header (k=" + std::to_string(k) + " L=" + std::to_string(L) +
+                               " nodes=" + std::to_string(num_nodes) + " words=" + std::to_string(num_words) + ")");
   const std::uint64_t expected = std::uint64_t(num_nodes) + 32ull * (num_nodes - 1) + 4ull * num_words;
-  if (payload != expected) throw InputError(path, "corrupt vocabulary header (payload size does not match the node count)");
+  if (payload != expected)
+    throw InputError(path, "corrupt vocabulary header (payload size does not match the node count)");
   if (buf.size() - kHeaderBytes < payload)
-    throw InputError(path, "truncated vocabulary file (" + std::to_string(buf.size()) + " bytes, expected " + std::to_string(kHeaderBytes + payload) + ")");
+    throw InputError(path, "truncated vocabulary file (" + std::to_string(buf.size()) + " bytes, expected " +
+                               std::to_string(kHeaderBytes + payload) + ")");
   if (buf.size() - kHeaderBytes > payload) throw InputError(path, "trailing bytes after the vocabulary payload");
   const std::uint8_t* data = buf.data() + kHeaderBytes;
   if (fnv1a64(data, payload) != checksum) throw InputError(path, "vocabulary checksum mismatch (file corrupt)");
@@ -105,7 +112,8 @@ Vocabulary Vocabulary::load(const std::string& path) {
   std::memcpy(v.weight_.data(), data + num_nodes + 32ull * (num_nodes - 1), 4ull * num_words);
   const std::string err = v.index_tree();
   if (!err.empty()) throw InputError(path, "corrupt vocabulary tree: " + err);
-  if (v.word_node_.size() != num_words) throw InputError(path, "corrupt vocabulary: leaf count differs from the word count");
+  if (v.word_node_.size() != num_words)
+    throw InputError(path, "corrupt vocabulary: leaf count differs from the word count");
   for (float w : v.weight_)
     if (!std::isfinite(w) || w < 0) throw InputError(path, "corrupt vocabulary: invalid word weight");
   return v;
@@ -181,8 +189,10 @@ void build_bow(std::vector<std::pair<WordId, double>>& words, BowVector& bow) {
   BowVector::sequence_type seq;
   seq.reserve(words.size());
   for (const auto& [w, v] : words) {
-    if (!seq.empty() && seq.back().first == w) seq.back().second += v;
-    else seq.emplace_back(w, v);
+    if (!seq.empty() && seq.back().first == w)
+      seq.back().second += v;
+    else
+      seq.emplace_back(w, v);
   }
   double sum = 0;
   for (const auto& [w, v] : seq) sum += v;

@@ -48,9 +48,11 @@ std::uint64_t mix_seed(std::uint64_t seed, std::uint64_t node) {
 
 }  // namespace
 
-Vocabulary VocabularyBuilder::train(const std::vector<std::vector<Descriptor>>& images, const VocabularyTrainConfig& config,
+Vocabulary VocabularyBuilder::train(const std::vector<std::vector<Descriptor>>& images,
+                                    const VocabularyTrainConfig& config,
                                     const std::function<void(int, int)>& progress) {
-  if (config.branching < 2 || config.branching > 255) throw ConfigError("VocabularyTrainConfig.branching must be in [2,255]");
+  if (config.branching < 2 || config.branching > 255)
+    throw ConfigError("VocabularyTrainConfig.branching must be in [2,255]");
   if (config.depth < 1 || config.depth > 10) throw ConfigError("VocabularyTrainConfig.depth must be in [1,10]");
   if (config.max_iterations < 1) throw ConfigError("VocabularyTrainConfig.max_iterations must be >= 1");
   const int threads = std::max(1, config.threads);
@@ -89,8 +91,10 @@ Vocabulary VocabularyBuilder::train(const std::vector<std::vector<Descriptor>>& 
     };
     std::vector<std::size_t> small;
     for (std::size_t t = 0; t < level_tasks.size(); ++t) {
-      if (level_tasks[t].members.size() > 50000) cluster(t, threads);
-      else small.push_back(t);
+      if (level_tasks[t].members.size() > 50000)
+        cluster(t, threads);
+      else
+        small.push_back(t);
     }
     parallel_for(small.size(), threads, [&](std::size_t i) { cluster(small[i], 1); });
 

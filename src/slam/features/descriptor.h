@@ -13,8 +13,8 @@ namespace cslam {
 using Descriptor = std::array<std::uint64_t, 4>;
 
 inline int hamming_distance(const Descriptor& a, const Descriptor& b) {
-  return __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
-         __builtin_popcountll(a[2] ^ b[2]) + __builtin_popcountll(a[3] ^ b[3]);
+  return __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) + __builtin_popcountll(a[2] ^ b[2]) +
+         __builtin_popcountll(a[3] ^ b[3]);
 }
 
 // Reference implementation (bit by bit), for tests.

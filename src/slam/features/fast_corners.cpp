@@ -20,8 +20,8 @@ namespace cslam {
 namespace {
 
 // The radius-3 circle in circular order; positions 0, 4, 8 and 12 are its four compass points.
-constexpr int kCircle[16][2] = {{0, 3},  {1, 3},   {2, 2},   {3, 1},   {3, 0},   {3, -1},  {2, -2},  {1, -3},
-                                {0, -3}, {-1, -3}, {-2, -2}, {-3, -1}, {-3, 0},  {-3, 1},  {-2, 2},  {-1, 3}};
+constexpr int kCircle[16][2] = {{0, 3},  {1, 3},   {2, 2},   {3, 1},   {3, 0},  {3, -1}, {2, -2}, {1, -3},
+                                {0, -3}, {-1, -3}, {-2, -2}, {-3, -1}, {-3, 0}, {-3, 1}, {-2, 2}, {-1, 3}};
 
 struct Circle {
   std::ptrdiff_t offset[16];
@@ -75,8 +75,8 @@ __attribute__((target("avx2"))) inline void max_arc_min9_avx2(const __m256i x[16
 
 // The scores of the 32 pixels from column x into scores[x ..] (0: no corner), or nothing when the
 // block cannot hold a corner (the caller has zeroed the row).
-__attribute__((target("avx2"))) void score_block_avx2(const std::uint8_t* row, int x, const Circle& circle, int threshold,
-                                                      std::uint8_t* scores) {
+__attribute__((target("avx2"))) void score_block_avx2(const std::uint8_t* row, int x, const Circle& circle,
+                                                      int threshold, std::uint8_t* scores) {
   const __m256i t = _mm256_set1_epi8(char(threshold)), zero = _mm256_setzero_si256();
   const std::uint8_t* p = row + x;
   const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
@@ -102,7 +102,8 @@ __attribute__((target("avx2"))) void score_block_avx2(const std::uint8_t* row, i
   max_arc_min9_avx2(darker, s);
   max_arc_min9_avx2(brighter, s);
   const __m256i corner = _mm256_xor_si256(_mm256_cmpeq_epi8(_mm256_subs_epu8(s, t), zero), _mm256_set1_epi8(-1));
-  _mm256_storeu_si256(reinterpret_cast<__m256i*>(scores + x), _mm256_and_si256(_mm256_sub_epi8(s, _mm256_set1_epi8(1)), corner));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(scores + x),
+                      _mm256_and_si256(_mm256_sub_epi8(s, _mm256_set1_epi8(1)), corner));
 }
 #endif
 
@@ -179,9 +180,12 @@ void suppress_row(const std::uint8_t* above, const std::uint8_t* cur, const std:
 #if defined(__SSE2__)
   if (vector) {
     for (int x = 3; x < end; x += 16) {
-      auto at = [&](const std::uint8_t* r, int dx) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(r + x + dx)); };
+      auto at = [&](const std::uint8_t* r, int dx) {
+        return _mm_loadu_si128(reinterpret_cast<const __m128i*>(r + x + dx));
+      };
       __m128i m = _mm_max_epu8(_mm_max_epu8(at(above, -1), at(above, 0)), _mm_max_epu8(at(above, 1), at(cur, -1)));
-      m = _mm_max_epu8(m, _mm_max_epu8(_mm_max_epu8(at(cur, 1), at(below, -1)), _mm_max_epu8(at(below, 0), at(below, 1))));
+      m = _mm_max_epu8(m,
+                       _mm_max_epu8(_mm_max_epu8(at(cur, 1), at(below, -1)), _mm_max_epu8(at(below, 0), at(below, 1))));
       // cur > every neighbour (so cur > 0: a corner); lanes past the last column dropped.
       const __m128i above_all = _mm_cmpeq_epi8(_mm_subs_epu8(at(cur, 0), m), _mm_setzero_si128());
       unsigned bits = ~unsigned(_mm_movemask_epi8(above_all)) & 0xffffu;
@@ -224,7 +228,8 @@ void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::Ke
   detect_fast_corners(image, threshold, keypoints, fast_corners_best_path());
 }
 
-void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints, FastCornersPath path) {
+void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints,
+                         FastCornersPath path) {
   keypoints.clear();
   if (image.type() != CV_8UC1) throw std::invalid_argument("detect_fast_corners: image must be CV_8UC1");
   if (path == FastCornersPath::kAvx2 && fast_corners_best_path() != FastCornersPath::kAvx2)
@@ -243,7 +248,8 @@ void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::Ke
     std::uint8_t* below = row_scores(y);
     std::fill(below, below + W, std::uint8_t(0));
     if (y <= H - 4) score_row(image, y, circle, threshold, path, below);
-    if (y >= 4) suppress_row(row_scores(y - 2), row_scores(y - 1), below, W, y - 1, path != FastCornersPath::kScalar, keypoints);
+    if (y >= 4)
+      suppress_row(row_scores(y - 2), row_scores(y - 1), below, W, y - 1, path != FastCornersPath::kScalar, keypoints);
   }
 }
 

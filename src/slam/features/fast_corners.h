@@ -28,7 +28,8 @@ void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::Ke
 // SSE2 (16) and pixel by pixel. The fastest available runs by default; tests run each.
 enum class FastCornersPath { kAvx2, kSse2, kScalar };
 FastCornersPath fast_corners_best_path();
-void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints, FastCornersPath path);
+void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::KeyPoint>& keypoints,
+                         FastCornersPath path);
 
 // The plain per-pixel score (-1 and below: no corner at any threshold); the vector code's second
 // opinion in tests.

@@ -28,7 +28,7 @@ FeatureGrid::FeatureGrid(const OrbFeatures& features, const std::array<double, 4
   std::vector<int> fill(cell_start_.begin(), cell_start_.end() - 1);
   for (std::size_t i = 0; i < n; ++i)
     entries_[std::size_t(fill[std::size_t(cell[i])]++)] = {features.undistorted[i].x(), features.undistorted[i].y(),
-                                                            features.keypoints[i].octave, int(i)};
+                                                           features.keypoints[i].octave, int(i)};
 }
 
 int FeatureGrid::col_of(double u) const {
@@ -47,7 +47,8 @@ std::vector<int> FeatureGrid::features_in_area(double u, double v, double r, int
   return out;
 }
 
-void FeatureGrid::features_in_area(double u, double v, double r, int min_level, int max_level, std::vector<int>& out) const {
+void FeatureGrid::features_in_area(double u, double v, double r, int min_level, int max_level,
+                                   std::vector<int>& out) const {
   out.clear();
   if (entries_.empty() || !(r >= 0) || !std::isfinite(u) || !std::isfinite(v)) return;
   // Features clamped into border cells may lie outside the bounds, so border cells are always

@@ -25,9 +25,16 @@ std::vector<int> RotationHistogram::kept_bins() const {
   auto size = [&](int i) { return i < 0 ? 0 : int(bins_[i].size()); };
   for (int i = 0; i < int(bins_.size()); ++i) {
     const int s = size(i);
-    if (s > size(m1)) { m3 = m2; m2 = m1; m1 = i; }
-    else if (s > size(m2)) { m3 = m2; m2 = i; }
-    else if (s > size(m3)) { m3 = i; }
+    if (s > size(m1)) {
+      m3 = m2;
+      m2 = m1;
+      m1 = i;
+    } else if (s > size(m2)) {
+      m3 = m2;
+      m2 = i;
+    } else if (s > size(m3)) {
+      m3 = i;
+    }
   }
   std::vector<int> kept;
   if (m1 < 0 || size(m1) == 0) return kept;
@@ -143,8 +150,9 @@ std::vector<Match> match_brute_force(const OrbFeatures& a, const OrbFeatures& b,
   return out;
 }
 
-std::vector<Match> match_by_bow(const OrbFeatures& a, const FeatureVector& fa, const OrbFeatures& b, const FeatureVector& fb,
-                                const MatchParams& params, const std::vector<char>* mask_a, const std::vector<char>* mask_b) {
+std::vector<Match> match_by_bow(const OrbFeatures& a, const FeatureVector& fa, const OrbFeatures& b,
+                                const FeatureVector& fb, const MatchParams& params, const std::vector<char>* mask_a,
+                                const std::vector<char>* mask_b) {
   OneToOne pairs(b.size());
   auto ia = fa.begin();
   auto ib = fb.begin();

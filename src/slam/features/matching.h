@@ -49,9 +49,9 @@ std::vector<Match> match_brute_force(const OrbFeatures& a, const OrbFeatures& b,
 // Feature-vector accelerated matching: only between features under the same vocabulary node.
 // Each b used at most once (the closer a wins). Same thresholds as match_brute_force.
 // Masks as in match_brute_force: non-null -> only indices with mask[i] != 0 take part.
-std::vector<Match> match_by_bow(const OrbFeatures& a, const FeatureVector& fa, const OrbFeatures& b, const FeatureVector& fb,
-                                const MatchParams& params, const std::vector<char>* mask_a = nullptr,
-                                const std::vector<char>* mask_b = nullptr);
+std::vector<Match> match_by_bow(const OrbFeatures& a, const FeatureVector& fa, const OrbFeatures& b,
+                                const FeatureVector& fb, const MatchParams& params,
+                                const std::vector<char>* mask_a = nullptr, const std::vector<char>* mask_b = nullptr);
 
 // Best and second-best candidate among `candidates` (indices into features) for one descriptor.
 // skip: if non-null, candidates with (*skip)[i] != 0 are ignored. second_level is the octave of the

@@ -77,7 +77,9 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
         const float x1 = c + 1 == n_ini ? area.x + area.width + 1.0f : area.x + (c + 1) * w;
         auto mid = std::partition(pts.begin() + begin, pts.end(), [&](const QuadPoint& p) { return p.x < x1; });
         const int end = int(mid - pts.begin());
-        if (end > begin) roots.push_back({area.x + c * w, area.y, std::min(x1, area.x + area.width), area.y + area.height, begin, end});
+        if (end > begin)
+          roots.push_back(
+              {area.x + c * w, area.y, std::min(x1, area.x + area.width), area.y + area.height, begin, end});
         begin = end;
       }
     }
@@ -91,15 +93,18 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
     if (int(nodes.size()) + 3 * splittable < budget) {
       next.clear();
       for (const QuadNode& n : nodes) {
-        if (n.splittable()) split_node(n, pts, next);
-        else next.push_back(n);
+        if (n.splittable())
+          split_node(n, pts, next);
+        else
+          next.push_back(n);
       }
       if (next.size() == nodes.size()) break;  // nothing could be separated
       nodes.swap(next);
       continue;
     }
     // Last round: split the most populated nodes first until the budget is reached.
-    std::stable_sort(nodes.begin(), nodes.end(), [](const QuadNode& a, const QuadNode& b) { return a.count() > b.count(); });
+    std::stable_sort(nodes.begin(), nodes.end(),
+                     [](const QuadNode& a, const QuadNode& b) { return a.count() > b.count(); });
     next.clear();
     std::size_t i = 0;
     int total = int(nodes.size());
@@ -136,8 +141,10 @@ std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& k
 OrbExtractor::OrbExtractor(const OrbConfig& config) : config_(config) {
   if (config.num_features < 1) throw ConfigError("OrbConfig.num_features must be >= 1");
   if (config.num_levels < 1 || config.num_levels > 16) throw ConfigError("OrbConfig.num_levels must be in [1,16]");
-  if (!(config.scale_factor > 1.0) || config.scale_factor > 4.0) throw ConfigError("OrbConfig.scale_factor must be in (1,4]");
-  if (config.ini_fast_threshold < 1 || config.min_fast_threshold < 1 || config.min_fast_threshold > config.ini_fast_threshold)
+  if (!(config.scale_factor > 1.0) || config.scale_factor > 4.0)
+    throw ConfigError("OrbConfig.scale_factor must be in (1,4]");
+  if (config.ini_fast_threshold < 1 || config.min_fast_threshold < 1 ||
+      config.min_fast_threshold > config.ini_fast_threshold)
     throw ConfigError("OrbConfig: need 1 <= min_fast_threshold <= ini_fast_threshold");
   if (config.edge_threshold < 19) throw ConfigError("OrbConfig.edge_threshold must be >= 19 (rotated 31x31 patch)");
   if (config.cell_size < 8) throw ConfigError("OrbConfig.cell_size must be >= 8");
@@ -248,20 +255,24 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
   OrbFeatures out;
   if (input.empty()) return out;
   cv::Mat gray;
-  if (input.type() == CV_8UC1) gray = input;
-  else if (input.type() == CV_8UC3) cv::cvtColor(input, gray, cv::COLOR_BGR2GRAY);
-  else throw std::invalid_argument("OrbExtractor::extract: image must be CV_8UC1 or CV_8UC3");
+  if (input.type() == CV_8UC1)
+    gray = input;
+  else if (input.type() == CV_8UC3)
+    cv::cvtColor(input, gray, cv::COLOR_BGR2GRAY);
+  else
+    throw std::invalid_argument("OrbExtractor::extract: image must be CV_8UC1 or CV_8UC3");
 
   const int L = config_.num_levels;
-  cv::Ptr<cv::ORB> orb = cv::ORB::create(config_.num_features, float(config_.scale_factor), 1, config_.edge_threshold, 0, 2,
-                                         cv::ORB::FAST_SCORE, kPatchSize, config_.ini_fast_threshold);
+  cv::Ptr<cv::ORB> orb = cv::ORB::create(config_.num_features, float(config_.scale_factor), 1, config_.edge_threshold,
+                                         0, 2, cv::ORB::FAST_SCORE, kPatchSize, config_.ini_fast_threshold);
   cv::Mat level = gray;
   int carry = 0;  // budget a level could not use is handed to the next one
   std::vector<cv::KeyPoint> kps;
   cv::Mat desc;
   for (int l = 0; l < L; ++l) {
     if (l > 0) {
-      const cv::Size size(int(std::lround(gray.cols * inv_scale_factors_[l])), int(std::lround(gray.rows * inv_scale_factors_[l])));
+      const cv::Size size(int(std::lround(gray.cols * inv_scale_factors_[l])),
+                          int(std::lround(gray.rows * inv_scale_factors_[l])));
       if (size.width <= 2 * config_.edge_threshold + 8 || size.height <= 2 * config_.edge_threshold + 8) break;
       cv::Mat smaller;
       cv::resize(level, smaller, size, 0, 0, cv::INTER_LINEAR);

@@ -29,7 +29,8 @@ struct OrbConfig {
 };
 
 struct OrbFeatures {
-  std::vector<cv::KeyPoint> keypoints;       // level-0 pixel coords as detected (distorted); .octave = pyramid level; .angle in degrees [0,360)
+  std::vector<cv::KeyPoint>
+      keypoints;  // level-0 pixel coords as detected (distorted); .octave = pyramid level; .angle in degrees [0,360)
   std::vector<Eigen::Vector2d> undistorted;  // undistorted pixel coords (== keypoints if no camera / no distortion)
   std::vector<Descriptor> descriptors;
   std::size_t size() const { return keypoints.size(); }
@@ -48,7 +49,7 @@ class OrbExtractor {
   const OrbConfig& config() const { return config_; }
   const std::vector<double>& scale_factors() const { return scale_factors_; }  // scale_factor^l
   const std::vector<double>& inv_scale_factors() const { return inv_scale_factors_; }
-  const std::vector<double>& level_sigma2() const { return level_sigma2_; }    // scale_factors()[l]^2
+  const std::vector<double>& level_sigma2() const { return level_sigma2_; }  // scale_factors()[l]^2
   const std::vector<double>& inv_level_sigma2() const { return inv_level_sigma2_; }
   // Keypoint budget of each level (geometric series summing to num_features).
   const std::vector<int>& features_per_level() const { return features_per_level_; }

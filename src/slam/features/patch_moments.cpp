@@ -66,8 +66,10 @@ PatchMoments patch_moments(const std::uint8_t* center, int step) {
     const __m128i* w = reinterpret_cast<const __m128i*>(t.weight[v].data());
     const __m128i* in = reinterpret_cast<const __m128i*>(t.inside[v].data());
     // maddubs: unsigned pixel x signed weight, adjacent pairs summed to int16 (|.| <= 2 * 255 * 16).
-    const __m128i wl = _mm_add_epi16(_mm_maddubs_epi16(lo, _mm_load_si128(w)), _mm_maddubs_epi16(hi, _mm_load_si128(w + 1)));
-    const __m128i sl = _mm_add_epi16(_mm_maddubs_epi16(lo, _mm_load_si128(in)), _mm_maddubs_epi16(hi, _mm_load_si128(in + 1)));
+    const __m128i wl =
+        _mm_add_epi16(_mm_maddubs_epi16(lo, _mm_load_si128(w)), _mm_maddubs_epi16(hi, _mm_load_si128(w + 1)));
+    const __m128i sl =
+        _mm_add_epi16(_mm_maddubs_epi16(lo, _mm_load_si128(in)), _mm_maddubs_epi16(hi, _mm_load_si128(in + 1)));
     wsum = _mm_madd_epi16(wl, ones);
     sum = _mm_madd_epi16(sl, ones);
   };

@@ -37,21 +37,30 @@ cv::Mat procedural_image(std::uint64_t seed, const ProceduralImageConfig& config
     const cv::Point c(uint(-20, W + 20), uint(-20, H + 20));
     const int size = int(max_dim * std::pow(uni(0, 1), 2.5) * 0.25) + 3;  // many small, few large
     switch (uint(0, 3)) {
-      case 0: cv::rectangle(img, c, c + cv::Point(uint(3, size), uint(3, size)), color, thickness, cv::LINE_AA); break;
-      case 1: cv::circle(img, c, size / 2 + 2, color, thickness, cv::LINE_AA); break;
-      case 2: cv::ellipse(img, c, cv::Size(size / 2 + 2, uint(2, size / 2 + 2)), uni(0, 180), 0, 360, color, thickness, cv::LINE_AA); break;
+      case 0:
+        cv::rectangle(img, c, c + cv::Point(uint(3, size), uint(3, size)), color, thickness, cv::LINE_AA);
+        break;
+      case 1:
+        cv::circle(img, c, size / 2 + 2, color, thickness, cv::LINE_AA);
+        break;
+      case 2:
+        cv::ellipse(img, c, cv::Size(size / 2 + 2, uint(2, size / 2 + 2)), uni(0, 180), 0, 360, color, thickness,
+                    cv::LINE_AA);
+        break;
       default: {
         std::vector<cv::Point> pts;
         const int n = uint(3, 6);
         for (int k = 0; k < n; ++k) pts.push_back(c + cv::Point(uint(-size, size), uint(-size, size)));
-        if (thickness == cv::FILLED) cv::fillConvexPoly(img, pts, color, cv::LINE_AA);
-        else cv::polylines(img, pts, true, color, thickness, cv::LINE_AA);
+        if (thickness == cv::FILLED)
+          cv::fillConvexPoly(img, pts, color, cv::LINE_AA);
+        else
+          cv::polylines(img, pts, true, color, thickness, cv::LINE_AA);
       }
     }
   }
   for (int i = 0; i < config.lines; ++i)
-    cv::line(img, cv::Point(uint(0, W), uint(0, H)), cv::Point(uint(0, W), uint(0, H)), cv::Scalar(uint(0, 255)), uint(1, 3),
-             cv::LINE_AA);
+    cv::line(img, cv::Point(uint(0, W), uint(0, H)), cv::Point(uint(0, W), uint(0, H)), cv::Scalar(uint(0, 255)),
+             uint(1, 3), cv::LINE_AA);
   static const char* kWords[] = {"cslam", "ORB", "map", "desk", "EXIT", "42", "robot", "lab", "A7", "kf"};
   for (int i = 0; i < config.texts; ++i)
     cv::putText(img, kWords[uint(0, 9)], cv::Point(uint(0, W - 40), uint(20, H)), uint(0, 7), uni(0.5, 2.5),
@@ -73,7 +82,8 @@ cv::Mat render_view(const cv::Mat& scene, double cx, double cy, double angle_deg
   M.at<double>(0, 2) += cx - width / 2.0;
   M.at<double>(1, 2) += cy - height / 2.0;
   cv::Mat view;
-  cv::warpAffine(scene, view, M, cv::Size(width, height), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+  cv::warpAffine(scene, view, M, cv::Size(width, height), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                 cv::BORDER_REPLICATE);
   return view;
 }
 

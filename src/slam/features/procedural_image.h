@@ -10,7 +10,7 @@ namespace cslam {
 struct ProceduralImageConfig {
   int width = 640;
   int height = 480;
-  int shapes = 120;        // filled/outlined rectangles, circles, ellipses, polygons
+  int shapes = 120;  // filled/outlined rectangles, circles, ellipses, polygons
   int lines = 40;
   int texts = 12;
   double noise_sigma = 4;  // per-pixel sensor-like noise added at the end

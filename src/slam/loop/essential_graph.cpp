@@ -36,7 +36,8 @@ EssentialGraph build_essential_graph(const Map& map, const EssentialGraphInput& 
   for (const auto& [kf, links] : in.new_connections)
     for (KeyFrame* other : links) add(kf, other, initial(kf), initial(other), g.new_loop_edges);
   for (KeyFrame* kf : g.keyframes) {
-    if (kf->parent && !kf->parent->bad) add(kf, kf->parent.get(), measured(kf), measured(kf->parent.get()), g.spanning_edges);
+    if (kf->parent && !kf->parent->bad)
+      add(kf, kf->parent.get(), measured(kf), measured(kf->parent.get()), g.spanning_edges);
     // Not yet connected by local mapping: tied to the keyframe it was tracked against.
     if (kf->awaiting_connection() && !kf->creation_reference->bad)
       add(kf, kf->creation_reference.get(), Sim3(kf->T_cam_creation_ref).inverse(), Sim3(), g.spanning_edges);

@@ -14,7 +14,7 @@
 namespace cslam {
 
 struct EssentialGraph {
-  std::vector<KeyFrame*> keyframes;                 // node i
+  std::vector<KeyFrame*> keyframes;  // node i
   std::map<KeyFrame*, int, ById> index;
   std::vector<PoseGraphNode> nodes;
   std::vector<PoseGraphEdge> edges;

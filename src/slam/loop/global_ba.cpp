@@ -8,7 +8,8 @@
 
 namespace cslam {
 
-void GlobalBa::snapshot(const std::vector<Map*>& maps, const std::vector<std::pair<MapPointPtr, MapPointPtr>>& same_points) {
+void GlobalBa::snapshot(const std::vector<Map*>& maps,
+                        const std::vector<std::pair<MapPointPtr, MapPointPtr>>& same_points) {
   if (maps.empty()) throw std::invalid_argument("GlobalBa::snapshot needs at least one map");
   maps_ = maps;
   change_index_.clear();
@@ -23,7 +24,8 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps, const std::vector<std::pa
       index[kf.get()] = int(cameras_.size());
       cameras_.push_back(kf);
       const auto& c = kf->data->camera;
-      problem_.cameras.push_back({kf->T_cam_world, {c.fx, c.fy, c.cx, c.cy, kf->data->rgbd.bf}, map == maps_.front() && kf == map->origin()});
+      problem_.cameras.push_back(
+          {kf->T_cam_world, {c.fx, c.fy, c.cx, c.cy, kf->data->rgbd.bf}, map == maps_.front() && kf == map->origin()});
     }
   }
   // Variable of each point: seam pairs share the first point's variable.

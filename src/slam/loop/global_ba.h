@@ -22,7 +22,8 @@ class GlobalBa {
  public:
   // [shared locks on every map] The first map's origin keyframe is held fixed (the gauge).
   // `same_points`: pairs of points (in different maps) estimated as one.
-  void snapshot(const std::vector<Map*>& maps, const std::vector<std::pair<MapPointPtr, MapPointPtr>>& same_points = {});
+  void snapshot(const std::vector<Map*>& maps,
+                const std::vector<std::pair<MapPointPtr, MapPointPtr>>& same_points = {});
   // No lock needed. Stops early (aborted) when *abort becomes true.
   BaResult solve(int iterations, const std::atomic<bool>* abort) const;
   // [no lock held]

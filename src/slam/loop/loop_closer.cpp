@@ -16,7 +16,10 @@
 namespace cslam {
 
 LoopCloser::LoopCloser(LoopClosingConfig config, std::shared_ptr<Map> map, bool threaded)
-    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded), consistency_(config_.consistency),
+    : config_(std::move(config)),
+      map_(std::move(map)),
+      threaded_(threaded),
+      consistency_(config_.consistency),
       worker_(threaded, [this](const KeyFramePtr& kf) { process(kf); }) {
   worker_.start();
 }
@@ -202,7 +205,8 @@ void LoopCloser::start_global_ba() {
       lower_current_thread_priority();
       run_global_ba();
     });
-  else run_global_ba();
+  else
+    run_global_ba();
 }
 
 bool LoopCloser::run_global_ba() {

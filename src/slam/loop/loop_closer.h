@@ -21,8 +21,8 @@ namespace cslam {
 
 struct LoopClosingConfig {
   bool enabled = true;
-  int min_keyframes = 10;          // no detection before the map has this many keyframes
-  int min_keyframe_gap = 10;       // keyframes between two loops
+  int min_keyframes = 10;     // no detection before the map has this many keyframes
+  int min_keyframe_gap = 10;  // keyframes between two loops
   int consistency = 3;
   OverlapVerifyConfig verify;
   int covisibility_edge_weight = 100;
@@ -36,15 +36,15 @@ struct LoopEvent {
   KeyFrameId query, candidate;
   int inliers = 0;
   double correction_ms = 0, pose_graph_ms = 0;
-  SE3 T_correction;  // corrected * before^-1 of the query keyframe (camera-to-world)
+  SE3 T_correction;       // corrected * before^-1 of the query keyframe (camera-to-world)
   SE3 T_query_candidate;  // verified camera-to-camera transform (p_query = T * p_candidate)
   double query_timestamp = 0, candidate_timestamp = 0;
 };
 
 struct LoopClosingStats {
   std::vector<LoopEvent> loops;
-  std::vector<double> query_ms;           // detection per keyframe
-  std::vector<double> global_ba_ms;       // completed global BAs
+  std::vector<double> query_ms;      // detection per keyframe
+  std::vector<double> global_ba_ms;  // completed global BAs
   int global_ba_started = 0, global_ba_completed = 0, global_ba_discarded = 0;
 };
 

@@ -129,7 +129,8 @@ OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candid
   mp.th_low = 50;
   mp.check_orientation = true;
   const auto mask_q = has_point_mask(query), mask_c = has_point_mask(candidate);
-  const auto matches = match_by_bow(fq.features, fq.feature_vector, fc.features, fc.feature_vector, mp, &mask_q, &mask_c);
+  const auto matches =
+      match_by_bow(fq.features, fq.feature_vector, fc.features, fc.feature_vector, mp, &mask_q, &mask_c);
   r.bow_matches = int(matches.size());
   if (r.bow_matches < cfg.min_bow_matches) {
     r.reason = "too few BoW matches";

@@ -15,11 +15,11 @@ namespace cslam {
 
 struct OverlapVerifyConfig {
   int min_bow_matches = 20;
-  Sim3RansacConfig ransac;           // fix_scale: RGB-D observes scale
+  Sim3RansacConfig ransac;  // fix_scale: RGB-D observes scale
   int min_refined_inliers = 20;
-  int min_projection_matches = 40;   // total matches confirmed by projection
-  double projection_radius = 7.5;    // pixels at level 0
-  int min_final_inliers = 50;        // after refining on BoW inliers + projection matches
+  int min_projection_matches = 40;  // total matches confirmed by projection
+  double projection_radius = 7.5;   // pixels at level 0
+  int min_final_inliers = 50;       // after refining on BoW inliers + projection matches
   // Window refinement of an accepted transform: the candidate group's points are also matched by
   // projection in the query's best covisible keyframes (their poses relative to the query are known
   // in the query's map), and one transform is fitted to every observation. One image's errors
@@ -29,14 +29,15 @@ struct OverlapVerifyConfig {
 
 struct OverlapVerifyResult {
   bool accepted = false;
-  std::string reason;                // why it was rejected
-  Sim3 S_query_candidate;            // maps candidate-camera coordinates into query-camera coordinates
+  std::string reason;      // why it was rejected
+  Sim3 S_query_candidate;  // maps candidate-camera coordinates into query-camera coordinates
   int bow_matches = 0, ransac_inliers = 0, refined_inliers = 0, projection_matches = 0, final_inliers = 0;
-  int window_keyframes = 0;          // query-map keyframes whose observations the window fit used (query included)
-  int window_inliers = 0;            // inliers of the window fit (0: no window fit)
+  int window_keyframes = 0;  // query-map keyframes whose observations the window fit used (query included)
+  int window_inliers = 0;    // inliers of the window fit (0: no window fit)
 };
 
 OverlapVerifyResult verify_overlap(const KeyFrame& query, const KeyFrame& candidate,
-                                   const std::vector<KeyFrame*>& candidate_neighbours, const OverlapVerifyConfig& config);
+                                   const std::vector<KeyFrame*>& candidate_neighbours,
+                                   const OverlapVerifyConfig& config);
 
 }  // namespace cslam

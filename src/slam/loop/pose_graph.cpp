@@ -12,13 +12,15 @@ namespace cslam {
 
 namespace {
 
-void validate(const std::vector<PoseGraphNode>& nodes, const std::vector<PoseGraphEdge>& edges, const PoseGraphConfig& cfg) {
+void validate(const std::vector<PoseGraphNode>& nodes, const std::vector<PoseGraphEdge>& edges,
+              const PoseGraphConfig& cfg) {
   if (cfg.max_iterations < 1) throw ConfigError("optimize_pose_graph: max_iterations must be >= 1");
   if (cfg.threads < 1) throw ConfigError("optimize_pose_graph: threads must be >= 1");
   const int n = int(nodes.size());
   for (int i = 0; i < n; ++i)
     if (!nodes[i].S_world_node.is_finite() || !(nodes[i].S_world_node.scale() > 0))
-      throw ConfigError("optimize_pose_graph: node " + std::to_string(i) + " has a non-finite pose or non-positive scale");
+      throw ConfigError("optimize_pose_graph: node " + std::to_string(i) +
+                        " has a non-finite pose or non-positive scale");
   for (size_t e = 0; e < edges.size(); ++e) {
     const auto& ed = edges[e];
     const std::string name = "optimize_pose_graph: edge " + std::to_string(e);
@@ -26,13 +28,15 @@ void validate(const std::vector<PoseGraphNode>& nodes, const std::vector<PoseGra
       throw ConfigError(name + " refers to a node outside [0, " + std::to_string(n) + ")");
     if (ed.from == ed.to) throw ConfigError(name + " connects node " + std::to_string(ed.from) + " to itself");
     if (!(ed.weight > 0) || !std::isfinite(ed.weight)) throw ConfigError(name + " has a non-positive weight");
-    if (!ed.S_from_to.is_finite() || !(ed.S_from_to.scale() > 0)) throw ConfigError(name + " has a non-finite measurement");
+    if (!ed.S_from_to.is_finite() || !(ed.S_from_to.scale() > 0))
+      throw ConfigError(name + " has a non-finite measurement");
   }
 }
 
 }  // namespace
 
-double pose_graph_edge_error(const Sim3& S_world_from, const Sim3& S_world_to, const PoseGraphEdge& edge, bool fix_scale) {
+double pose_graph_edge_error(const Sim3& S_world_from, const Sim3& S_world_to, const PoseGraphEdge& edge,
+                             bool fix_scale) {
   const Sim3Param a = to_sim3_param(S_world_from), b = to_sim3_param(S_world_to);
   double r[7] = {0, 0, 0, 0, 0, 0, 0};
   if (fix_scale)
@@ -65,7 +69,8 @@ PoseGraphResult optimize_pose_graph(const std::vector<PoseGraphNode>& nodes, con
         cfg.fix_scale
             ? static_cast<ceres::CostFunction*>(new ceres::AutoDiffCostFunction<PoseGraphEdgeCost<6>, 6, 6, 1, 6, 1>(
                   new PoseGraphEdgeCost<6>(e.S_from_to, e.weight)))
-            : new ceres::AutoDiffCostFunction<PoseGraphEdgeCost<7>, 7, 6, 1, 6, 1>(new PoseGraphEdgeCost<7>(e.S_from_to, e.weight));
+            : new ceres::AutoDiffCostFunction<PoseGraphEdgeCost<7>, 7, 6, 1, 6, 1>(
+                  new PoseGraphEdgeCost<7>(e.S_from_to, e.weight));
     Sim3Param& a = params[e.from];
     Sim3Param& b = params[e.to];
     problem.AddResidualBlock(cost, nullptr, a.pose.data(), &a.log_scale, b.pose.data(), &b.log_scale);

@@ -31,7 +31,7 @@ struct PoseGraphConfig {
 };
 
 struct PoseGraphResult {
-  std::vector<Sim3> S_world_node;  // per node (fixed and unconnected nodes unchanged)
+  std::vector<Sim3> S_world_node;           // per node (fixed and unconnected nodes unchanged)
   double initial_cost = 0, final_cost = 0;  // 0.5 * sum of squared weighted residuals
   int iterations = 0;
   // The solver ended with a usable result: Ceres CONVERGENCE or NO_CONVERGENCE (max_iterations
@@ -47,6 +47,7 @@ PoseGraphResult optimize_pose_graph(const std::vector<PoseGraphNode>& nodes, con
                                     const PoseGraphConfig& cfg = {});
 
 // Weighted squared residual norm of one edge at the given node poses (0 for a perfect edge).
-double pose_graph_edge_error(const Sim3& S_world_from, const Sim3& S_world_to, const PoseGraphEdge& edge, bool fix_scale);
+double pose_graph_edge_error(const Sim3& S_world_from, const Sim3& S_world_to, const PoseGraphEdge& edge,
+                             bool fix_scale);
 
 }  // namespace cslam

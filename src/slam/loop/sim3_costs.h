@@ -44,9 +44,14 @@ inline void pinhole(const StereoIntrinsics& k, const T* p, T* uv) {
 // Image-1 residual of a Sim3 match: project T_view_1 * S_12 * p2 with k1 against uv1, whitened by
 // 1/sigma. T_view_1 (fixed; identity by default) is the observing camera of uv1 relative to camera 1.
 struct Sim3ReprojectionCost1 {
-  Sim3ReprojectionCost1(const StereoIntrinsics& k1, const Eigen::Vector3d& p2, const Eigen::Vector2d& uv1, double sqrt_info,
-                        const SE3& T_view_1 = SE3())
-      : k(k1), p(p2), uv(uv1), w(sqrt_info), R_view(T_view_1.rotation().toRotationMatrix()), t_view(T_view_1.translation()) {}
+  Sim3ReprojectionCost1(const StereoIntrinsics& k1, const Eigen::Vector3d& p2, const Eigen::Vector2d& uv1,
+                        double sqrt_info, const SE3& T_view_1 = SE3())
+      : k(k1),
+        p(p2),
+        uv(uv1),
+        w(sqrt_info),
+        R_view(T_view_1.rotation().toRotationMatrix()),
+        t_view(T_view_1.translation()) {}
   template <typename T>
   bool operator()(const T* pose, const T* log_scale, T* r) const {
     const T src[3] = {T(p.x()), T(p.y()), T(p.z())};
@@ -55,7 +60,8 @@ struct Sim3ReprojectionCost1 {
     const T s = exp(log_scale[0]);
     for (int i = 0; i < 3; ++i) q[i] = s * q[i] + pose[3 + i];
     T v[3];
-    for (int i = 0; i < 3; ++i) v[i] = T(R_view(i, 0)) * q[0] + T(R_view(i, 1)) * q[1] + T(R_view(i, 2)) * q[2] + T(t_view[i]);
+    for (int i = 0; i < 3; ++i)
+      v[i] = T(R_view(i, 0)) * q[0] + T(R_view(i, 1)) * q[1] + T(R_view(i, 2)) * q[2] + T(t_view[i]);
     T proj[2];
     pinhole(k, v, proj);
     r[0] = T(w) * (proj[0] - T(uv.x()));
@@ -72,7 +78,8 @@ struct Sim3ReprojectionCost1 {
 
 // Image-2 residual: project S_21 * p1 = (1/s) R^T (p1 - t) with k2 against uv2.
 struct Sim3ReprojectionCost2 {
-  Sim3ReprojectionCost2(const StereoIntrinsics& k2, const Eigen::Vector3d& p1, const Eigen::Vector2d& uv2, double sqrt_info)
+  Sim3ReprojectionCost2(const StereoIntrinsics& k2, const Eigen::Vector3d& p1, const Eigen::Vector2d& uv2,
+                        double sqrt_info)
       : k(k2), p(p1), uv(uv2), w(sqrt_info) {}
   template <typename T>
   bool operator()(const T* pose, const T* log_scale, T* r) const {
@@ -127,7 +134,8 @@ struct PoseGraphEdgeCost {
     ceres::AngleAxisRotatePoint(minus_aa_i, dt, t_d);
     const T inv_s_i = exp(-log_s_i[0]);
     // t_E = (1/s_m) R_m^T (t_D - t_m) = R_{m^-1} (t_D - t_m) / s_m.
-    const T diff[3] = {inv_s_i * t_d[0] - T(t_meas.x()), inv_s_i * t_d[1] - T(t_meas.y()), inv_s_i * t_d[2] - T(t_meas.z())};
+    const T diff[3] = {inv_s_i * t_d[0] - T(t_meas.x()), inv_s_i * t_d[1] - T(t_meas.y()),
+                       inv_s_i * t_d[2] - T(t_meas.z())};
     T t_e[3];
     ceres::UnitQuaternionRotatePoint(qm, diff, t_e);
     for (int k = 0; k < 3; ++k) r[3 + k] = T(inv_s_meas) * t_e[k];

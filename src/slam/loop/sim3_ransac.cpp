@@ -12,7 +12,8 @@ namespace cslam {
 
 namespace {
 
-double reprojection_chi2(const StereoIntrinsics& k, const Eigen::Vector3d& p, const Eigen::Vector2d& uv, double sigma2) {
+double reprojection_chi2(const StereoIntrinsics& k, const Eigen::Vector3d& p, const Eigen::Vector2d& uv,
+                         double sigma2) {
   if (!(p.z() > 0)) return std::numeric_limits<double>::infinity();
   const double du = k.fx * p.x() / p.z() + k.cx - uv.x();
   const double dv = k.fy * p.y() / p.z() + k.cy - uv.y();
@@ -33,8 +34,8 @@ int classify(const Sim3& S_12, const std::vector<Sim3Correspondence>& matches, c
 }
 
 // Closed-form estimate from the matches flagged in `inlier`.
-bool estimate_on_inliers(const std::vector<Sim3Correspondence>& matches, const std::vector<char>& inlier, bool with_scale,
-                         Sim3& S_12) {
+bool estimate_on_inliers(const std::vector<Sim3Correspondence>& matches, const std::vector<char>& inlier,
+                         bool with_scale, Sim3& S_12) {
   std::vector<Eigen::Vector3d> src, dst;
   for (size_t i = 0; i < matches.size(); ++i)
     if (inlier[i]) {
@@ -88,8 +89,10 @@ Sim3RansacResult sim3_ransac(const std::vector<Sim3Correspondence>& matches, con
     ++res.iterations;
     int idx[3];
     idx[0] = pick(rng);
-    do idx[1] = pick(rng); while (idx[1] == idx[0]);
-    do idx[2] = pick(rng); while (idx[2] == idx[0] || idx[2] == idx[1]);
+    do idx[1] = pick(rng);
+    while (idx[1] == idx[0]);
+    do idx[2] = pick(rng);
+    while (idx[2] == idx[0] || idx[2] == idx[1]);
     Eigen::Vector3d src[3], dst[3];
     for (int j = 0; j < 3; ++j) {
       src[j] = matches[idx[j]].p2;

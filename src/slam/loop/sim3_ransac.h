@@ -37,10 +37,10 @@ struct Sim3RansacConfig {
 
 struct Sim3RansacResult {
   bool success = false;
-  Sim3 S_12;                  // maps camera-2 coordinates into camera 1: p1 = S_12 * p2
-  std::vector<char> inlier;   // per match
+  Sim3 S_12;                 // maps camera-2 coordinates into camera 1: p1 = S_12 * p2
+  std::vector<char> inlier;  // per match
   int num_inliers = 0;
-  int iterations = 0;         // minimal samples drawn
+  int iterations = 0;  // minimal samples drawn
 };
 
 // Throws ConfigError on an impossible config (max_iterations < 1, probability outside (0,1),

@@ -18,7 +18,8 @@ constexpr int kIterationsPerStage = 10;
 enum class Kernel { kCauchy, kHuber };
 
 void add_matches(ceres::Problem& problem, Sim3Param& param, const std::vector<Sim3Correspondence>& matches,
-                 const std::vector<char>& use, const StereoIntrinsics& k1, const StereoIntrinsics& k2, double chi2, Kernel kernel) {
+                 const std::vector<char>& use, const StereoIntrinsics& k1, const StereoIntrinsics& k2, double chi2,
+                 Kernel kernel) {
   const double delta = std::sqrt(chi2);
   auto loss = [&]() -> ceres::LossFunction* {
     if (kernel == Kernel::kCauchy) return new ceres::CauchyLoss(delta);

@@ -26,6 +26,7 @@ struct Sim3RefineResult {
 
 // Throws ConfigError if chi2 <= 0. Fewer than 3 matches: returns the initial S_12, no inliers.
 Sim3RefineResult refine_sim3(const Sim3& S_12_initial, const std::vector<Sim3Correspondence>& matches,
-                             const StereoIntrinsics& k1, const StereoIntrinsics& k2, bool fix_scale, double chi2 = 10.0);
+                             const StereoIntrinsics& k1, const StereoIntrinsics& k2, bool fix_scale,
+                             double chi2 = 10.0);
 
 }  // namespace cslam

@@ -34,7 +34,8 @@ namespace {
 // median) and registered to it only approximately, so at an occlusion boundary the depth looked up
 // at a keypoint may belong to the other surface. Depth is used only where the whole window around
 // the keypoint is measured and spans less than depth_edge_ratio of it.
-bool depth_is_smooth(const cv::Mat& depth_raw, int x, int y, double d, const PinholeCamera& camera, const RgbdParams& rgbd) {
+bool depth_is_smooth(const cv::Mat& depth_raw, int x, int y, double d, const PinholeCamera& camera,
+                     const RgbdParams& rgbd) {
   const int r = rgbd.depth_edge_radius;
   if (r <= 0 || d <= 0) return true;
   double lo = d, hi = d;
@@ -52,7 +53,8 @@ bool depth_is_smooth(const cv::Mat& depth_raw, int x, int y, double d, const Pin
 }  // namespace
 
 double depth_at_keypoint(const cv::Mat& depth_raw, const Eigen::Vector2d& distorted, const Eigen::Vector2d& undistorted,
-                         const PinholeCamera& camera, const RgbdParams& rgbd, const std::optional<SE3>& T_depthcam_cam) {
+                         const PinholeCamera& camera, const RgbdParams& rgbd,
+                         const std::optional<SE3>& T_depthcam_cam) {
   // Raw depth at a distorted pixel, 0 if outside, missing, out of range or not smooth around it.
   auto read = [&](const Eigen::Vector2d& px) {
     const int x = int(std::lround(px.x())), y = int(std::lround(px.y()));
@@ -86,14 +88,11 @@ double depth_at_keypoint(const cv::Mat& depth_raw, const Eigen::Vector2d& distor
   return z > rgbd.min_depth && z < rgbd.max_depth ? z : 0.0;
 }
 
-std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
-                                                 const PinholeCamera& camera, const RgbdParams& rgbd,
-                                                 const OrbExtractor& extractor,
-                                                 const std::shared_ptr<const ScalePyramid>& pyramid,
-                                                 const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
-                                                 const std::optional<SE3>& T_depthcam_cam,
-                                                 const std::optional<SE3>& T_lastrow_cam, bool keyframe_depth,
-                                                 const cv::Mat& gray_in) {
+std::shared_ptr<const FrameData> make_frame_data(
+    FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw, const PinholeCamera& camera,
+    const RgbdParams& rgbd, const OrbExtractor& extractor, const std::shared_ptr<const ScalePyramid>& pyramid,
+    const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up, const std::optional<SE3>& T_depthcam_cam,
+    const std::optional<SE3>& T_lastrow_cam, bool keyframe_depth, const cv::Mat& gray_in) {
   auto f = std::make_shared<FrameData>();
   f->id = id;
   f->timestamp = timestamp;
@@ -101,8 +100,10 @@ std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, c
   f->rgbd = rgbd;
   f->pyramid = pyramid;
   cv::Mat gray = gray_in;  // the caller's grey image of `bgr` if it has one
-  if (gray.empty() && bgr.channels() == 3) cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-  else if (gray.empty()) gray = bgr;
+  if (gray.empty() && bgr.channels() == 3)
+    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  else if (gray.empty())
+    gray = bgr;
   f->features = extractor.extract(gray, &camera);
   const size_t n = f->features.size();
   f->keyframe_depth = keyframe_depth && !depth_raw.empty();

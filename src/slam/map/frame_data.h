@@ -30,8 +30,8 @@ struct ScalePyramid {
 
 // RGB-D specifics: a virtual stereo baseline turns depth into a right-image coordinate.
 struct RgbdParams {
-  double bf = 40.0;        // fx * virtual baseline (ORB-SLAM2 uses 40 for TUM)
-  double th_depth = 40.0;  // close/far split in baselines: close if depth < th_depth * bf / fx
+  double bf = 40.0;                         // fx * virtual baseline (ORB-SLAM2 uses 40 for TUM)
+  double th_depth = 40.0;                   // close/far split in baselines: close if depth < th_depth * bf / fx
   double min_depth = 0.1, max_depth = 8.0;  // depth outside is treated as missing
   // Depth at a keypoint is used only if every pixel within this radius has depth and they span
   // at most depth_edge_ratio of it (occlusion boundaries, colour/depth misregistration); 0: off.
@@ -70,7 +70,7 @@ struct FrameData {
   std::vector<cv::Vec3b> colors;
   FeatureGrid grid;
   std::array<double, 4> bounds{};  // undistorted image bounds
-  BowVector bow;  // empty while `pending_bow` holds a vocabulary (see with_bow)
+  BowVector bow;                   // empty while `pending_bow` holds a vocabulary (see with_bow)
   FeatureVector feature_vector;
   PendingBow pending_bow;
 
@@ -82,7 +82,9 @@ struct FrameData {
     const auto& p = features.undistorted[i];
     return camera.unproject(p.x(), p.y(), depth[i]);
   }
-  bool in_bounds(double u, double v) const { return u >= bounds[0] && u < bounds[1] && v >= bounds[2] && v < bounds[3]; }
+  bool in_bounds(double u, double v) const {
+    return u >= bounds[0] && u < bounds[1] && v >= bounds[2] && v < bounds[3];
+  }
 };
 
 // Builds FrameData from a BGR + raw depth image pair. The depth image is registered to the colour
@@ -94,14 +96,12 @@ struct FrameData {
 // (the camera's motion over half of camera.readout_time, from the middle row's instant to the last
 // row's), the keypoints are compensated for the rolling shutter (map/rolling_shutter.h) after their
 // depth is read. `gray`: the caller's grey image of `bgr`, if it has one (else converted here).
-std::shared_ptr<const FrameData> make_frame_data(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
-                                                 const PinholeCamera& camera, const RgbdParams& rgbd,
-                                                 const OrbExtractor& extractor,
-                                                 const std::shared_ptr<const ScalePyramid>& pyramid,
-                                                 const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up = 4,
-                                                 const std::optional<SE3>& T_depthcam_cam = std::nullopt,
-                                                 const std::optional<SE3>& T_lastrow_cam = std::nullopt,
-                                                 bool keyframe_depth = true, const cv::Mat& gray = cv::Mat());
+std::shared_ptr<const FrameData> make_frame_data(
+    FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw, const PinholeCamera& camera,
+    const RgbdParams& rgbd, const OrbExtractor& extractor, const std::shared_ptr<const ScalePyramid>& pyramid,
+    const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up = 4,
+    const std::optional<SE3>& T_depthcam_cam = std::nullopt, const std::optional<SE3>& T_lastrow_cam = std::nullopt,
+    bool keyframe_depth = true, const cv::Mat& gray = cv::Mat());
 
 // `data` with its bag-of-words vectors: `data` itself if none are pending, else a copy with them
 // computed (the copy costs far less than the transform it stands for).

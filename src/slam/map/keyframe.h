@@ -32,7 +32,7 @@ class MapPoint {
   // vector: a point has a handful of observations, and every hot loop (local map, BA set-up,
   // descriptor, snapshot copy) walks them; a tree spread them over the heap.
   boost::container::flat_map<KeyFrame*, int, ById> observations;
-  int num_obs = 0;                         // stereo/RGB-D observations count twice (ORB-SLAM2)
+  int num_obs = 0;  // stereo/RGB-D observations count twice (ORB-SLAM2)
   // Bumped on every change of `observations` (Map::add/erase_observation, bad, replaced): the
   // distinctive descriptor depends on that set alone, so Map::update_map_point recomputes it only
   // when the set changed since `descriptor_version`.
@@ -81,9 +81,9 @@ class KeyFrame {
   SE3 T_cam_creation_ref;
 
   bool bad = false;
-  int no_erase = 0;           // > 0 while loop closing / fusion use it (culling is deferred)
+  int no_erase = 0;  // > 0 while loop closing / fusion use it (culling is deferred)
   bool erase_requested = false;
-  SE3 T_cam_parent;           // valid once bad: pose relative to its parent
+  SE3 T_cam_parent;  // valid once bad: pose relative to its parent
 
   SE3 T_world_cam() const { return T_cam_world.inverse(); }
   // The keyframe whose correction this one follows: its spanning-tree parent, or, before local

@@ -26,7 +26,8 @@ MapWriteLock::MapWriteLock(Map& map, bool record_wait) : lock_(map.mutex, std::d
   }
   done_waiting();
   if (record_wait && map.write_waits_.size() < Map::kMaxRecordedWaits)
-    map.write_waits_.push_back({start, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()});
+    map.write_waits_.push_back(
+        {start, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()});
 }
 
 void Map::wait_until_no_writer_waits() const {

@@ -45,7 +45,8 @@ class IdAllocator {
 
 class Map {
  public:
-  Map(ClientId client, int index, std::shared_ptr<IdAllocator> ids) : client_(client), index_(index), ids_(std::move(ids)) {}
+  Map(ClientId client, int index, std::shared_ptr<IdAllocator> ids)
+      : client_(client), index_(index), ids_(std::move(ids)) {}
 
   ClientId client() const { return client_; }
   int index() const { return index_; }

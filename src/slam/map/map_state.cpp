@@ -122,30 +122,34 @@ void tidy_map_state(MapState& s) {
   if (s.origin && !known(*s.origin)) s.origin.reset();
   for (auto& k : s.keyframes) {
     if (k.parent && !known(*k.parent)) k.parent.reset();
-    k.connections.erase(std::remove_if(k.connections.begin(), k.connections.end(),
-                                       [&](const auto& c) { return !known(c.first); }),
-                        k.connections.end());
-    k.loop_edges.erase(std::remove_if(k.loop_edges.begin(), k.loop_edges.end(), [&](KeyFrameId l) { return !known(l); }),
-                       k.loop_edges.end());
+    k.connections.erase(
+        std::remove_if(k.connections.begin(), k.connections.end(), [&](const auto& c) { return !known(c.first); }),
+        k.connections.end());
+    k.loop_edges.erase(
+        std::remove_if(k.loop_edges.begin(), k.loop_edges.end(), [&](KeyFrameId l) { return !known(l); }),
+        k.loop_edges.end());
     std::sort(k.loop_edges.begin(), k.loop_edges.end());
     if (k.creation_reference && !known(*k.creation_reference)) k.creation_reference.reset();
   }
   for (auto& p : s.points) {
     if (p.flat_end > p.flat_begin)
-      p.observations.assign(s.flat_observations.begin() + long(p.flat_begin), s.flat_observations.begin() + long(p.flat_end));
+      p.observations.assign(s.flat_observations.begin() + long(p.flat_begin),
+                            s.flat_observations.begin() + long(p.flat_end));
     p.flat_begin = p.flat_end = 0;
-    p.observations.erase(std::remove_if(p.observations.begin(), p.observations.end(),
-                                        [&](const auto& o) { return !known(o.first); }),
-                         p.observations.end());
+    p.observations.erase(
+        std::remove_if(p.observations.begin(), p.observations.end(), [&](const auto& o) { return !known(o.first); }),
+        p.observations.end());
     std::sort(p.observations.begin(), p.observations.end());
     bool ref_observed = false;
     if (p.reference)
       for (const auto& [id, idx] : p.observations) ref_observed |= id == *p.reference;
     if (!ref_observed) p.reference.reset();
   }
-  s.points.erase(std::remove_if(s.points.begin(), s.points.end(), [](const MapPointState& p) { return p.observations.empty(); }),
-                 s.points.end());
-  std::sort(s.points.begin(), s.points.end(), [](const MapPointState& a, const MapPointState& b) { return a.id < b.id; });
+  s.points.erase(
+      std::remove_if(s.points.begin(), s.points.end(), [](const MapPointState& p) { return p.observations.empty(); }),
+      s.points.end());
+  std::sort(s.points.begin(), s.points.end(),
+            [](const MapPointState& a, const MapPointState& b) { return a.id < b.id; });
   s.flat_observations.clear();
   s.flat_observations.shrink_to_fit();
 }
@@ -172,7 +176,8 @@ void check_frame_data(const FrameData& d, const std::string& source, KeyFrameId 
       d.u_right.size() != n || d.colors.size() != n)
     bad("per-keypoint arrays differ in length");
   if (!d.pyramid || d.pyramid->num_levels < 1 || int(d.pyramid->scale.size()) != d.pyramid->num_levels ||
-      int(d.pyramid->sigma2.size()) != d.pyramid->num_levels || int(d.pyramid->inv_sigma2.size()) != d.pyramid->num_levels)
+      int(d.pyramid->sigma2.size()) != d.pyramid->num_levels ||
+      int(d.pyramid->inv_sigma2.size()) != d.pyramid->num_levels)
     bad("scale pyramid missing or inconsistent");
   for (const auto& kp : d.features.keypoints)
     if (kp.octave < 0 || kp.octave >= d.pyramid->num_levels) bad("keypoint level out of range");
@@ -201,8 +206,10 @@ std::shared_ptr<Map> restore_map(const MapState& state, std::shared_ptr<IdAlloca
     if (it == kfs.end()) fail(from, "links to unknown keyframe");
     return it->second;
   };
-  if (state.origin) map->add_keyframe(find(*state.origin, *state.origin));
-  else if (!state.keyframes.empty()) fail(state.keyframes.front().id, "map has keyframes but no origin");
+  if (state.origin)
+    map->add_keyframe(find(*state.origin, *state.origin));
+  else if (!state.keyframes.empty())
+    fail(state.keyframes.front().id, "map has keyframes but no origin");
   for (const auto& k : state.keyframes) {
     const KeyFramePtr& kf = kfs.at(k.id);
     map->add_keyframe(kf);

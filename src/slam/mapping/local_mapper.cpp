@@ -9,7 +9,9 @@
 namespace cslam {
 
 LocalMapper::LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, bool threaded)
-    : config_(std::move(config)), map_(std::move(map)), threaded_(threaded),
+    : config_(std::move(config)),
+      map_(std::move(map)),
+      threaded_(threaded),
       worker_(threaded, [this](const KeyFramePtr& kf) { process(kf); }) {
   worker_.start();
 }
@@ -174,8 +176,10 @@ void LocalMapper::cull_keyframes(KeyFrame* kf) {
         }
         is_redundant = seen_by >= 3;
       }
-      if (is_redundant) ++redundant;
-      else ++other;
+      if (is_redundant)
+        ++redundant;
+      else
+        ++other;
     }
     if (points > 0 && redundant > needed) {
       map_->set_keyframe_bad(cand);

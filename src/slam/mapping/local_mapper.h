@@ -30,13 +30,13 @@ enum class TrackingWait {
 TrackingWait parse_tracking_wait(const std::string& name);
 
 struct LocalMapperConfig {
-  int min_observations = 3;        // a recent point seen by fewer keyframes (after 2 keyframes) is culled
+  int min_observations = 3;  // a recent point seen by fewer keyframes (after 2 keyframes) is culled
   double min_found_ratio = 0.25;
   int fuse_neighbours = 10, fuse_second_neighbours = 5;
-  double redundant_ratio = 0.9;    // keyframe culling: share of its close points seen by >= 3 others
+  double redundant_ratio = 0.9;       // keyframe culling: share of its close points seen by >= 3 others
   TriangulationConfig triangulation;  // new points from keyframe pairs
   bool local_ba = true;
-  int local_ba_max_keyframes = 20;   // free keyframes: the new one and its strongest covisible neighbours
+  int local_ba_max_keyframes = 20;  // free keyframes: the new one and its strongest covisible neighbours
   BaConfig ba;
   // Keyframes waiting or in work before tracking waits to insert another (threaded mode).
   std::size_t max_pending_keyframes = 2;

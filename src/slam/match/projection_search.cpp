@@ -51,9 +51,12 @@ int search_by_projection(Frame& cur, const Frame& last, double th, bool check_or
     if (!f.in_bounds(uv.x(), uv.y())) continue;
     const int last_octave = last.data->features.keypoints[i].octave;
     const double radius = th * f.pyramid->scale[last_octave];
-    if (forward) f.grid.features_in_area(uv.x(), uv.y(), radius, last_octave, -1, cands);
-    else if (backward) f.grid.features_in_area(uv.x(), uv.y(), radius, 0, last_octave, cands);
-    else f.grid.features_in_area(uv.x(), uv.y(), radius, std::max(0, last_octave - 1), last_octave + 1, cands);
+    if (forward)
+      f.grid.features_in_area(uv.x(), uv.y(), radius, last_octave, -1, cands);
+    else if (backward)
+      f.grid.features_in_area(uv.x(), uv.y(), radius, 0, last_octave, cands);
+    else
+      f.grid.features_in_area(uv.x(), uv.y(), radius, std::max(0, last_octave - 1), last_octave + 1, cands);
     if (cands.empty()) continue;
     const double ur_pred = uv.x() - f.rgbd.bf / pc.z();
     int best = 256, best_idx = -1;
@@ -163,7 +166,8 @@ int search_by_bow(const KeyFrame& kf, const FrameData& f, std::vector<MapPointPt
       if (best <= kThLow && best < nn_ratio * best2) {
         matches[best_idx] = mp;
         ++n;
-        if (check_orientation) hist.add(kf.data->features.keypoints[ki].angle, f.features.keypoints[best_idx].angle, best_idx);
+        if (check_orientation)
+          hist.add(kf.data->features.keypoints[ki].angle, f.features.keypoints[best_idx].angle, best_idx);
       }
     }
     ++kit;
@@ -254,8 +258,10 @@ int fuse(Map& map, KeyFrame* kf, const std::vector<MapPointPtr>& points, double 
     const int best_idx = match_point_in_keyframe(*mp, *kf, th);
     if (best_idx < 0) continue;
     if (auto existing = kf->map_points[best_idx]; existing && !existing->bad) {
-      if (existing->observations.size() > mp->observations.size()) map.replace_map_point(mp, existing);
-      else map.replace_map_point(existing, mp);
+      if (existing->observations.size() > mp->observations.size())
+        map.replace_map_point(mp, existing);
+      else
+        map.replace_map_point(existing, mp);
     } else {
       Map::add_observation(kf, best_idx, mp);
     }

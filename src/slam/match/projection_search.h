@@ -17,7 +17,8 @@ struct ProjectedPoint {
   double view_cos = 0;
   int predicted_level = 0;
 };
-ProjectedPoint project_map_point(const MapPoint& mp, const SE3& T_cam_world, const FrameData& frame, double min_view_cos = 0.5);
+ProjectedPoint project_map_point(const MapPoint& mp, const SE3& T_cam_world, const FrameData& frame,
+                                 double min_view_cos = 0.5);
 
 // Matches the previous frame's points into the current frame projected with its predicted pose
 // (motion model). Returns the number of new matches.

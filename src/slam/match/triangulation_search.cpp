@@ -65,7 +65,8 @@ std::vector<std::pair<int, int>> search_for_triangulation(const KeyFrame& kf1, c
         const Eigen::Vector2d& p2 = f2.features.undistorted[i2];
         const int level2 = f2.features.keypoints[i2].octave;
         const double near_epipole = params.epipole_radius * scale[level2];
-        if (!depth1 && f2.u_right[i2] < 0 && epipole_valid && (p2 - epipole).squaredNorm() < near_epipole * near_epipole)
+        if (!depth1 && f2.u_right[i2] < 0 && epipole_valid &&
+            (p2 - epipole).squaredNorm() < near_epipole * near_epipole)
           continue;
         const double num = line.x() * p2.x() + line.y() * p2.y() + line.z();
         if (num * num / line_norm2 >= params.epipolar_chi2 * sigma2[level2]) continue;

@@ -18,9 +18,9 @@ Eigen::Matrix3d fundamental_21(const SE3& T_cam1_world, const PinholeCamera& cam
                                const PinholeCamera& cam2);
 
 struct TriangulationSearchParams {
-  int max_distance = 50;           // Hamming distance (ORB-SLAM2's TH_LOW)
-  double epipolar_chi2 = 3.84;     // squared distance to the epipolar line, in level sigmas^2 (1 dof, 95 %)
-  double epipole_radius = 100.0;   // pixels (x level scale): monocular pairs near the epipole are ambiguous
+  int max_distance = 50;          // Hamming distance (ORB-SLAM2's TH_LOW)
+  double epipolar_chi2 = 3.84;    // squared distance to the epipolar line, in level sigmas^2 (1 dof, 95 %)
+  double epipole_radius = 100.0;  // pixels (x level scale): monocular pairs near the epipole are ambiguous
   bool check_orientation = true;
 };
 

@@ -12,9 +12,12 @@ namespace cslam {
 
 const char* to_string(FlowMode m) {
   switch (m) {
-    case FlowMode::kOff: return "off";
-    case FlowMode::kUnderLoad: return "under-load";
-    case FlowMode::kAlways: return "always";
+    case FlowMode::kOff:
+      return "off";
+    case FlowMode::kUnderLoad:
+      return "under-load";
+    case FlowMode::kAlways:
+      return "always";
   }
   return "unknown";
 }
@@ -26,16 +29,20 @@ FlowMode parse_flow_mode(const std::string& s) {
 }
 
 void FlowConfig::validate() const {
-  if (!(max_patch_error > 0) || window < 3 || window % 2 == 0 || levels < 0 || levels > 6 || iterations < 1 || !(epsilon > 0) || max_run < 1 || max_run_overloaded < max_run || max_seeds < 1 ||
-      min_inliers < 3 || !(calibration_quantile >= 0 && calibration_quantile <= 1) || calibration_window < 1 || calibration_min < 1 ||
+  if (!(max_patch_error > 0) || window < 3 || window % 2 == 0 || levels < 0 || levels > 6 || iterations < 1 ||
+      !(epsilon > 0) || max_run < 1 || max_run_overloaded < max_run || max_seeds < 1 || min_inliers < 3 ||
+      !(calibration_quantile >= 0 && calibration_quantile <= 1) || calibration_window < 1 || calibration_min < 1 ||
       calibration_min > calibration_window)
-    throw ConfigError("flow: window odd >= 3, levels 0..6, iterations >= 1, epsilon > 0, max_run >= 1, max_run_overloaded >= max_run, max_seeds >= 1, min_inliers >= 3, "
-                      "max_patch_error > 0, calibration quantile in [0, 1], 1 <= calibration_min <= calibration_window");
+    throw ConfigError(
+        "flow: window odd >= 3, levels 0..6, iterations >= 1, epsilon > 0, max_run >= 1, max_run_overloaded >= "
+        "max_run, max_seeds >= 1, min_inliers >= 3, "
+        "max_patch_error > 0, calibration quantile in [0, 1], 1 <= calibration_min <= calibration_window");
 }
 
 FlowPyramid build_flow_pyramid(const cv::Mat& gray, const FlowConfig& config) {
   FlowPyramid p;
-  cv::buildOpticalFlowPyramid(gray, p.levels, cv::Size(config.window, config.window), config.levels, /*withDerivatives=*/true);
+  cv::buildOpticalFlowPyramid(gray, p.levels, cv::Size(config.window, config.window), config.levels,
+                              /*withDerivatives=*/true);
   return p;
 }
 
@@ -47,23 +54,25 @@ std::vector<unsigned char> flow(const FlowPyramid& from, const FlowPyramid& to, 
   std::vector<unsigned char> status;
   std::vector<float> err;  // mean absolute grey-level difference over the window, at the end
   const cv::TermCriteria criteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, config.iterations, config.epsilon);
-  cv::calcOpticalFlowPyrLK(from.levels, to.levels, pts, guess, status, err, cv::Size(config.window, config.window), config.levels,
-                           criteria, cv::OPTFLOW_USE_INITIAL_FLOW);
+  cv::calcOpticalFlowPyrLK(from.levels, to.levels, pts, guess, status, err, cv::Size(config.window, config.window),
+                           config.levels, criteria, cv::OPTFLOW_USE_INITIAL_FLOW);
   for (std::size_t k = 0; k < status.size(); ++k)
     if (!(err[k] <= config.max_patch_error)) status[k] = 0;  // the patch does not look alike (occluded, blurred, dark)
   return status;
 }
 }  // namespace
 
-FlowFrame make_flow_frame(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw, const FrameData& previous,
-                          const FlowPyramid& previous_pyramid, const FlowPyramid& pyramid, const FlowSeeds& seeds,
-                          const FlowConfig& config, const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
+FlowFrame make_flow_frame(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
+                          const FrameData& previous, const FlowPyramid& previous_pyramid, const FlowPyramid& pyramid,
+                          const FlowSeeds& seeds, const FlowConfig& config,
+                          const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
                           const std::optional<SE3>& T_depthcam_cam, const std::optional<SE3>& T_lastrow_cam,
                           bool keyframe_depth) {
   std::vector<cv::Point2f> start, found = seeds.predicted;
   start.reserve(seeds.index.size());
   for (int i : seeds.index) start.push_back(previous.features.keypoints[std::size_t(i)].pt);
-  const std::vector<unsigned char> ok = start.empty() ? std::vector<unsigned char>{} : flow(previous_pyramid, pyramid, start, found, config);
+  const std::vector<unsigned char> ok =
+      start.empty() ? std::vector<unsigned char>{} : flow(previous_pyramid, pyramid, start, found, config);
   const PinholeCamera& camera = previous.camera;
   const RgbdParams& rgbd = previous.rgbd;
   auto f = std::make_shared<FrameData>();

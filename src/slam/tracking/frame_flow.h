@@ -38,10 +38,10 @@ struct FlowConfig {
   // A track is dropped if its window in the new image differs from the old one by more than this
   // mean absolute grey level (0..255): the photometric check (occlusion, blur, a dark frame).
   double max_patch_error = 30;
-  int max_run = 3;        // flow frames in a row at most; then a full frame
+  int max_run = 3;             // flow frames in a row at most; then a full frame
   int max_run_overloaded = 8;  // ... while the worker is overloaded (WorkerLoad; >= max_run)
-  int max_seeds = 200;    // keypoints followed per frame at most (map points first, thinned evenly)
-  int min_inliers = 50;   // a flow frame's map-point inliers at least
+  int max_seeds = 200;         // keypoints followed per frame at most (map points first, thinned evenly)
+  int min_inliers = 50;        // a flow frame's map-point inliers at least
   // The keyframe rule's estimate on flow frames is scaled by this quantile of the last
   // calibration_window measured actual / estimated ratios, once there are calibration_min of them
   // (Tracker::keyframe_may_be_due).
@@ -60,9 +60,9 @@ FlowPyramid build_flow_pyramid(const cv::Mat& gray, const FlowConfig& config);
 
 // Where the previous frame's matched keypoints are to be looked for (Tracker::flow_seeds).
 struct FlowSeeds {
-  std::vector<int> index;                // keypoint in the previous frame
-  std::vector<cv::Point2f> predicted;    // distorted pixel the motion model predicts in the new image
-  SE3 T_cam_world;                       // the predicted pose
+  std::vector<int> index;              // keypoint in the previous frame
+  std::vector<cv::Point2f> predicted;  // distorted pixel the motion model predicts in the new image
+  SE3 T_cam_world;                     // the predicted pose
 };
 
 // A flow frame: FrameData whose keypoints are the seeds found again (octave, angle and descriptor
@@ -76,9 +76,10 @@ struct FlowFrame {
 // Follows `seeds` from `previous` (its FrameData and pyramid) into the new images. Keypoints whose
 // flow fails, leaves the image or fails the forward-backward check are dropped. The BoW vectors
 // are left pending (as make_frame_data does).
-FlowFrame make_flow_frame(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw, const FrameData& previous,
-                          const FlowPyramid& previous_pyramid, const FlowPyramid& pyramid, const FlowSeeds& seeds,
-                          const FlowConfig& config, const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
+FlowFrame make_flow_frame(FrameId id, double timestamp, const cv::Mat& bgr, const cv::Mat& depth_raw,
+                          const FrameData& previous, const FlowPyramid& previous_pyramid, const FlowPyramid& pyramid,
+                          const FlowSeeds& seeds, const FlowConfig& config,
+                          const std::shared_ptr<const Vocabulary>& vocabulary, int bow_levels_up,
                           const std::optional<SE3>& T_depthcam_cam, const std::optional<SE3>& T_lastrow_cam,
                           bool keyframe_depth);
 

@@ -38,7 +38,8 @@ bool Tracker::relocalize(Frame& frame) {
     }
     cv::Mat rvec, tvec;
     std::vector<int> inliers;
-    if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 300, 4.0f, 0.99, inliers, cv::SOLVEPNP_EPNP) ||
+    if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 300, 4.0f, 0.99, inliers,
+                            cv::SOLVEPNP_EPNP) ||
         int(inliers.size()) < 10)
       continue;
     cv::Mat R;

@@ -101,8 +101,10 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
     std::shared_lock<std::shared_mutex> lock(map_->mutex);
     // If the map moved (fusion) after this frame was tracked, the reference keyframe moved with
     // it: the relative pose taken under the tracking lock carries the frame into the new frame.
-    if (map_->big_change_index() != tracked_change_index_) frame.T_cam_world = frame.T_cam_ref * frame.reference->T_cam_world;
-    else if (result.initialized_map) frame.T_cam_ref = frame.T_cam_world * frame.reference->T_world_cam();
+    if (map_->big_change_index() != tracked_change_index_)
+      frame.T_cam_world = frame.T_cam_ref * frame.reference->T_cam_world;
+    else if (result.initialized_map)
+      frame.T_cam_ref = frame.T_cam_world * frame.reference->T_world_cam();
     result.T_cam_ref = frame.T_cam_ref;
     result.T_cam_world = frame.T_cam_world;
   }
@@ -163,8 +165,8 @@ void Tracker::update_last_frame() {
   for (const auto& [d, i] : by_depth) {
     bool create = !last_->map_points[i] || last_->map_points[i]->observations.empty();
     if (create) {
-      auto mp = std::make_shared<MapPoint>(MapPointId{map_->client(), 0xFFFFFFFFu}, T_world_cam * f.unproject(i), nullptr,
-                                           f.colors[i]);
+      auto mp = std::make_shared<MapPoint>(MapPointId{map_->client(), 0xFFFFFFFFu}, T_world_cam * f.unproject(i),
+                                           nullptr, f.colors[i]);
       mp->descriptor = f.features.descriptors[i];
       last_->map_points[i] = mp;
       last_->outlier[i] = 0;
@@ -217,7 +219,8 @@ int drop_outliers_count_map_points(Frame& frame) {
 }  // namespace
 
 std::optional<SE3> Tracker::predicted_motion(double seconds) const {
-  if (state_ != FrameFate::kTracked || !has_velocity_ || !(velocity_dt_ > 0) || !std::isfinite(seconds)) return std::nullopt;
+  if (state_ != FrameFate::kTracked || !has_velocity_ || !(velocity_dt_ > 0) || !std::isfinite(seconds))
+    return std::nullopt;
   return velocity_.scaled(seconds / velocity_dt_);
 }
 
@@ -259,8 +262,8 @@ bool Tracker::track_reference_keyframe(Frame& frame) {
   return drop_outliers_count_map_points(frame) >= config_.min_pose_inliers;
 }
 
-void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<const MapPointPtr*>& local_points,
-                               KeyFramePtr& reference) {
+void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs,
+                               std::vector<const MapPointPtr*>& local_points, KeyFramePtr& reference) {
   // Keyframes sharing the frame's points, counted in a hash map and then visited in id order.
   std::unordered_map<KeyFrame*, int> count;
   count.reserve(64);
@@ -325,8 +328,9 @@ bool Tracker::track_local_map(Frame& frame) {
     }
   }
   last_inliers_ = inliers;
-  logger("tracking")->debug("frame {}: local map {} points, {} inliers, reference keyframe {}", frame.data->id.seq, local_points.size(), inliers,
-                            reference_kf_ ? int(reference_kf_->id.seq) : -1);
+  logger("tracking")
+      ->debug("frame {}: local map {} points, {} inliers, reference keyframe {}", frame.data->id.seq,
+              local_points.size(), inliers, reference_kf_ ? int(reference_kf_->id.seq) : -1);
   const int needed = frames_since_reloc_ < std::uint32_t(config_.max_frames_between_keyframes)
                          ? config_.min_local_map_inliers_after_reloc
                          : config_.min_local_map_inliers;
@@ -351,7 +355,8 @@ void Tracker::decide_keyframe(Frame& frame, TrackResult& result) {
 bool Tracker::need_new_keyframe(const Frame& frame) const {
   if (!sink_ || !sink_->accepts_keyframes()) return false;
   const std::size_t nkfs = map_->num_keyframes();
-  if (frames_since_reloc_ < std::uint32_t(config_.max_frames_between_keyframes) && nkfs > std::size_t(config_.max_frames_between_keyframes))
+  if (frames_since_reloc_ < std::uint32_t(config_.max_frames_between_keyframes) &&
+      nkfs > std::size_t(config_.max_frames_between_keyframes))
     return false;
   int ref_matches = 0;
   {
@@ -362,22 +367,30 @@ bool Tracker::need_new_keyframe(const Frame& frame) const {
   int tracked_close = 0, untracked_close = 0;
   for (size_t i = 0; i < f.size(); ++i) {
     if (!f.is_close(int(i))) continue;
-    if (frame.map_points[i] && !frame.outlier[i]) ++tracked_close;
-    else ++untracked_close;
+    if (frame.map_points[i] && !frame.outlier[i])
+      ++tracked_close;
+    else
+      ++untracked_close;
   }
-  const bool need_close = tracked_close < config_.close_tracked_threshold && untracked_close > config_.close_untracked_threshold;
+  const bool need_close =
+      tracked_close < config_.close_tracked_threshold && untracked_close > config_.close_untracked_threshold;
   const double ratio = nkfs < 2 ? 0.4 : config_.ref_ratio;
   const bool c1a = frames_since_keyframe_ >= std::uint32_t(config_.max_frames_between_keyframes);
   // ORB-SLAM2 takes the ratio rule alone only while local mapping is idle; here the deterministic
   // stand-in is a minimum interval of sensor time since the last keyframe (c1a and c1c still
   // apply at once), so that stepped and threaded runs decide alike.
-  const bool c1b = frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes) &&
-                   (!last_keyframe_ || f.timestamp - last_keyframe_->data->timestamp >= config_.min_keyframe_interval_s);
+  const bool c1b =
+      frames_since_keyframe_ >= std::uint32_t(config_.min_frames_between_keyframes) &&
+      (!last_keyframe_ || f.timestamp - last_keyframe_->data->timestamp >= config_.min_keyframe_interval_s);
   const bool c1c = last_inliers_ < ref_matches * 0.25 || need_close;
   const bool c2 = (last_inliers_ < ref_matches * ratio || need_close) && last_inliers_ > 15;
-  logger("tracking")->debug("frame {}: keyframe rule: {} inliers, reference {} points, close tracked {} untracked {} c1a {} c1b {} c1c {} c2 {}",
-                            frame.data->id.seq, last_inliers_, ref_matches, tracked_close, untracked_close, c1a, c1b, c1c, c2);
-  const bool due = config_.keyframe_every_frames > 0 && frames_since_keyframe_ >= std::uint32_t(config_.keyframe_every_frames);
+  logger("tracking")
+      ->debug(
+          "frame {}: keyframe rule: {} inliers, reference {} points, close tracked {} untracked {} c1a {} c1b {} c1c "
+          "{} c2 {}",
+          frame.data->id.seq, last_inliers_, ref_matches, tracked_close, untracked_close, c1a, c1b, c1c, c2);
+  const bool due =
+      config_.keyframe_every_frames > 0 && frames_since_keyframe_ >= std::uint32_t(config_.keyframe_every_frames);
   return (due && last_inliers_ > 15) || ((c1a || c1b || c1c) && c2);
 }
 
@@ -394,7 +407,8 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
       kf->T_cam_creation_ref = frame.T_cam_world * frame.reference->T_world_cam();
     }
     for (size_t i = 0; i < f.size(); ++i)
-      if (frame.map_points[i] && !frame.map_points[i]->bad && !frame.outlier[i]) kf->map_points[i] = frame.map_points[i];
+      if (frame.map_points[i] && !frame.map_points[i]->bad && !frame.outlier[i])
+        kf->map_points[i] = frame.map_points[i];
     std::vector<std::pair<float, int>> by_depth;
     for (size_t i = 0; i < f.size(); ++i)
       if (f.has_depth(int(i))) by_depth.emplace_back(f.depth[i], int(i));
@@ -406,7 +420,8 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
       const auto& existing = kf->map_points[i];
       if (!existing || existing->observations.empty()) {
         kf->map_points[i].reset();
-        auto mp = std::make_shared<MapPoint>(map_->ids().next_map_point(), T_world_cam * f.unproject(i), kf.get(), f.colors[i]);
+        auto mp = std::make_shared<MapPoint>(map_->ids().next_map_point(), T_world_cam * f.unproject(i), kf.get(),
+                                             f.colors[i]);
         mp->first_keyframe_seq = kf->id.seq;
         Map::add_observation(kf.get(), i, mp);
         map_->update_map_point(mp.get());

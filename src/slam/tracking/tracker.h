@@ -16,14 +16,13 @@
 
 namespace cslam {
 
-
 struct TrackerConfig {
-  int min_init_points = 500;          // keypoints with depth needed to initialise a map
-  double motion_radius = 15.0;         // projection search radius (pixels at level 0) for the motion model
-  double local_map_radius = 3.0;       // local-map projection search window (x 2.5..4 x level scale)
-  int min_motion_matches = 20;         // below this the search is repeated with twice the radius
-  int min_pose_inliers = 10;           // after motion-model / reference-keyframe pose optimisation
-  int min_local_map_inliers = 30;      // local-map tracking success
+  int min_init_points = 500;       // keypoints with depth needed to initialise a map
+  double motion_radius = 15.0;     // projection search radius (pixels at level 0) for the motion model
+  double local_map_radius = 3.0;   // local-map projection search window (x 2.5..4 x level scale)
+  int min_motion_matches = 20;     // below this the search is repeated with twice the radius
+  int min_pose_inliers = 10;       // after motion-model / reference-keyframe pose optimisation
+  int min_local_map_inliers = 30;  // local-map tracking success
   int min_local_map_inliers_after_reloc = 50;
   int max_local_keyframes = 80;
   // Keyframe rule: the tracked points fall below ref_ratio of the reference keyframe's points seen
@@ -39,11 +38,12 @@ struct TrackerConfig {
   // (where local mapping is always done) made a keyframe almost every other frame on fr1/desk
   // (318 against 138 threaded) at 4x the CPU time and a higher error; see docs/slam.md.
   double min_keyframe_interval_s = 0.1;
-  int keyframe_every_frames = 10;         // ~1/3 s at 30 Hz; 0: off
+  int keyframe_every_frames = 10;  // ~1/3 s at 30 Hz; 0: off
   double ref_ratio = 0.75;
-  int ref_min_observations = 3;        // reference-keyframe points counted by the keyframe rule: seen by two keyframes (an RGB-D observation counts 2)
+  int ref_min_observations = 3;  // reference-keyframe points counted by the keyframe rule: seen by two keyframes (an
+                                 // RGB-D observation counts 2)
   int close_tracked_threshold = 100, close_untracked_threshold = 70;  // RGB-D "need close points" rule
-  int min_new_close_points = 100;      // new map points per keyframe: all close ones and at least this many
+  int min_new_close_points = 100;  // new map points per keyframe: all close ones and at least this many
   int reloc_min_bow_matches = 15;
   int reloc_min_inliers = 50;
   FlowConfig flow;  // frame-to-frame tracking by optical flow between full frames (frame_flow.h)
@@ -112,8 +112,8 @@ class Tracker {
   bool track_local_map(Frame& frame);
   void update_last_frame();
   // Local keyframes and the slots of their points (valid while the map's shared lock is held).
-  void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs, std::vector<const MapPointPtr*>& local_points,
-                        KeyFramePtr& reference);
+  void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs,
+                        std::vector<const MapPointPtr*>& local_points, KeyFramePtr& reference);
   int optimize_frame_pose(Frame& frame) const;
   // The constant-velocity model's pose at `timestamp`, from the last frame's (needs last_).
   SE3 motion_model_pose(double timestamp) const;
@@ -122,7 +122,8 @@ class Tracker {
   bool keyframe_may_be_due(const Frame& frame, int inliers);
   // On a full frame after a flow estimate: records actual / estimated local-map inliers.
   void calibrate_flow();
-  // Makes the keyframe that the rule (or a deferral) asks for; a frame without full depth (FrameData::keyframe_depth) defers it.
+  // Makes the keyframe that the rule (or a deferral) asks for; a frame without full depth (FrameData::keyframe_depth)
+  // defers it.
   void decide_keyframe(Frame& frame, TrackResult& result);
   KeyFramePtr create_keyframe(Frame& frame);
   StereoIntrinsics intrinsics(const FrameData& f) const;
@@ -144,17 +145,17 @@ class Tracker {
   std::uint32_t frames_since_keyframe_ = 0, frames_since_reloc_ = 1000000;
   int last_inliers_ = 0;
   std::uint64_t tracked_change_index_ = 0;  // map change index when the frame was tracked
-  PointerSet local_points_seen_;             // update_local_map's scratch, reused frame to frame
-  PointerSet flow_in_frame_;                 // track_flow's scratch
-  int flow_run_ = 0;                         // flow frames since the last full frame
-  int full_inliers_ = 0;                     // local-map inliers of the last full frame
-  int full_close_ = 0;                       // ... and of them close points
-  double flow_estimate_ = -1;                // a flow frame's estimate of local-map inliers, until a full frame measures them
-  std::deque<double> flow_calibration_;      // recent actual / estimated local-map inliers (keyframe_may_be_due)
-  int flow_seeded_ = 0;                      // map points seeded into the flow (flow_seeds)
-  double flow_in_view_ = 0;                  // share of the last frame's map points predicted in view
-  double flow_survival_ = 1;                 // share of the last full frame's points the flow run still holds
-  std::uint64_t flow_change_index_ = 0;      // map change index when the flow seeds were taken
+  PointerSet local_points_seen_;            // update_local_map's scratch, reused frame to frame
+  PointerSet flow_in_frame_;                // track_flow's scratch
+  int flow_run_ = 0;                        // flow frames since the last full frame
+  int full_inliers_ = 0;                    // local-map inliers of the last full frame
+  int full_close_ = 0;                      // ... and of them close points
+  double flow_estimate_ = -1;  // a flow frame's estimate of local-map inliers, until a full frame measures them
+  std::deque<double> flow_calibration_;  // recent actual / estimated local-map inliers (keyframe_may_be_due)
+  int flow_seeded_ = 0;                  // map points seeded into the flow (flow_seeds)
+  double flow_in_view_ = 0;              // share of the last frame's map points predicted in view
+  double flow_survival_ = 1;             // share of the last full frame's points the flow run still holds
+  std::uint64_t flow_change_index_ = 0;  // map change index when the flow seeds were taken
 };
 
 }  // namespace cslam

@@ -12,8 +12,10 @@ namespace cslam {
 
 std::optional<FlowSeeds> Tracker::flow_seeds(double timestamp, int max_run) {
   const FlowConfig& fc = config_.flow;
-  if (state_ != FrameFate::kTracked || !has_velocity_ || !last_ || !last_->has_pose || keyframe_deferred_) return std::nullopt;
-  if (flow_run_ >= max_run || frames_since_reloc_ < std::uint32_t(config_.max_frames_between_keyframes)) return std::nullopt;
+  if (state_ != FrameFate::kTracked || !has_velocity_ || !last_ || !last_->has_pose || keyframe_deferred_)
+    return std::nullopt;
+  if (flow_run_ >= max_run || frames_since_reloc_ < std::uint32_t(config_.max_frames_between_keyframes))
+    return std::nullopt;
   // A keyframe due at this frame by the frame count needs the full path (and its keypoints).
   if (config_.keyframe_every_frames > 0 && frames_since_keyframe_ + 1 >= std::uint32_t(config_.keyframe_every_frames))
     return std::nullopt;
@@ -81,10 +83,12 @@ bool Tracker::keyframe_may_be_due(const Frame& frame, int inliers) {
   const double scale = sorted[std::size_t(config_.flow.calibration_quantile * double(sorted.size() - 1))];
   const double local = flow_estimate_ * scale, local_close = full_close_ * survival * scale;
   const std::size_t nkfs = map_->num_keyframes();
-  const int ref_matches = reference_kf_ ? reference_kf_->tracked_map_points(nkfs <= 2 ? 2 : config_.ref_min_observations) : 0;
+  const int ref_matches =
+      reference_kf_ ? reference_kf_->tracked_map_points(nkfs <= 2 ? 2 : config_.ref_min_observations) : 0;
   const double ratio = nkfs < 2 ? 0.4 : config_.ref_ratio;
   const bool need_close = local_close < config_.close_tracked_threshold;
-  const bool interval_passed = !last_keyframe_ || frame.data->timestamp - last_keyframe_->data->timestamp >= config_.min_keyframe_interval_s;
+  const bool interval_passed =
+      !last_keyframe_ || frame.data->timestamp - last_keyframe_->data->timestamp >= config_.min_keyframe_interval_s;
   return need_close || local < ref_matches * 0.25 || (interval_passed && local < ref_matches * ratio);
 }
 
@@ -123,8 +127,9 @@ std::optional<TrackResult> Tracker::track_flow(const FlowFrame& flow) {
       }
     }
     if (inliers < fc.min_inliers || keyframe_may_be_due(frame, inliers)) {
-      logger("tracking")->debug("frame {}: flow {} inliers of {} (last full frame {}): full path", frame.data->id.seq, inliers,
-                                flow.previous_index.size(), full_inliers_);
+      logger("tracking")
+          ->debug("frame {}: flow {} inliers of {} (last full frame {}): full path", frame.data->id.seq, inliers,
+                  flow.previous_index.size(), full_inliers_);
       return std::nullopt;
     }
     // The seeds were in view and the inliers found, as local-map tracking counts them: map point

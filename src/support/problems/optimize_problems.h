@@ -66,7 +66,9 @@ inline PoseProblem random_pose_problem(std::mt19937& rng, int n, double outlier_
     p.obs.push_back(o);
     p.is_outlier.push_back(outlier);
   }
-  p.start = small_motion(0.03 + 0.03 * U(rng), {S(rng), S(rng), S(rng) + 0.1}, 0.05 * Eigen::Vector3d(S(rng), S(rng), S(rng))) * p.truth;
+  p.start = small_motion(0.03 + 0.03 * U(rng), {S(rng), S(rng), S(rng) + 0.1},
+                         0.05 * Eigen::Vector3d(S(rng), S(rng), S(rng))) *
+            p.truth;
   return p;
 }
 
@@ -81,8 +83,8 @@ struct BaSynthetic {
   std::vector<char> is_outlier;  // per observation
 };
 
-inline BaSynthetic random_ba_problem(std::mt19937& rng, int free_cams, int fixed_cams, int num_points, double outlier_fraction,
-                                     double stereo_fraction, double visibility = 0.6) {
+inline BaSynthetic random_ba_problem(std::mt19937& rng, int free_cams, int fixed_cams, int num_points,
+                                     double outlier_fraction, double stereo_fraction, double visibility = 0.6) {
   const auto k = tum_like_intrinsics();
   std::uniform_real_distribution<double> U(0, 1), S(-1, 1);
   std::normal_distribution<double> N(0, 1);
@@ -91,7 +93,8 @@ inline BaSynthetic random_ba_problem(std::mt19937& rng, int free_cams, int fixed
   std::vector<SE3> truth(n);
   for (int i = 0; i < n; ++i) {  // i-th keyframe in time; the fixed ones are the oldest
     const double a = 0.04 * i;
-    const SE3 T_world_cam(Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(0.05 * std::sin(i), Eigen::Vector3d::UnitX())),
+    const SE3 T_world_cam(Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()) *
+                                             Eigen::AngleAxisd(0.05 * std::sin(i), Eigen::Vector3d::UnitX())),
                           Eigen::Vector3d(0.12 * i, 0.03 * std::sin(0.7 * i), 0.02 * i));
     truth[i] = T_world_cam.inverse();
   }
@@ -146,7 +149,8 @@ inline BaSynthetic random_ba_problem(std::mt19937& rng, int free_cams, int fixed
   }
   for (int c = 0; c < free_cams; ++c)
     b.problem.cameras[c].T_cam_world =
-        small_motion(0.01 * U(rng), {S(rng), S(rng), S(rng) + 0.1}, 0.02 * Eigen::Vector3d(S(rng), S(rng), S(rng))) * b.problem.cameras[c].T_cam_world;
+        small_motion(0.01 * U(rng), {S(rng), S(rng), S(rng) + 0.1}, 0.02 * Eigen::Vector3d(S(rng), S(rng), S(rng))) *
+        b.problem.cameras[c].T_cam_world;
   return b;
 }
 

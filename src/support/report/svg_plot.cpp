@@ -81,7 +81,8 @@ void data_ranges(const Panel& p, Range& xr, Range& yr) {
 
 void draw_series(std::string& out, const Series& s, const Frame& f, std::size_t max_points) {
   const std::size_t n = std::min(s.x.size(), s.y.size());
-  const std::vector<std::size_t> keep = decimate_min_max(std::vector<double>(s.y.begin(), s.y.begin() + long(n)), max_points);
+  const std::vector<std::size_t> keep =
+      decimate_min_max(std::vector<double>(s.y.begin(), s.y.begin() + long(n)), max_points);
   const std::string color = xml_escape(s.color);
   if (s.line) {
     // Compact path data: absolute "M" at each start, then relative "l" steps between positions
@@ -106,21 +107,21 @@ void draw_series(std::string& out, const Series& s, const Frame& f, std::size_t 
       pen_down = true;
     }
     if (!d.empty())
-      out += "<path d=\"" + d + "\" fill=\"none\" stroke=\"" + color + "\" stroke-width=\"" + fmt("%g", s.width) + "\"" +
-             (s.dashed ? " stroke-dasharray=\"5,3\"" : "") + " stroke-linejoin=\"round\"/>\n";
+      out += "<path d=\"" + d + "\" fill=\"none\" stroke=\"" + color + "\" stroke-width=\"" + fmt("%g", s.width) +
+             "\"" + (s.dashed ? " stroke-dasharray=\"5,3\"" : "") + " stroke-linejoin=\"round\"/>\n";
   }
   for (std::size_t i : keep) {
     if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
     const double x = f.px(s.x[i]);
     if (i < s.y_low.size() && i < s.y_high.size() && std::isfinite(s.y_low[i]) && std::isfinite(s.y_high[i])) {
       const double y0 = f.py(s.y_low[i]), y1 = f.py(s.y_high[i]);
-      out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", y0) + "V" + fmt("%.1f", y1) + "M" + fmt("%.1f", x - 4) + " " +
-             fmt("%.1f", y0) + "h8M" + fmt("%.1f", x - 4) + " " + fmt("%.1f", y1) + "h8\" stroke=\"" + color +
+      out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", y0) + "V" + fmt("%.1f", y1) + "M" + fmt("%.1f", x - 4) +
+             " " + fmt("%.1f", y0) + "h8M" + fmt("%.1f", x - 4) + " " + fmt("%.1f", y1) + "h8\" stroke=\"" + color +
              "\" stroke-width=\"1.2\" fill=\"none\"/>\n";
     }
     if (s.marker_radius > 0)
-      out += "<circle cx=\"" + fmt("%.1f", x) + "\" cy=\"" + fmt("%.1f", f.py(s.y[i])) + "\" r=\"" + fmt("%g", s.marker_radius) +
-             "\" fill=\"" + color + "\"/>\n";
+      out += "<circle cx=\"" + fmt("%.1f", x) + "\" cy=\"" + fmt("%.1f", f.py(s.y[i])) + "\" r=\"" +
+             fmt("%g", s.marker_radius) + "\" fill=\"" + color + "\"/>\n";
   }
 }
 
@@ -134,8 +135,8 @@ void draw_axes(std::string& out, const Panel& p, const Frame& f) {
     const double x = f.px(t);
     out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", f.top) + "V" + fmt("%.1f", f.top + f.height) +
            "\" stroke=\"#e4e4e4\" stroke-width=\"1\"/>\n";
-    out += "<text x=\"" + fmt("%.1f", x) + "\" y=\"" + fmt("%.1f", f.top + f.height + 15) + "\" text-anchor=\"middle\">" +
-           tick_label(t, xstep) + "</text>\n";
+    out += "<text x=\"" + fmt("%.1f", x) + "\" y=\"" + fmt("%.1f", f.top + f.height + 15) +
+           "\" text-anchor=\"middle\">" + tick_label(t, xstep) + "</text>\n";
   }
   for (double t : yt) {
     const double y = f.py(t);
@@ -147,8 +148,9 @@ void draw_axes(std::string& out, const Panel& p, const Frame& f) {
   out += "<text x=\"" + fmt("%.1f", f.left + f.width / 2) + "\" y=\"" + fmt("%.1f", f.top + f.height + 32) +
          "\" text-anchor=\"middle\">" + xml_escape(p.x_label) + "</text>\n";
   const double ly = f.top + f.height / 2, lx = f.left - 52;
-  out += "<text x=\"" + fmt("%.1f", lx) + "\" y=\"" + fmt("%.1f", ly) + "\" text-anchor=\"middle\" transform=\"rotate(-90 " +
-         fmt("%.1f", lx) + " " + fmt("%.1f", ly) + ")\">" + xml_escape(p.y_label) + "</text>\n";
+  out += "<text x=\"" + fmt("%.1f", lx) + "\" y=\"" + fmt("%.1f", ly) +
+         "\" text-anchor=\"middle\" transform=\"rotate(-90 " + fmt("%.1f", lx) + " " + fmt("%.1f", ly) + ")\">" +
+         xml_escape(p.y_label) + "</text>\n";
   out += "<text x=\"" + fmt("%.1f", f.left) + "\" y=\"" + fmt("%.1f", f.top - 7) + "\" font-weight=\"bold\">" +
          xml_escape(p.title) + "</text>\n";
 }
@@ -161,8 +163,10 @@ void draw_legend(std::string& out, const Panel& p, double x, double y) {
       out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", y) + "h22\" stroke=\"" + color + "\" stroke-width=\"" +
              fmt("%g", std::max(2.0, s.width)) + "\"" + (s.dashed ? " stroke-dasharray=\"5,3\"" : "") + "/>\n";
     else
-      out += "<circle cx=\"" + fmt("%.1f", x + 11) + "\" cy=\"" + fmt("%.1f", y) + "\" r=\"3\" fill=\"" + color + "\"/>\n";
-    out += "<text x=\"" + fmt("%.1f", x + 28) + "\" y=\"" + fmt("%.1f", y + 4) + "\">" + xml_escape(s.label) + "</text>\n";
+      out +=
+          "<circle cx=\"" + fmt("%.1f", x + 11) + "\" cy=\"" + fmt("%.1f", y) + "\" r=\"3\" fill=\"" + color + "\"/>\n";
+    out +=
+        "<text x=\"" + fmt("%.1f", x + 28) + "\" y=\"" + fmt("%.1f", y + 4) + "\">" + xml_escape(s.label) + "</text>\n";
     y += 16;
   }
   bool any_marker = false;
@@ -173,9 +177,15 @@ void draw_legend(std::string& out, const Panel& p, double x, double y) {
   }
 }
 
-void draw_panel(std::string& out, const Panel& p, double left, double top, double width, double height, std::size_t max_points) {
+void draw_panel(std::string& out, const Panel& p, double left, double top, double width, double height,
+                std::size_t max_points) {
   constexpr double kMarginLeft = 70, kMarginRight = 150, kMarginTop = 26, kMarginBottom = 42;
-  Frame f{left + kMarginLeft, top + kMarginTop, width - kMarginLeft - kMarginRight, height - kMarginTop - kMarginBottom, {}, {}};
+  Frame f{left + kMarginLeft,
+          top + kMarginTop,
+          width - kMarginLeft - kMarginRight,
+          height - kMarginTop - kMarginBottom,
+          {},
+          {}};
   data_ranges(p, f.x, f.y);
   if (!f.x.valid() || !f.y.valid()) {
     f.x = Range{0, 1};
@@ -205,25 +215,27 @@ void draw_panel(std::string& out, const Panel& p, double left, double top, doubl
   out += "<g clip-path=\"url(#c" + fmt("%.0f", left) + "_" + fmt("%.0f", top) + ")\">\n";
   for (const auto& v : p.vlines) {
     const double x = f.px(v.x);
-    out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", f.top) + "V" + fmt("%.1f", f.top + f.height) + "\" stroke=\"" +
-           xml_escape(v.color) + "\" stroke-width=\"1.2\" stroke-dasharray=\"3,3\"/>\n";
+    out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", f.top) + "V" + fmt("%.1f", f.top + f.height) +
+           "\" stroke=\"" + xml_escape(v.color) + "\" stroke-width=\"1.2\" stroke-dasharray=\"3,3\"/>\n";
     if (!v.label.empty())
-      out += "<text x=\"" + fmt("%.1f", x + 3) + "\" y=\"" + fmt("%.1f", f.top + 12) + "\" fill=\"" + xml_escape(v.color) +
-             "\">" + xml_escape(v.label) + "</text>\n";
+      out += "<text x=\"" + fmt("%.1f", x + 3) + "\" y=\"" + fmt("%.1f", f.top + 12) + "\" fill=\"" +
+             xml_escape(v.color) + "\">" + xml_escape(v.label) + "</text>\n";
   }
   for (const auto& s : p.series) draw_series(out, s, f, max_points);
   for (const auto& m : p.markers) {
     if (!std::isfinite(m.x) || !std::isfinite(m.y)) continue;
     const double x = f.px(m.x), y = f.py(m.y);
-    out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", y - 6) + "l6 6l-6 6l-6 -6z\" fill=\"" + xml_escape(m.color) +
-           "\" stroke=\"#000000\" stroke-width=\"1\"/>\n";
+    out += "<path d=\"M" + fmt("%.1f", x) + " " + fmt("%.1f", y - 6) + "l6 6l-6 6l-6 -6z\" fill=\"" +
+           xml_escape(m.color) + "\" stroke=\"#000000\" stroke-width=\"1\"/>\n";
     if (!m.label.empty())
-      out += "<text x=\"" + fmt("%.1f", x + 7) + "\" y=\"" + fmt("%.1f", y - 6) + "\">" + xml_escape(m.label) + "</text>\n";
+      out += "<text x=\"" + fmt("%.1f", x + 7) + "\" y=\"" + fmt("%.1f", y - 6) + "\">" + xml_escape(m.label) +
+             "</text>\n";
   }
   out += "</g>\n";
   // The clip path is declared after use; SVG resolves references document-wide.
-  out += "<clipPath id=\"c" + fmt("%.0f", left) + "_" + fmt("%.0f", top) + "\"><rect x=\"" + fmt("%.1f", f.left) + "\" y=\"" +
-         fmt("%.1f", f.top) + "\" width=\"" + fmt("%.1f", f.width) + "\" height=\"" + fmt("%.1f", f.height) + "\"/></clipPath>\n";
+  out += "<clipPath id=\"c" + fmt("%.0f", left) + "_" + fmt("%.0f", top) + "\"><rect x=\"" + fmt("%.1f", f.left) +
+         "\" y=\"" + fmt("%.1f", f.top) + "\" width=\"" + fmt("%.1f", f.width) + "\" height=\"" +
+         fmt("%.1f", f.height) + "\"/></clipPath>\n";
   draw_legend(out, p, f.left + f.width + 12, f.top + 10);
 }
 
@@ -290,12 +302,23 @@ std::string xml_escape(const std::string& text) {
   out.reserve(text.size());
   for (char c : text) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&apos;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -309,13 +332,14 @@ std::string render_svg(const std::vector<Panel>& panels, const FigureOptions& op
   const double height = title_h + rows * double(options.panel_height);
   std::string out;
   out += "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
-  out += "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"" + std::to_string(options.width) + "\" height=\"" +
-         fmt("%.0f", height) + "\" viewBox=\"0 0 " + std::to_string(options.width) + " " + fmt("%.0f", height) +
-         "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+  out += "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"" + std::to_string(options.width) +
+         "\" height=\"" + fmt("%.0f", height) + "\" viewBox=\"0 0 " + std::to_string(options.width) + " " +
+         fmt("%.0f", height) + "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   out += "<rect width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n";
   if (!options.title.empty())
-    out += "<text x=\"" + fmt("%.1f", options.width / 2.0) + "\" y=\"20\" text-anchor=\"middle\" font-size=\"15\" font-weight=\"bold\">" +
-           xml_escape(options.title) + "</text>\n";
+    out += "<text x=\"" + fmt("%.1f", options.width / 2.0) +
+           "\" y=\"20\" text-anchor=\"middle\" font-size=\"15\" font-weight=\"bold\">" + xml_escape(options.title) +
+           "</text>\n";
   for (std::size_t i = 0; i < panels.size(); ++i) {
     const double left = double(i % std::size_t(columns)) * panel_w;
     const double top = title_h + double(i / std::size_t(columns)) * options.panel_height;
@@ -330,7 +354,8 @@ void write_svg(const std::string& path, const std::vector<Panel>& panels, const 
 }
 
 std::string client_color(int k) {
-  static const char* const kColors[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#bcbd22"};
+  static const char* const kColors[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd",
+                                        "#ff7f0e", "#17becf", "#e377c2", "#bcbd22"};
   return kColors[std::size_t(std::max(0, k - 1)) % (sizeof kColors / sizeof kColors[0])];
 }
 

@@ -10,13 +10,13 @@
 namespace cslam::report {
 
 struct Series {
-  std::string label;            // legend text (empty: not in the legend)
+  std::string label;  // legend text (empty: not in the legend)
   std::string color = "#1f77b4";
-  std::vector<double> x, y;     // same length; a NaN in y (or x) breaks the line
-  double width = 1.5;           // stroke width in px
+  std::vector<double> x, y;  // same length; a NaN in y (or x) breaks the line
+  double width = 1.5;        // stroke width in px
   bool dashed = false;
-  bool line = true;             // false: markers only
-  double marker_radius = 0;     // > 0: a dot at every (kept) point
+  bool line = true;                   // false: markers only
+  double marker_radius = 0;           // > 0: a dot at every (kept) point
   std::vector<double> y_low, y_high;  // optional error bars (same length as y)
 };
 
@@ -39,17 +39,17 @@ struct Panel {
   std::vector<Series> series;
   std::vector<Marker> markers;
   std::vector<VLine> vlines;
-  bool equal_aspect = false;  // same metres per pixel on both axes (X-Y trajectories)
-  bool y_from_zero = false;   // include y = 0 in the range (errors, times)
+  bool equal_aspect = false;                                // same metres per pixel on both axes (X-Y trajectories)
+  bool y_from_zero = false;                                 // include y = 0 in the range (errors, times)
   double x_min = std::numeric_limits<double>::quiet_NaN();  // fixed x range where finite
   double x_max = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct FigureOptions {
   std::string title;
-  int width = 900;            // px, whole figure
-  int panel_height = 300;     // px, each panel
-  int columns = 1;            // panels per row
+  int width = 900;               // px, whole figure
+  int panel_height = 300;        // px, each panel
+  int columns = 1;               // panels per row
   std::size_t max_points = 400;  // per series; longer series are decimated keeping each bucket's min and max
 };
 

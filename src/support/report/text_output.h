@@ -24,7 +24,7 @@ std::string format_number(double value, int decimals);
 
 // Median and range of repeated measurements (NaN values are ignored).
 struct Spread {
-  int n = 0;          // finite values
+  int n = 0;  // finite values
   double median = 0, min = 0, max = 0;
 };
 Spread spread(const std::vector<double>& values);

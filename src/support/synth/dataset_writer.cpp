@@ -40,7 +40,8 @@ void write_list(const std::string& path, const std::string& what, const std::str
 
 nlohmann::json vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
-nlohmann::json describe(const Scene& scene, const TrajectoryPlan& plan, const SynthConfig& c, const std::vector<std::string>& seqs) {
+nlohmann::json describe(const Scene& scene, const TrajectoryPlan& plan, const SynthConfig& c,
+                        const std::vector<std::string>& seqs) {
   const SceneConfig& s = c.scene;
   const TrajectoryConfig& t = c.trajectory;
   const Degradation& d = c.render.degradation;
@@ -48,35 +49,69 @@ nlohmann::json describe(const Scene& scene, const TrajectoryPlan& plan, const Sy
   j["generator"] = "cslam-synth 1";
   j["preset"] = c.preset;
   j["seed"] = s.seed;
-  j["scene"] = {{"width", s.width}, {"depth", s.depth}, {"height", s.height}, {"furniture", s.furniture},
-                {"cylinder_fraction", s.cylinder_fraction}, {"cylinder_sides", s.cylinder_sides}, {"texel_size", s.texel_size},
-                {"walkway_margin", s.walkway_margin}, {"furniture_clearance", s.furniture_clearance},
-                {"repeat_texture", s.repeat_texture}, {"shared_poster_seed", s.shared_poster_seed}, {"ambient", s.ambient}};
-  j["walkway"] = {{"center", {scene.walkway.center.x(), scene.walkway.center.y()}}, {"a", scene.walkway.a}, {"b", scene.walkway.b}};
+  j["scene"] = {{"width", s.width},
+                {"depth", s.depth},
+                {"height", s.height},
+                {"furniture", s.furniture},
+                {"cylinder_fraction", s.cylinder_fraction},
+                {"cylinder_sides", s.cylinder_sides},
+                {"texel_size", s.texel_size},
+                {"walkway_margin", s.walkway_margin},
+                {"furniture_clearance", s.furniture_clearance},
+                {"repeat_texture", s.repeat_texture},
+                {"shared_poster_seed", s.shared_poster_seed},
+                {"ambient", s.ambient}};
+  j["walkway"] = {
+      {"center", {scene.walkway.center.x(), scene.walkway.center.y()}}, {"a", scene.walkway.a}, {"b", scene.walkway.b}};
   for (const auto& f : scene.furniture)
     j["furniture"].push_back({{"kind", f.kind == Furniture::Kind::Box ? "box" : "cylinder"},
-                              {"center", {f.center.x(), f.center.y()}}, {"half_x", f.half_x}, {"half_y", f.half_y},
-                              {"radius", f.radius}, {"height", f.height}});
+                              {"center", {f.center.x(), f.center.y()}},
+                              {"half_x", f.half_x},
+                              {"half_y", f.half_y},
+                              {"radius", f.radius},
+                              {"height", f.height}});
   for (const auto& c : scene.shared_posters) j["shared_posters"].push_back({c.x(), c.y(), c.z()});
   for (const auto& r : scene.repeated_patches)
-    j["repeated_patches"].push_back({{"face_a", scene.faces[r.face_a].name}, {"face_b", scene.faces[r.face_b].name},
-                                     {"center_a", vec(r.center_a)}, {"center_b", vec(r.center_b)},
+    j["repeated_patches"].push_back({{"face_a", scene.faces[r.face_a].name},
+                                     {"face_b", scene.faces[r.face_b].name},
+                                     {"center_a", vec(r.center_a)},
+                                     {"center_b", vec(r.center_b)},
                                      {"size", {r.size_u, r.size_v}}});
   for (const auto& l : scene.lights) j["lights"].push_back({{"position", vec(l.position)}, {"intensity", l.intensity}});
-  j["trajectory"] = {{"robots", t.robots}, {"frames", t.frames}, {"rate_hz", t.rate_hz}, {"start_time", t.start_time},
-                     {"loop", t.loop}, {"overlap", t.overlap}, {"speed", t.speed}, {"max_step", t.max_step},
-                     {"max_rotation_deg", t.max_rotation_deg}, {"min_height", t.min_height}, {"max_height", t.max_height},
+  j["trajectory"] = {{"robots", t.robots},
+                     {"frames", t.frames},
+                     {"rate_hz", t.rate_hz},
+                     {"start_time", t.start_time},
+                     {"loop", t.loop},
+                     {"overlap", t.overlap},
+                     {"speed", t.speed},
+                     {"max_step", t.max_step},
+                     {"max_rotation_deg", t.max_rotation_deg},
+                     {"min_height", t.min_height},
+                     {"max_height", t.max_height},
                      {"ramp_fraction", t.ramp_fraction}};
   for (size_t k = 0; k < plan.robots.size(); ++k) {
     const auto& r = plan.robots[k];
-    j["robots"].push_back({{"robot", k + 1}, {"kind", r.kind}, {"phi_start", r.phi_start}, {"phi_end", r.phi_end},
-                           {"radius", r.radius}, {"base_height", r.base_height}, {"frames", r.trajectory.size()}});
+    j["robots"].push_back({{"robot", k + 1},
+                           {"kind", r.kind},
+                           {"phi_start", r.phi_start},
+                           {"phi_end", r.phi_end},
+                           {"radius", r.radius},
+                           {"base_height", r.base_height},
+                           {"frames", r.trajectory.size()}});
   }
-  j["render"] = {{"min_depth", c.render.min_depth}, {"max_depth", c.render.max_depth}, {"near_clip", c.render.near_clip},
-                 {"noise", d.enabled}, {"depth_noise_coeff", d.depth_noise_coeff}, {"grazing_angle_deg", d.grazing_angle_deg},
-                 {"image_noise_sigma", d.image_noise_sigma}, {"blur_samples", d.blur_samples}, {"blur_exposure", d.blur_exposure}};
+  j["render"] = {{"min_depth", c.render.min_depth},          {"max_depth", c.render.max_depth},
+                 {"near_clip", c.render.near_clip},          {"noise", d.enabled},
+                 {"depth_noise_coeff", d.depth_noise_coeff}, {"grazing_angle_deg", d.grazing_angle_deg},
+                 {"image_noise_sigma", d.image_noise_sigma}, {"blur_samples", d.blur_samples},
+                 {"blur_exposure", d.blur_exposure}};
   const PinholeCamera& cam = c.camera;
-  j["camera"] = {{"fx", cam.fx}, {"fy", cam.fy}, {"cx", cam.cx}, {"cy", cam.cy}, {"width", cam.width}, {"height", cam.height},
+  j["camera"] = {{"fx", cam.fx},
+                 {"fy", cam.fy},
+                 {"cx", cam.cx},
+                 {"cy", cam.cy},
+                 {"width", cam.width},
+                 {"height", cam.height},
                  {"depth_factor", cam.depth_factor}};
   j["output"] = {{"whole", c.output.whole}, {"ply_spacing", c.output.ply_spacing}, {"sequences", seqs}};
   return j;
@@ -84,8 +119,8 @@ nlohmann::json describe(const Scene& scene, const TrajectoryPlan& plan, const Sy
 
 }  // namespace
 
-void write_sequence(const std::string& dir, const Renderer& renderer, const Trajectory& trajectory, std::uint64_t noise_seed,
-                    int threads, int png_compression) {
+void write_sequence(const std::string& dir, const Renderer& renderer, const Trajectory& trajectory,
+                    std::uint64_t noise_seed, int threads, int png_compression) {
   if (threads < 1) throw ConfigError("synth: threads must be >= 1");
   if (png_compression < 0 || png_compression > 9) throw ConfigError("synth: PNG compression must be 0-9");
   std::error_code ec;
@@ -94,7 +129,8 @@ void write_sequence(const std::string& dir, const Renderer& renderer, const Traj
   if (ec) throw InputError(dir, "cannot create folder: " + ec.message());
   // Huffman-only zlib is faster and smaller than the default strategy on noisy texture; depth
   // images (smooth) compress better with the default strategy.
-  const std::vector<int> png_rgb{cv::IMWRITE_PNG_COMPRESSION, png_compression, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY};
+  const std::vector<int> png_rgb{cv::IMWRITE_PNG_COMPRESSION, png_compression, cv::IMWRITE_PNG_STRATEGY,
+                                 cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY};
   const std::vector<int> png_depth{cv::IMWRITE_PNG_COMPRESSION, png_compression};
   std::atomic<size_t> next{0};
   std::atomic<bool> failed{false};
@@ -133,7 +169,8 @@ DatasetResult write_dataset(const Scene& scene, const TrajectoryPlan& plan, cons
   if (o.out_dir.empty()) throw ConfigError("synth: no output folder given");
   fs::path out = fs::path(o.out_dir);
   if (out.filename().empty()) out = out.parent_path();  // "dir/" -> "dir"
-  if (fs::exists(out) && !o.overwrite) throw InputError(out.string(), "output folder already exists (use --force to replace it)");
+  if (fs::exists(out) && !o.overwrite)
+    throw InputError(out.string(), "output folder already exists (use --force to replace it)");
   const fs::path tmp = out.string() + ".tmp-" + std::to_string(::getpid());
   std::error_code ec;
   fs::remove_all(tmp, ec);
@@ -153,7 +190,8 @@ DatasetResult write_dataset(const Scene& scene, const TrajectoryPlan& plan, cons
     } else {
       for (size_t k = 0; k < plan.robots.size(); ++k) {
         const std::string name = "robot_" + std::to_string(k + 1);
-        write_sequence((tmp / name).string(), renderer, plan.robots[k].trajectory, derive_seed(seed, k + 1), o.threads, o.png_compression);
+        write_sequence((tmp / name).string(), renderer, plan.robots[k].trajectory, derive_seed(seed, k + 1), o.threads,
+                       o.png_compression);
         names.push_back(name);
         result.frames += static_cast<int>(plan.robots[k].trajectory.size());
       }

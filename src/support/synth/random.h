@@ -16,7 +16,9 @@ inline std::uint64_t mix64(std::uint64_t x) {
 }
 
 // Combines a seed with a stream tag (robot, frame, surface, ...) into a new independent seed.
-inline std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t tag) { return mix64(seed ^ mix64(tag + 0x632BE59BD9B4E019ull)); }
+inline std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t tag) {
+  return mix64(seed ^ mix64(tag + 0x632BE59BD9B4E019ull));
+}
 
 class Rng {
  public:

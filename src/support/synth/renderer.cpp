@@ -72,7 +72,8 @@ std::vector<FaceSetup> setup_faces(const Scene& scene, const PinholeCamera& cam,
     const double D = f.normal.dot(f.origin - C);
     if (D >= -1e-9) continue;  // camera behind or on the face's plane
     // Corners in the camera frame, clipped against z >= near (Sutherland-Hodgman).
-    const Eigen::Vector3d corners_w[4] = {f.origin, f.point(f.size_u, 0), f.point(f.size_u, f.size_v), f.point(0, f.size_v)};
+    const Eigen::Vector3d corners_w[4] = {f.origin, f.point(f.size_u, 0), f.point(f.size_u, f.size_v),
+                                          f.point(0, f.size_v)};
     Eigen::Vector3d corners[4];
     for (int k = 0; k < 4; ++k) corners[k] = R.transpose() * (corners_w[k] - C);
     std::vector<Eigen::Vector3d> poly;
@@ -87,8 +88,10 @@ std::vector<FaceSetup> setup_faces(const Scene& scene, const PinholeCamera& cam,
     FaceSetup s;
     for (const auto& p : poly) {
       const double u = cam.fx * p.x() / p.z() + cam.cx, v = cam.fy * p.y() / p.z() + cam.cy;
-      umin = std::min(umin, u); umax = std::max(umax, u);
-      vmin = std::min(vmin, v); vmax = std::max(vmax, v);
+      umin = std::min(umin, u);
+      umax = std::max(umax, u);
+      vmin = std::min(vmin, v);
+      vmax = std::max(vmax, v);
       // Clamp far-out vertices (nearly at the near plane) to keep float precision; spans are
       // clamped to the image anyway.
       s.pu[s.nvert] = static_cast<float>(std::clamp(u, -1e6, 1e6));
@@ -129,7 +132,8 @@ std::vector<std::vector<TexLevel>> texture_levels(const Scene& scene) {
   for (const auto& t : scene.textures) {
     out.emplace_back();
     for (const auto& m : t.mip)
-      out.back().push_back({&m, static_cast<float>(m.cols) / t.mip[0].cols, static_cast<float>(m.rows) / t.mip[0].rows});
+      out.back().push_back(
+          {&m, static_cast<float>(m.cols) / t.mip[0].cols, static_cast<float>(m.rows) / t.mip[0].rows});
   }
   return out;
 }
@@ -243,10 +247,13 @@ struct Renderer::Pass {
         if (!dout) continue;
         float zd = z;
         if (depth_noise) {
-          if (aden < cos_grazing * std::sqrt(rr)) zd = 0;  // cos(angle) below the limit
-          else zd += static_cast<float>(deg.depth_noise_coeff) * z * z * approx_gauss(h);
+          if (aden < cos_grazing * std::sqrt(rr))
+            zd = 0;  // cos(angle) below the limit
+          else
+            zd += static_cast<float>(deg.depth_noise_coeff) * z * z * approx_gauss(h);
         }
-        dout[u] = (zd >= min_d && zd <= max_d) ? static_cast<std::uint16_t>(std::min(65535.0f, std::round(zd * dfac))) : 0;
+        dout[u] =
+            (zd >= min_d && zd <= max_d) ? static_cast<std::uint16_t>(std::min(65535.0f, std::round(zd * dfac))) : 0;
       }
     }
   }
@@ -255,7 +262,9 @@ struct Renderer::Pass {
 Renderer::Renderer(const Scene& scene, const PinholeCamera& camera, RenderOptions options)
     : scene_(scene), camera_(camera), options_(options) {
   camera_.validate();
-  if (camera_.has_distortion()) throw ConfigError("synth renderer: camera '" + camera_.name + "' has distortion; only undistorted pinhole cameras are supported");
+  if (camera_.has_distortion())
+    throw ConfigError("synth renderer: camera '" + camera_.name +
+                      "' has distortion; only undistorted pinhole cameras are supported");
   if (!(options_.near_clip > 0) || !(options_.max_depth > options_.min_depth) || options_.threads < 1)
     throw ConfigError("synth renderer: need near_clip > 0, max_depth > min_depth, threads >= 1");
 }
@@ -264,8 +273,14 @@ void Renderer::render_pass(const SE3& T_world_cam, std::uint64_t noise_seed, boo
                            cv::Mat& bgr, cv::Mat* depth) const {
   bgr.create(camera_.height, camera_.width, CV_8UC3);
   if (depth) depth->create(camera_.height, camera_.width, CV_16UC1);
-  Pass pass{*this, setup_faces(scene_, camera_, T_world_cam, options_.near_clip), texture_levels(scene_), noise_seed, depth_noise,
-            image_noise, bgr, depth};
+  Pass pass{*this,
+            setup_faces(scene_, camera_, T_world_cam, options_.near_clip),
+            texture_levels(scene_),
+            noise_seed,
+            depth_noise,
+            image_noise,
+            bgr,
+            depth};
   const int threads = std::min(options_.threads, camera_.height);
   if (threads <= 1) {
     pass.run_rows(0, camera_.height);
@@ -286,7 +301,8 @@ RenderedFrame Renderer::render(const SE3& T_world_cam, std::uint64_t noise_seed)
   return f;
 }
 
-RenderedFrame Renderer::render_moving(const SE3& T_world_cam_prev, const SE3& T_world_cam, std::uint64_t noise_seed) const {
+RenderedFrame Renderer::render_moving(const SE3& T_world_cam_prev, const SE3& T_world_cam,
+                                      std::uint64_t noise_seed) const {
   const Degradation& deg = options_.degradation;
   if (!deg.enabled || deg.blur_samples <= 1) return render(T_world_cam, noise_seed);
   RenderedFrame f;
@@ -295,7 +311,8 @@ RenderedFrame Renderer::render_moving(const SE3& T_world_cam_prev, const SE3& T_
   for (int k = 0; k < n; ++k) {
     const double alpha = 1.0 - deg.blur_exposure * (n - 1 - k) / (n - 1);
     const bool last = k == n - 1;
-    render_pass(interpolate_pose(T_world_cam_prev, T_world_cam, alpha), noise_seed, last, false, sample, last ? &f.depth : nullptr);
+    render_pass(interpolate_pose(T_world_cam_prev, T_world_cam, alpha), noise_seed, last, false, sample,
+                last ? &f.depth : nullptr);
     sample.convertTo(sample_f, CV_32FC3);
     sum += sample_f;
   }
@@ -308,7 +325,8 @@ RenderedFrame Renderer::render_moving(const SE3& T_world_cam_prev, const SE3& T_
     for (int u = 0; u < camera_.width; ++u) {
       const std::uint64_t h = mix64(noise_seed ^ (static_cast<std::uint64_t>(v) * 0x9E3779B97F4A7C15ull + u));
       for (int k = 0; k < 3; ++k)
-        out[u][k] = cv::saturate_cast<uchar>(in[u][k] + static_cast<float>(deg.image_noise_sigma) * approx_gauss(mix64(h + 1 + k)));
+        out[u][k] = cv::saturate_cast<uchar>(in[u][k] + static_cast<float>(deg.image_noise_sigma) *
+                                                            approx_gauss(mix64(h + 1 + k)));
     }
   }
   return f;

@@ -52,8 +52,8 @@ class Renderer {
 
  private:
   struct Pass;
-  void render_pass(const SE3& T_world_cam, std::uint64_t noise_seed, bool depth_noise, bool image_noise,
-                   cv::Mat& bgr, cv::Mat* depth) const;
+  void render_pass(const SE3& T_world_cam, std::uint64_t noise_seed, bool depth_noise, bool image_noise, cv::Mat& bgr,
+                   cv::Mat* depth) const;
 
   const Scene& scene_;
   PinholeCamera camera_;

@@ -68,13 +68,17 @@ std::vector<Eigen::Vector2d> footprint_samples(const Furniture& f) {
   std::vector<Eigen::Vector2d> pts{f.center};
   if (f.kind == Furniture::Kind::Cylinder) {
     const int n = std::max(16, static_cast<int>(2 * kPi * f.radius / 0.02));
-    for (int i = 0; i < n; ++i) pts.push_back(f.center + f.radius * Eigen::Vector2d(std::cos(2 * kPi * i / n), std::sin(2 * kPi * i / n)));
+    for (int i = 0; i < n; ++i)
+      pts.push_back(f.center + f.radius * Eigen::Vector2d(std::cos(2 * kPi * i / n), std::sin(2 * kPi * i / n)));
   } else {
-    const int nx = std::max(2, static_cast<int>(2 * f.half_x / 0.02)), ny = std::max(2, static_cast<int>(2 * f.half_y / 0.02));
+    const int nx = std::max(2, static_cast<int>(2 * f.half_x / 0.02)),
+              ny = std::max(2, static_cast<int>(2 * f.half_y / 0.02));
     for (int i = 0; i <= nx; ++i)
-      for (double sy : {-1.0, 1.0}) pts.push_back(f.center + Eigen::Vector2d(-f.half_x + 2 * f.half_x * i / nx, sy * f.half_y));
+      for (double sy : {-1.0, 1.0})
+        pts.push_back(f.center + Eigen::Vector2d(-f.half_x + 2 * f.half_x * i / nx, sy * f.half_y));
     for (int i = 0; i <= ny; ++i)
-      for (double sx : {-1.0, 1.0}) pts.push_back(f.center + Eigen::Vector2d(sx * f.half_x, -f.half_y + 2 * f.half_y * i / ny));
+      for (double sx : {-1.0, 1.0})
+        pts.push_back(f.center + Eigen::Vector2d(sx * f.half_x, -f.half_y + 2 * f.half_y * i / ny));
   }
   return pts;
 }
@@ -145,12 +149,18 @@ void build_geometry(Scene& scene) {
     const std::string name = (f.kind == Furniture::Kind::Box ? "box" : "cylinder") + std::to_string(i);
     const Eigen::Vector3d c3(f.center.x(), f.center.y(), 0);
     if (f.kind == Furniture::Kind::Box) {
-      add_face(scene, vertical_face(c3 + Eigen::Vector3d(f.half_x, 0, 0), {1, 0, 0}, 2 * f.half_y, f.height), name + "_xp", obj, seed());
-      add_face(scene, vertical_face(c3 - Eigen::Vector3d(f.half_x, 0, 0), {-1, 0, 0}, 2 * f.half_y, f.height), name + "_xn", obj, seed());
-      add_face(scene, vertical_face(c3 + Eigen::Vector3d(0, f.half_y, 0), {0, 1, 0}, 2 * f.half_x, f.height), name + "_yp", obj, seed());
-      add_face(scene, vertical_face(c3 - Eigen::Vector3d(0, f.half_y, 0), {0, -1, 0}, 2 * f.half_x, f.height), name + "_yn", obj, seed());
-      add_face(scene, horizontal_face(f.center.x() - f.half_x, f.center.y() - f.half_y, f.height, 2 * f.half_x, 2 * f.half_y, true),
-               name + "_top", obj, seed());
+      add_face(scene, vertical_face(c3 + Eigen::Vector3d(f.half_x, 0, 0), {1, 0, 0}, 2 * f.half_y, f.height),
+               name + "_xp", obj, seed());
+      add_face(scene, vertical_face(c3 - Eigen::Vector3d(f.half_x, 0, 0), {-1, 0, 0}, 2 * f.half_y, f.height),
+               name + "_xn", obj, seed());
+      add_face(scene, vertical_face(c3 + Eigen::Vector3d(0, f.half_y, 0), {0, 1, 0}, 2 * f.half_x, f.height),
+               name + "_yp", obj, seed());
+      add_face(scene, vertical_face(c3 - Eigen::Vector3d(0, f.half_y, 0), {0, -1, 0}, 2 * f.half_x, f.height),
+               name + "_yn", obj, seed());
+      add_face(
+          scene,
+          horizontal_face(f.center.x() - f.half_x, f.center.y() - f.half_y, f.height, 2 * f.half_x, 2 * f.half_y, true),
+          name + "_top", obj, seed());
     } else {
       // Regular prism: all sides share one texture wrapped around the cylinder.
       const int n = c.cylinder_sides;
@@ -167,7 +177,8 @@ void build_geometry(Scene& scene) {
         face.tex_u0 = side * k;
         scene.faces.push_back(face);
       }
-      Face top = horizontal_face(f.center.x() - f.radius, f.center.y() - f.radius, f.height, 2 * f.radius, 2 * f.radius, true);
+      Face top =
+          horizontal_face(f.center.x() - f.radius, f.center.y() - f.radius, f.height, 2 * f.radius, 2 * f.radius, true);
       top.disc = true;
       add_face(scene, top, name + "_top", obj, seed());
     }
@@ -182,7 +193,8 @@ void add_repeated_patch(Scene& scene, Rng& rng) {
   if (a.size_u < pu + 0.4 || a.size_v < pv + 0.8) return;
   const double sa = rng.uniform(0.2, a.size_u - pu - 0.2), sb = rng.uniform(0.2, b.size_u - pu - 0.2);
   const double t0 = 0.7;  // bottom edge of the poster, metres above the floor
-  const cv::Rect src(static_cast<int>(sa / texel), static_cast<int>(t0 / texel), static_cast<int>(pu / texel), static_cast<int>(pv / texel));
+  const cv::Rect src(static_cast<int>(sa / texel), static_cast<int>(t0 / texel), static_cast<int>(pu / texel),
+                     static_cast<int>(pv / texel));
   const cv::Rect dst(static_cast<int>(sb / texel), src.y, src.width, src.height);
   scene.textures[a.texture].mip[0](src).copyTo(scene.textures[b.texture].mip[0](dst));
   RepeatedPatch r;
@@ -205,8 +217,8 @@ void add_shared_poster(Scene& scene, Rng& rng) {
     if (f.size_u < pu + 0.4 || f.size_v < pv + 0.8) continue;
     cv::Mat& tex = scene.textures[f.texture].mip[0];
     for (double s0 = rng.uniform(0.2, 0.8); s0 + pu + 0.2 <= f.size_u; s0 += 2.0) {
-      const cv::Rect dst(static_cast<int>((f.tex_u0 + s0) / texel), static_cast<int>((f.tex_v0 + t0) / texel), poster.cols,
-                         poster.rows);
+      const cv::Rect dst(static_cast<int>((f.tex_u0 + s0) / texel), static_cast<int>((f.tex_v0 + t0) / texel),
+                         poster.cols, poster.rows);
       if ((dst & cv::Rect(0, 0, tex.cols, tex.rows)) != dst) continue;
       poster.copyTo(tex(dst));
       scene.shared_posters.push_back(f.point(s0 + pu / 2, t0 + pv / 2));
@@ -261,17 +273,21 @@ void bake_lighting(Scene& scene) {
 
 void SceneConfig::validate() const {
   if (!(width > 0) || !(depth > 0) || !(height > 0))
-    throw ConfigError("synth: room size must be positive, got " + fmt(width) + " x " + fmt(depth) + " x " + fmt(height) + " m");
+    throw ConfigError("synth: room size must be positive, got " + fmt(width) + " x " + fmt(depth) + " x " +
+                      fmt(height) + " m");
   if (height < 2.0) throw ConfigError("synth: room height " + fmt(height) + " m is below 2 m (robots fly up to 1.5 m)");
   if (furniture < 0) throw ConfigError("synth: furniture count must be >= 0, got " + std::to_string(furniture));
   if (!(texel_size >= 0.001 && texel_size <= 0.05)) throw ConfigError("synth: texel_size must be in [0.001, 0.05] m");
   if (cylinder_sides < 8) throw ConfigError("synth: cylinder_sides must be >= 8");
-  if (!(walkway_margin > 0.3) || !(furniture_clearance >= 0)) throw ConfigError("synth: walkway_margin must be > 0.3 m and clearance >= 0");
+  if (!(walkway_margin > 0.3) || !(furniture_clearance >= 0))
+    throw ConfigError("synth: walkway_margin must be > 0.3 m and clearance >= 0");
   if (!(ambient >= 0 && ambient <= 1)) throw ConfigError("synth: ambient must be in [0, 1]");
-  if (!(cylinder_fraction >= 0 && cylinder_fraction <= 1)) throw ConfigError("synth: cylinder_fraction must be in [0, 1]");
+  if (!(cylinder_fraction >= 0 && cylinder_fraction <= 1))
+    throw ConfigError("synth: cylinder_fraction must be in [0, 1]");
   const double a = width / 2 - walkway_margin, b = depth / 2 - walkway_margin;
   if (a < 0.4 || b < 0.4)
-    throw ConfigError("synth: a " + fmt(width) + " x " + fmt(depth) + " m room is too small for the robots' trajectories (needs at least " +
+    throw ConfigError("synth: a " + fmt(width) + " x " + fmt(depth) +
+                      " m room is too small for the robots' trajectories (needs at least " +
                       fmt(2 * (walkway_margin + 0.4)) + " m in both directions)");
 }
 
@@ -283,7 +299,9 @@ double Furniture::footprint_distance(const Eigen::Vector2d& p) const {
 Eigen::Vector2d Walkway::at(double phi) const { return center + Eigen::Vector2d(a * std::cos(phi), b * std::sin(phi)); }
 
 bool Scene::is_free(const Eigen::Vector3d& p) const {
-  if (p.x() <= 0 || p.y() <= 0 || p.z() <= 0 || p.x() >= config.width || p.y() >= config.depth || p.z() >= config.height) return false;
+  if (p.x() <= 0 || p.y() <= 0 || p.z() <= 0 || p.x() >= config.width || p.y() >= config.depth ||
+      p.z() >= config.height)
+    return false;
   for (const auto& f : furniture)
     if (p.z() <= f.height && f.footprint_distance(p.head<2>()) <= 0) return false;
   return true;
@@ -340,7 +358,8 @@ Scene make_scene(const SceneConfig& config) {
   const double W = config.width, D = config.depth, H = config.height;
   const double lx[3] = {0.25, 0.75, 0.5}, ly[3] = {0.3, 0.4, 0.75};
   for (int i = 0; i < 3; ++i)
-    scene.lights.push_back({Eigen::Vector3d(W * (lx[i] + rng.uniform(-0.1, 0.1)), D * (ly[i] + rng.uniform(-0.1, 0.1)), H - 0.3), 0.75});
+    scene.lights.push_back(
+        {Eigen::Vector3d(W * (lx[i] + rng.uniform(-0.1, 0.1)), D * (ly[i] + rng.uniform(-0.1, 0.1)), H - 0.3), 0.75});
   build_geometry(scene);
   if (config.repeat_texture) add_repeated_patch(scene, rng);
   if (config.shared_poster_seed != 0) add_shared_poster(scene, rng);

@@ -47,10 +47,10 @@ struct Texture {
 struct Face {
   Eigen::Vector3d origin, axis_u, axis_v, normal;  // unit axes, normal = axis_u x axis_v
   double size_u = 0, size_v = 0;
-  bool disc = false;          // only the disc inscribed in the rectangle exists
-  int texture = 0;            // index into Scene::textures
+  bool disc = false;              // only the disc inscribed in the rectangle exists
+  int texture = 0;                // index into Scene::textures
   double tex_u0 = 0, tex_v0 = 0;  // texture coordinates (metres) of the face origin
-  int object = -1;            // -1: room, otherwise index into Scene::furniture
+  int object = -1;                // -1: room, otherwise index into Scene::furniture
   std::string name;
 
   // True if (s, t) lies on the face.
@@ -66,9 +66,9 @@ struct Face {
 struct Furniture {
   enum class Kind { Box, Cylinder };
   Kind kind = Kind::Box;
-  Eigen::Vector2d center{0, 0};  // on the floor
-  double half_x = 0, half_y = 0; // box half sizes
-  double radius = 0;             // cylinder circumradius
+  Eigen::Vector2d center{0, 0};   // on the floor
+  double half_x = 0, half_y = 0;  // box half sizes
+  double radius = 0;              // cylinder circumradius
   double height = 0;
   // 2D distance from a floor point to the footprint (0 inside).
   double footprint_distance(const Eigen::Vector2d& p) const;

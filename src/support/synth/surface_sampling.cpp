@@ -13,7 +13,8 @@ SurfacePoints sample_surface_points(const Scene& scene, double spacing) {
   if (!(spacing > 0)) throw ConfigError("synth: surface sampling spacing must be positive");
   double area = 0;
   for (const Face& f : scene.faces) area += f.size_u * f.size_v;
-  if (area / (spacing * spacing) > 5e7) throw ConfigError("synth: surface spacing " + std::to_string(spacing) + " m gives too many points");
+  if (area / (spacing * spacing) > 5e7)
+    throw ConfigError("synth: surface spacing " + std::to_string(spacing) + " m gives too many points");
   SurfacePoints out;
   for (const Face& f : scene.faces) {
     const bool floor = f.object < 0 && f.normal.z() > 0.5;
@@ -50,8 +51,9 @@ constexpr size_t kRecord = 3 * 4 + 3 + 3 * 4;
 void write_ply(const std::string& path, const SurfacePoints& cloud) {
   std::ofstream out(path, std::ios::binary);
   if (!out) throw InputError(path, "cannot create file");
-  out << "ply\nformat binary_little_endian 1.0\ncomment cslam-synth ground-truth surface\nelement vertex " << cloud.size()
-      << "\n" << kHeaderBody;
+  out << "ply\nformat binary_little_endian 1.0\ncomment cslam-synth ground-truth surface\nelement vertex "
+      << cloud.size() << "\n"
+      << kHeaderBody;
   std::vector<char> buf(kRecord * cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i) {  // x86/ARM hosts are little-endian: plain copies
     char* r = buf.data() + i * kRecord;
@@ -71,7 +73,8 @@ SurfacePoints read_ply(const std::string& path) {
   bool have_count = false;
   for (int n = 0; std::getline(in, line); ++n) {
     if (n == 0 && line != "ply") throw InputError(path, "not a PLY file");
-    if (n == 1 && line != "format binary_little_endian 1.0") throw InputError(path, "only binary little-endian PLY is supported");
+    if (n == 1 && line != "format binary_little_endian 1.0")
+      throw InputError(path, "only binary little-endian PLY is supported");
     if (line.rfind("element vertex ", 0) == 0) {
       count = std::stoull(line.substr(15));
       have_count = true;
@@ -80,7 +83,8 @@ SurfacePoints read_ply(const std::string& path) {
     if (line.rfind("property", 0) == 0 || line == "end_header") header += line + "\n";
     if (line == "end_header") break;
   }
-  if (!have_count || header != kHeaderBody) throw InputError(path, "unexpected PLY header (expected x y z red green blue nx ny nz)");
+  if (!have_count || header != kHeaderBody)
+    throw InputError(path, "unexpected PLY header (expected x y z red green blue nx ny nz)");
   std::vector<char> buf(kRecord * count);
   in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
   if (static_cast<size_t>(in.gcount()) != buf.size()) throw InputError(path, "truncated vertex data");

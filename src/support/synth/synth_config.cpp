@@ -6,7 +6,8 @@ namespace cslam::synth {
 
 PinholeCamera synthetic_camera(int width, int height) {
   if (width <= 0 || height <= 0)
-    throw ConfigError("synth: image size must be positive, got " + std::to_string(width) + "x" + std::to_string(height));
+    throw ConfigError("synth: image size must be positive, got " + std::to_string(width) + "x" +
+                      std::to_string(height));
   PinholeCamera c = camera_preset("synthetic");
   const double sx = width / 640.0, sy = height / 480.0;
   c.fx *= sx;

@@ -21,12 +21,36 @@ cv::Scalar contrast_color(Rng& rng) {
   const double p = value * (1 - sat), q = value * (1 - sat * f), t = value * (1 - sat * (1 - f));
   double r = value, g = t, b = p;
   switch (sector) {
-    case 0: r = value; g = t; b = p; break;
-    case 1: r = q; g = value; b = p; break;
-    case 2: r = p; g = value; b = t; break;
-    case 3: r = p; g = q; b = value; break;
-    case 4: r = t; g = p; b = value; break;
-    default: r = value; g = p; b = q; break;
+    case 0:
+      r = value;
+      g = t;
+      b = p;
+      break;
+    case 1:
+      r = q;
+      g = value;
+      b = p;
+      break;
+    case 2:
+      r = p;
+      g = value;
+      b = t;
+      break;
+    case 3:
+      r = p;
+      g = q;
+      b = value;
+      break;
+    case 4:
+      r = t;
+      g = p;
+      b = value;
+      break;
+    default:
+      r = value;
+      g = p;
+      b = q;
+      break;
   }
   return cv::Scalar(b, g, r);
 }
@@ -35,7 +59,8 @@ std::vector<cv::Point> rotated_rect(cv::Point2d c, double w, double h, double an
   const double ca = std::cos(angle), sa = std::sin(angle);
   std::vector<cv::Point> pts;
   const double xs[4] = {-w / 2, w / 2, w / 2, -w / 2}, ys[4] = {-h / 2, -h / 2, h / 2, h / 2};
-  for (int i = 0; i < 4; ++i) pts.emplace_back(cvRound(c.x + ca * xs[i] - sa * ys[i]), cvRound(c.y + sa * xs[i] + ca * ys[i]));
+  for (int i = 0; i < 4; ++i)
+    pts.emplace_back(cvRound(c.x + ca * xs[i] - sa * ys[i]), cvRound(c.y + sa * xs[i] + ca * ys[i]));
   return pts;
 }
 
@@ -118,8 +143,8 @@ void draw_shape(cv::Mat& img, Rng& rng, double size_px) {
       const int fonts[4] = {cv::FONT_HERSHEY_SIMPLEX, cv::FONT_HERSHEY_DUPLEX, cv::FONT_HERSHEY_COMPLEX,
                             cv::FONT_HERSHEY_TRIPLEX};
       const double scale = std::max(0.2, s / 25.0);
-      cv::putText(img, text, cv::Point(cvRound(c.x - s / 2), cvRound(c.y + s / 3)), fonts[rng.integer(0, 3)], scale, color,
-                  std::max(1, cvRound(scale * rng.uniform(1.0, 3.0))), cv::LINE_AA);
+      cv::putText(img, text, cv::Point(cvRound(c.x - s / 2), cvRound(c.y + s / 3)), fonts[rng.integer(0, 3)], scale,
+                  color, std::max(1, cvRound(scale * rng.uniform(1.0, 3.0))), cv::LINE_AA);
       break;
     }
     default: {  // ring with a contrasting core

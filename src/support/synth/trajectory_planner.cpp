@@ -79,7 +79,8 @@ void step_stats(const Trajectory& t, double& max_step, double& max_rot) {
 double ellipse_length(const Walkway& w, double phi0, double phi1) {
   double len = 0;
   const int n = 2000;
-  for (int i = 0; i < n; ++i) len += (w.at(phi0 + (phi1 - phi0) * (i + 1) / n) - w.at(phi0 + (phi1 - phi0) * i / n)).norm();
+  for (int i = 0; i < n; ++i)
+    len += (w.at(phi0 + (phi1 - phi0) * (i + 1) / n) - w.at(phi0 + (phi1 - phi0) * i / n)).norm();
   return len;
 }
 
@@ -97,8 +98,10 @@ void TrajectoryConfig::validate() const {
   if (frames < 10) throw ConfigError("synth: need at least 10 frames per robot, got " + std::to_string(frames));
   if (!(rate_hz > 0)) throw ConfigError("synth: frame rate must be positive");
   if (!(overlap >= 0 && overlap < 1)) throw ConfigError("synth: overlap must be in [0, 1), got " + fmt(overlap));
-  if (!(speed > 0) || !(max_step > 0) || !(max_rotation_deg > 0)) throw ConfigError("synth: speed and per-frame limits must be positive");
-  if (!(min_height > 0 && max_height > min_height + 0.2)) throw ConfigError("synth: need 0 < min_height < max_height - 0.2");
+  if (!(speed > 0) || !(max_step > 0) || !(max_rotation_deg > 0))
+    throw ConfigError("synth: speed and per-frame limits must be positive");
+  if (!(min_height > 0 && max_height > min_height + 0.2))
+    throw ConfigError("synth: need 0 < min_height < max_height - 0.2");
   if (!(ramp_fraction > 0 && ramp_fraction <= 0.25)) throw ConfigError("synth: ramp_fraction must be in (0, 0.25]");
 }
 
@@ -120,7 +123,8 @@ SE3 camera_pose(const Eigen::Vector3d& position, double yaw, double pitch) {
 TrajectoryPlan plan_trajectories(const Scene& scene, const TrajectoryConfig& config) {
   config.validate();
   if (config.max_height > scene.config.height - 0.3)
-    throw ConfigError("synth: robots up to " + fmt(config.max_height) + " m do not fit under a " + fmt(scene.config.height) + " m ceiling");
+    throw ConfigError("synth: robots up to " + fmt(config.max_height) + " m do not fit under a " +
+                      fmt(scene.config.height) + " m ceiling");
   Rng rng(derive_seed(scene.config.seed, 2));
   const Walkway& w = scene.walkway;
   const int n = config.frames, ramp = ramp_frames(config, n);
@@ -137,9 +141,9 @@ TrajectoryPlan plan_trajectories(const Scene& scene, const TrajectoryConfig& con
     if (k == 0 && config.loop) {
       const double needed = 2 * kPi / (0.95 * max_rot) + ramp + 1;
       if (n < needed)
-        throw ConfigError("synth: a loop (full turn at <= " + fmt(config.max_rotation_deg) + " deg/frame) needs at least " +
-                          std::to_string(static_cast<int>(std::ceil(needed))) + " frames, got " + std::to_string(n) +
-                          " (use more --frames or no loop)");
+        throw ConfigError("synth: a loop (full turn at <= " + fmt(config.max_rotation_deg) +
+                          " deg/frame) needs at least " + std::to_string(static_cast<int>(std::ceil(needed))) +
+                          " frames, got " + std::to_string(n) + " (use more --frames or no loop)");
       rp.kind = "loop";
       rp.radius = std::min({0.8 * w.b, 0.8 * w.a, 1.0, 0.95 * config.max_step * usable / (2 * kPi)});
       rp.base_height = std::clamp(1.0, config.min_height + 0.1, config.max_height - 0.1);
@@ -147,12 +151,14 @@ TrajectoryPlan plan_trajectories(const Scene& scene, const TrajectoryConfig& con
       rp.phi_end = rp.phi_start + 2 * kPi;
       const double r = rp.radius, h = rp.base_height, c_pitch = -2 * kDeg;
       const PathFn path = [&w, r, h, c_pitch](double phi) {
-        return PathPoint{Eigen::Vector3d(w.center.x() + r * std::cos(phi), w.center.y() + r * std::sin(phi), h), phi, c_pitch};
+        return PathPoint{Eigen::Vector3d(w.center.x() + r * std::cos(phi), w.center.y() + r * std::sin(phi), h), phi,
+                         c_pitch};
       };
       rp.trajectory = sample_path(path, rp.phi_start, rp.phi_end, n, ramp, config.start_time, config.rate_hz);
     } else {
       rp.kind = "arc";
-      rp.base_height = std::clamp(rng.uniform(0.75, 1.25), config.min_height + height_amp + 0.02, config.max_height - height_amp - 0.02);
+      rp.base_height = std::clamp(rng.uniform(0.75, 1.25), config.min_height + height_amp + 0.02,
+                                  config.max_height - height_amp - 0.02);
       const double h = rp.base_height;
       const double pitch0 = (0.9 - h) * 8 * kDeg;  // low robots look up a little, high ones down
       const PathFn path = [&w, h, pitch0, yaw_amp, pitch_amp, height_amp, psi1, psi2, psi3](double phi) {
@@ -174,7 +180,8 @@ TrajectoryPlan plan_trajectories(const Scene& scene, const TrajectoryConfig& con
       phi_next = rp.phi_start + (1.0 - config.overlap) * (rp.phi_end - rp.phi_start);
     }
     const TrajectoryCheck check = check_trajectory(scene, rp.trajectory, config);
-    if (!check.ok) throw ConfigError("synth: robot " + std::to_string(k + 1) + " trajectory does not fit: " + check.problem);
+    if (!check.ok)
+      throw ConfigError("synth: robot " + std::to_string(k + 1) + " trajectory does not fit: " + check.problem);
     plan.robots.push_back(std::move(rp));
   }
   return plan;
@@ -193,9 +200,10 @@ Trajectory make_whole_sequence(const TrajectoryPlan& plan, const TrajectoryConfi
       const double mean_limit = 0.9 / (kPi / 2);
       // Also keep the peak acceleration d/2 (pi/T)^2 below 0.8 m/s^2.
       const double accel_frames = config.rate_hz * kPi * std::sqrt(dist / (2 * 0.8));
-      const int steps = std::max(2, static_cast<int>(std::ceil(std::max({dist / (config.max_step * mean_limit),
-                                                                          ang / (config.max_rotation_deg * kDeg * mean_limit),
-                                                                          accel_frames}))));
+      const int steps = std::max(
+          2,
+          static_cast<int>(std::ceil(std::max({dist / (config.max_step * mean_limit),
+                                               ang / (config.max_rotation_deg * kDeg * mean_limit), accel_frames}))));
       for (int i = 1; i < steps; ++i) append(interpolate_pose(a, b, 0.5 * (1 - std::cos(kPi * i / steps))));
     }
     for (const auto& p : t) append(p.T_world_cam);
@@ -219,10 +227,13 @@ TrajectoryCheck check_trajectory(const Scene& scene, const Trajectory& trajector
     c.min_wall_distance = std::min(c.min_wall_distance, wall);
     c.min_height = std::min(c.min_height, p.z());
     c.max_height = std::max(c.max_height, p.z());
-    for (const auto& f : scene.furniture) c.min_furniture_distance = std::min(c.min_furniture_distance, f.footprint_distance(p.head<2>()));
+    for (const auto& f : scene.furniture)
+      c.min_furniture_distance = std::min(c.min_furniture_distance, f.footprint_distance(p.head<2>()));
     if (wall < min_wall_distance) fail("frame " + std::to_string(i) + " is " + fmt(wall) + " m from a wall");
-    if (p.z() < limits.min_height - 1e-6 || p.z() > limits.max_height + 1e-6) fail("frame " + std::to_string(i) + " at height " + fmt(p.z()));
-    if (c.min_furniture_distance < min_clearance) fail("frame " + std::to_string(i) + " is within " + fmt(min_clearance) + " m of furniture");
+    if (p.z() < limits.min_height - 1e-6 || p.z() > limits.max_height + 1e-6)
+      fail("frame " + std::to_string(i) + " at height " + fmt(p.z()));
+    if (c.min_furniture_distance < min_clearance)
+      fail("frame " + std::to_string(i) + " is within " + fmt(min_clearance) + " m of furniture");
     if (i > 0) {
       const SE3& a = trajectory[i - 1].T_world_cam;
       const SE3& b = trajectory[i].T_world_cam;
@@ -234,7 +245,9 @@ TrajectoryCheck check_trajectory(const Scene& scene, const Trajectory& trajector
     }
     if (i > 0 && i + 1 < trajectory.size()) {
       const double dt = trajectory[i + 1].timestamp - trajectory[i].timestamp;
-      const Eigen::Vector3d acc = (trajectory[i + 1].T_world_cam.translation() - 2 * p + trajectory[i - 1].T_world_cam.translation()) / (dt * dt);
+      const Eigen::Vector3d acc =
+          (trajectory[i + 1].T_world_cam.translation() - 2 * p + trajectory[i - 1].T_world_cam.translation()) /
+          (dt * dt);
       c.max_acceleration = std::max(c.max_acceleration, acc.norm());
     }
   }

@@ -28,18 +28,18 @@ struct TrajectoryConfig {
   double max_step = 0.02;            // metres per frame
   double max_rotation_deg = 1.5;     // degrees per frame
   double min_height = 0.3, max_height = 1.5;
-  double ramp_fraction = 0.1;        // acceleration ramp, share of the frames (at least 1 s, at most 1/4)
+  double ramp_fraction = 0.1;  // acceleration ramp, share of the frames (at least 1 s, at most 1/4)
 
   // Throws ConfigError naming the first impossible value.
   void validate() const;
 };
 
 struct RobotPlan {
-  std::string kind;                 // "loop" or "arc"
+  std::string kind;                   // "loop" or "arc"
   double phi_start = 0, phi_end = 0;  // parameter range on the walkway ellipse / loop circle (rad)
-  double radius = 0;                // loop circle radius (loop robots)
+  double radius = 0;                  // loop circle radius (loop robots)
   double base_height = 0;
-  Trajectory trajectory;            // T_world_cam, timestamps start_time + i / rate_hz
+  Trajectory trajectory;  // T_world_cam, timestamps start_time + i / rate_hz
 };
 
 struct TrajectoryPlan {
@@ -62,10 +62,10 @@ SE3 camera_pose(const Eigen::Vector3d& position, double yaw, double pitch);
 
 struct TrajectoryCheck {
   bool ok = true;
-  std::string problem;  // first violation, empty if ok
-  double max_step = 0, max_rotation_deg = 0;    // per frame
-  double max_acceleration = 0;                  // m/s^2 from second differences
-  double min_furniture_distance = 1e9;          // 2D distance of the camera centre to any footprint
+  std::string problem;                        // first violation, empty if ok
+  double max_step = 0, max_rotation_deg = 0;  // per frame
+  double max_acceleration = 0;                // m/s^2 from second differences
+  double min_furniture_distance = 1e9;        // 2D distance of the camera centre to any footprint
   double min_wall_distance = 1e9;
   double min_height = 1e9, max_height = -1e9;
 };

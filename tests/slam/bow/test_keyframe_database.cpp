@@ -54,13 +54,19 @@ TEST(KeyFrameDatabase, HandMadeGroupsAndThresholds) {
   r = db.query(q, p, nullptr, covis);
   ASSERT_EQ(r.size(), 1u);
   EXPECT_EQ(r[0].id, kf(1, 2));
-  EXPECT_NEAR(r[0].accumulated_score, 0.8 + Vocabulary::score(q, normalised({{1, 1}, {2, 1}, {3, 1}, {4, 1}, {8, 3}})), 1e-12);
+  EXPECT_NEAR(r[0].accumulated_score, 0.8 + Vocabulary::score(q, normalised({{1, 1}, {2, 1}, {3, 1}, {4, 1}, {8, 3}})),
+              1e-12);
 
   // min_score removes low candidates; exclude removes keyframes before the common-word test.
   p.min_score = 0.9;
   EXPECT_TRUE(db.query(q, p, nullptr, nullptr).empty());
   p.min_score = 0;
-  r = db.query(q, p, [](KeyFrameId id) { return id == KeyFrameId{1, 0} || id == KeyFrameId{1, 2}; }, nullptr);
+  r = db.query(
+      q, p,
+      [](KeyFrameId id) {
+        return id == KeyFrameId{1, 0} || id == KeyFrameId{1, 2};
+      },
+      nullptr);
   ASSERT_EQ(r.size(), 1u);
   EXPECT_EQ(r[0].id, kf(1, 1));
   p.max_results = 1;
@@ -202,8 +208,9 @@ TEST(KeyFrameDatabaseThreads, ConcurrentAddEraseQuery) {
   std::atomic<int> queries{0};
   std::thread reader([&] {
     while (!stop || queries < 200) {
-      const auto r = db.query(bow_for(queries % 2000), {}, nullptr,
-                              [&](KeyFrameId id) { return std::vector<KeyFrameId>{{id.client, id.seq + 1}}; });
+      const auto r = db.query(bow_for(queries % 2000), {}, nullptr, [&](KeyFrameId id) {
+        return std::vector<KeyFrameId>{{id.client, id.seq + 1}};
+      });
       for (const auto& c : r) ASSERT_GE(c.score, 0.0);
       ++queries;
     }

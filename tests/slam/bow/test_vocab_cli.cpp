@@ -23,7 +23,8 @@ TEST(VocabCli, TrainInfoAndCorruptFile) {
   const std::string bin = std::string(CSLAM_BIN_DIR) + "/cslam-vocab";
   const std::string voc = ::testing::TempDir() + "/cslam_cli_test.voc";
   int rc = 0;
-  std::string out = run(bin + " train --synthetic-images 4 --features 200 --branching 5 --depth 3 --threads 2 --out " + voc, rc);
+  std::string out =
+      run(bin + " train --synthetic-images 4 --features 200 --branching 5 --depth 3 --threads 2 --out " + voc, rc);
   ASSERT_EQ(rc, 0) << out;
   const Vocabulary v = Vocabulary::load(voc);
   EXPECT_EQ(v.branching(), 5);

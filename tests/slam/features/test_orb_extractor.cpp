@@ -173,7 +173,8 @@ TEST(OrbExtractor, RealFrameWithDistortion) {
   // Strong radial distortion: some corner features move by several pixels.
   double max_shift = 0;
   for (std::size_t i = 0; i < f.size(); ++i)
-    max_shift = std::max(max_shift, (f.undistorted[i] - Eigen::Vector2d(f.keypoints[i].pt.x, f.keypoints[i].pt.y)).norm());
+    max_shift =
+        std::max(max_shift, (f.undistorted[i] - Eigen::Vector2d(f.keypoints[i].pt.x, f.keypoints[i].pt.y)).norm());
   EXPECT_GT(max_shift, 3.0);
 }
 

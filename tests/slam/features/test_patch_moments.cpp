@@ -26,7 +26,8 @@ void expect_equal_moments(const std::vector<std::uint8_t>& img) {
 
 TEST(PatchMoments, DiscHalfWidths) {
   const int* umax = cslam::patch_row_half_widths();
-  const int expected[16] = {15, 15, 15, 15, 14, 14, 14, 13, 13, 12, 11, 10, 9, 7, 5, 0};  // floor(sqrt(225 - v^2) + 0.5)
+  const int expected[16] = {15, 15, 15, 15, 14, 14, 14, 13,
+                            13, 12, 11, 10, 9,  7,  5,  0};  // floor(sqrt(225 - v^2) + 0.5)
   for (int v = 0; v <= cslam::kPatchRadius; ++v) EXPECT_EQ(umax[v], expected[v]) << "row " << v;
 }
 

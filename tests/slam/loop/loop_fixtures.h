@@ -33,8 +33,8 @@ struct MatchSet {
 // Keypoints get pixel_noise (px), depths depth_noise * z^2 (m); 3D points are back-projected
 // from the noisy keypoints and depths, as an RGB-D front-end does. Camera 1 sees metres scaled by
 // S_12.scale() (as a monocular map with another scale would).
-inline MatchSet make_matches(const Sim3& S_12, int n, double outlier_ratio, std::uint64_t seed, double pixel_noise = 0.5,
-                             double depth_noise = 0.002) {
+inline MatchSet make_matches(const Sim3& S_12, int n, double outlier_ratio, std::uint64_t seed,
+                             double pixel_noise = 0.5, double depth_noise = 0.002) {
   const auto k = loop_intrinsics();
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> U(0.0, 1.0);
@@ -74,7 +74,8 @@ inline std::vector<Sim3> circle_poses(int n, double r) {
   std::vector<Sim3> poses;
   for (int i = 0; i < n; ++i) {
     const double a = 2.0 * M_PI * i / n;
-    poses.push_back(rotation_about(a + M_PI / 2, Eigen::Vector3d::UnitZ(), Eigen::Vector3d(r * std::cos(a), r * std::sin(a), 0.3 * std::sin(2 * a))));
+    poses.push_back(rotation_about(a + M_PI / 2, Eigen::Vector3d::UnitZ(),
+                                   Eigen::Vector3d(r * std::cos(a), r * std::sin(a), 0.3 * std::sin(2 * a))));
   }
   return poses;
 }

@@ -18,7 +18,8 @@ TEST(EssentialGraph, SpanningTreeLoopStrongCovisibilityAndNewLinks) {
   }
   auto share = [&](int a, int b, int first, int count) {
     for (int i = first; i < first + count; ++i) {
-      auto mp = std::make_shared<MapPoint>(map.ids().next_map_point(), Eigen::Vector3d(0, 0, 1), kfs[a].get(), cv::Vec3b());
+      auto mp =
+          std::make_shared<MapPoint>(map.ids().next_map_point(), Eigen::Vector3d(0, 0, 1), kfs[a].get(), cv::Vec3b());
       map.add_map_point(mp);
       Map::add_observation(kfs[a].get(), i, mp);
       Map::add_observation(kfs[b].get(), i, mp);

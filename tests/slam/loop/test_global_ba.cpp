@@ -16,7 +16,8 @@ using test::expect_consistent;
 
 TEST(GlobalBa, InterruptedManyTimesLeavesMapConsistent) {
   test::TempDir dir("cslam_gba");
-  const auto r = test::run_program("cslam-synth", "--preset test-small --seed 9 --out " + (dir / "scene") + " --log-level warn");
+  const auto r =
+      test::run_program("cslam-synth", "--preset test-small --seed 9 --out " + (dir / "scene") + " --log-level warn");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset ds = open_tum_dataset(dir / "scene/robot_1");
   ClientInfo info;

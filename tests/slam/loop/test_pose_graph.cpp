@@ -20,7 +20,8 @@ TEST(PoseGraph, SE3LoopErrorIsDistributed) {
   const auto g = test::drifted_circle(40, 0.01, 1.0, 3);
   const double before = test::max_position_error(initial_poses(g), g.truth);
   ASSERT_GT(before, 1.0);  // the drifted chain really is off (metres)
-  const double loop_before = pose_graph_edge_error(g.nodes.back().S_world_node, g.nodes[0].S_world_node, g.edges.back(), true);
+  const double loop_before =
+      pose_graph_edge_error(g.nodes.back().S_world_node, g.nodes[0].S_world_node, g.edges.back(), true);
   PoseGraphConfig cfg;
   const auto r = optimize_pose_graph(g.nodes, g.edges, cfg);
   ASSERT_TRUE(r.converged);

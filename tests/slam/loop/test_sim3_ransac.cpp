@@ -41,7 +41,7 @@ TEST_P(Sim3RansacRecovers, WithHalfOutliers) {
       if (r.inlier[i]) (set.is_inlier[i] ? true_pos : false_pos)++;
     }
     EXPECT_EQ(count, r.num_inliers);
-    EXPECT_GT(true_pos, 0.9 * inliers) << c.name;        // finds nearly all correct matches
+    EXPECT_GT(true_pos, 0.9 * inliers) << c.name;          // finds nearly all correct matches
     EXPECT_LT(false_pos, 0.03 * r.num_inliers) << c.name;  // and few wrong ones
     EXPECT_GE(r.iterations, 1);
     EXPECT_LE(r.iterations, cfg.max_iterations);

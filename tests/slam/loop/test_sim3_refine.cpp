@@ -131,8 +131,10 @@ TEST(Sim3Refine, ReducesErrorAndFindsOutliers) {
     EXPECT_LT(sim3_error(r.S_12, truth), 0.2 * sim3_error(start, truth)) << "fix_scale " << fix_scale;
     EXPECT_LT(test::rotation_error_deg(r.S_12, truth), 0.3);
     EXPECT_LT((r.S_12.translation() - truth.translation()).norm(), 0.02);
-    if (fix_scale) EXPECT_DOUBLE_EQ(r.S_12.scale(), 1.0);
-    else EXPECT_NEAR(r.S_12.scale(), 1.25, 0.015);
+    if (fix_scale)
+      EXPECT_DOUBLE_EQ(r.S_12.scale(), 1.0);
+    else
+      EXPECT_NEAR(r.S_12.scale(), 1.25, 0.015);
     EXPECT_LT(r.final_cost, 0.2 * r.initial_cost);  // Huber cost of the final inliers
     int wrong = 0, good = 0, n_true = 0;
     for (size_t i = 0; i < r.inlier.size(); ++i) {
@@ -180,7 +182,8 @@ TEST(Sim3Refine, ExactDataConvergesToTruth) {
 TEST(Sim3Refine, ObservationsFromOtherViewsAverageOutOneImagesError) {
   const auto k = test::loop_intrinsics();
   const Sim3 truth = test::rotation_about(0.3, {0.1, 1, 0}, {0.2, 0.05, -0.1});
-  const SE3 skew(Eigen::Quaterniond(Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero());
+  const SE3 skew(Eigen::Quaterniond(Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d::UnitY())),
+                 Eigen::Vector3d::Zero());
   std::vector<Sim3Correspondence> own;
   for (auto m : test::make_matches(truth, 80, 0.0, 7, 0.3, 0.0).matches) {
     m.uv1 = test::project(k, skew * m.p1);  // the distorted image
@@ -192,8 +195,9 @@ TEST(Sim3Refine, ObservationsFromOtherViewsAverageOutOneImagesError) {
   EXPECT_GT(alone_deg, 1.0) << "camera 1's image alone should carry its error";
   std::vector<Sim3Correspondence> pooled = own;
   for (int v = 0; v < 4; ++v) {
-    const SE3 T_view_1(Eigen::Quaterniond(Eigen::AngleAxisd(0.08 * (v - 1.5), Eigen::Vector3d(0.3, 1, 0.1).normalized())),
-                       Eigen::Vector3d(0.05 * (v - 1.5), 0.02 * v, 0.01));
+    const SE3 T_view_1(
+        Eigen::Quaterniond(Eigen::AngleAxisd(0.08 * (v - 1.5), Eigen::Vector3d(0.3, 1, 0.1).normalized())),
+        Eigen::Vector3d(0.05 * (v - 1.5), 0.02 * v, 0.01));
     const Sim3 S_view = Sim3(T_view_1) * truth;
     for (auto m : test::make_matches(S_view, 80, 0.0, 100 + v, 0.3, 0.0).matches) {
       m.p1 = T_view_1.inverse() * m.p1;  // camera-1 coordinates

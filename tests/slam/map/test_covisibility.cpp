@@ -42,9 +42,9 @@ struct Fixture {
 TEST(Covisibility, WeightsThresholdAndSpanningTree) {
   Fixture fx;
   auto a = fx.add_keyframe(), b = fx.add_keyframe(), c = fx.add_keyframe();
-  fx.share({a, b}, 0, 40);       // a-b: 40
-  fx.share({b, c}, 40, 20);      // b-c: 20
-  fx.share({a, c}, 60, 10);      // a-c: 10 (< 15: no edge while stronger ones exist)
+  fx.share({a, b}, 0, 40);   // a-b: 40
+  fx.share({b, c}, 40, 20);  // b-c: 20
+  fx.share({a, c}, 60, 10);  // a-c: 10 (< 15: no edge while stronger ones exist)
   for (auto& kf : {a, b, c}) fx.map.update_connections(kf.get());
   EXPECT_EQ(a->weight(b.get()), 40);
   EXPECT_EQ(b->weight(a.get()), 40);

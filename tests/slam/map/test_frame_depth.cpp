@@ -47,8 +47,9 @@ TEST(FrameDepth, ReadsDepthWhereTheCameraMotionCarriedThePoint) {
   const Plane plane;
   // The depth image is taken 15 ms after the colour image while the camera turns at 90 deg/s and
   // moves at 0.5 m/s: 1.35 deg and 7.5 mm, about 12 px at the image centre.
-  const SE3 T_world_depthcam(Eigen::Quaterniond(Eigen::AngleAxisd(1.35 * M_PI / 180, Eigen::Vector3d(0.3, 1.0, 0.1).normalized())),
-                             Eigen::Vector3d(0.0075, 0.001, 0.0));
+  const SE3 T_world_depthcam(
+      Eigen::Quaterniond(Eigen::AngleAxisd(1.35 * M_PI / 180, Eigen::Vector3d(0.3, 1.0, 0.1).normalized())),
+      Eigen::Vector3d(0.0075, 0.001, 0.0));
   const SE3 T_depthcam_cam = T_world_depthcam.inverse();
   const cv::Mat depth = render_depth(cam, plane, T_world_depthcam);
   double worst_compensated = 0, sum_in_place = 0;
@@ -75,8 +76,9 @@ TEST(FrameDepth, NoMotionOrCompensationOffReadsInPlace) {
   const PinholeCamera cam = camera_tum_fr1();
   RgbdParams rgbd;
   rgbd.depth_time_compensation = true;
-  const cv::Mat depth = render_depth(cam, Plane(), SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY())),
-                                                       Eigen::Vector3d::Zero()));
+  const cv::Mat depth =
+      render_depth(cam, Plane(),
+                   SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero()));
   const SE3 motion(Eigen::Quaterniond(Eigen::AngleAxisd(-0.02, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero());
   for (int y = 100; y < 400; y += 50)
     for (int x = 100; x < 540; x += 60) {

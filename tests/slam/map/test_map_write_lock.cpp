@@ -25,12 +25,14 @@ constexpr int kPointsPerStep = 50;
 struct GrowingMap {
   GrowingMap() : map(1, 0, std::make_shared<IdAllocator>(1)), pyramid(ScalePyramid::from(OrbExtractor())) {}
   void step() {  // [unique]
-    auto kf = std::make_shared<KeyFrame>(map.ids().next_keyframe(), fake_frame_data(2 * kPointsPerStep, pyramid), SE3());
+    auto kf =
+        std::make_shared<KeyFrame>(map.ids().next_keyframe(), fake_frame_data(2 * kPointsPerStep, pyramid), SE3());
     map.add_keyframe(kf);
     for (int i = 0; i < int(previous.size()); ++i) Map::add_observation(kf.get(), kPointsPerStep + i, previous[i]);
     std::vector<MapPointPtr> created;
     for (int i = 0; i < kPointsPerStep; ++i) {
-      auto mp = std::make_shared<MapPoint>(map.ids().next_map_point(), Eigen::Vector3d(i, steps, 1), kf.get(), cv::Vec3b());
+      auto mp =
+          std::make_shared<MapPoint>(map.ids().next_map_point(), Eigen::Vector3d(i, steps, 1), kf.get(), cv::Vec3b());
       Map::add_observation(kf.get(), i, mp);
       map.add_map_point(mp);
       created.push_back(mp);

@@ -25,10 +25,10 @@ struct Scene {
   PinholeCamera cam;
   double readout = 0.03, bf = 40.0;
   Eigen::Vector3d omega, vel;
-  std::vector<Eigen::Vector3d> points;       // in the middle row's camera
-  OrbFeatures features;                      // as the rolling-shutter camera saw them
+  std::vector<Eigen::Vector3d> points;  // in the middle row's camera
+  OrbFeatures features;                 // as the rolling-shutter camera saw them
   std::vector<float> depth, u_right;
-  double max_shift = 0;                      // largest distance between seen and global-shutter pixel
+  double max_shift = 0;  // largest distance between seen and global-shutter pixel
 };
 
 Scene make_scene(const Eigen::Vector3d& omega, const Eigen::Vector3d& vel, bool with_depth) {
@@ -65,7 +65,8 @@ Scene make_scene(const Eigen::Vector3d& omega, const Eigen::Vector3d& vel, bool 
 
 double max_error(const Scene& s) {
   double e = 0;
-  for (size_t i = 0; i < s.points.size(); ++i) e = std::max(e, (s.features.undistorted[i] - s.cam.project(s.points[i])).norm());
+  for (size_t i = 0; i < s.points.size(); ++i)
+    e = std::max(e, (s.features.undistorted[i] - s.cam.project(s.points[i])).norm());
   return e;
 }
 

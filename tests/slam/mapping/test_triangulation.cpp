@@ -65,7 +65,8 @@ struct TwoViews {
   TwoViews(int n, double baseline, std::function<bool(int)> depth1, std::function<bool(int)> depth2)
       : scene(make_scene(n, 7)), pyramid(ScalePyramid::from(OrbExtractor())) {
     T1 = SE3();
-    T2 = SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())), Eigen::Vector3d(-baseline, 0.02, 0.03));
+    T2 = SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())),
+             Eigen::Vector3d(-baseline, 0.02, 0.03));
     // View 2 lists the points in reverse: indices differ between the views.
     std::vector<int> rev = identity_order(n);
     std::reverse(rev.begin(), rev.end());
@@ -108,7 +109,8 @@ TEST(Triangulation, DepthIsUsedWhenTheRaysHaveLessParallaxThanTheDepth) {
   // Without depth the same pair is refused (too little parallax for a monocular point).
   TwoViews mono(30, 0.0005, none, none);
   int made = 0;
-  for (int p = 0; p < 30; ++p) made += triangulate_pair(*mono.f1, mono.T1, p, *mono.f2, mono.T2, mono.index2_of(p), c).has_value();
+  for (int p = 0; p < 30; ++p)
+    made += triangulate_pair(*mono.f1, mono.T1, p, *mono.f2, mono.T2, mono.index2_of(p), c).has_value();
   EXPECT_EQ(made, 0);
 }
 
@@ -116,7 +118,8 @@ TEST(Triangulation, WrongCorrespondenceOrInconsistentDepthIsRefused) {
   TwoViews v(40, 0.3, none, none);
   TriangulationConfig c;
   int accepted = 0;
-  for (int p = 0; p < 40; ++p) accepted += triangulate_pair(*v.f1, v.T1, p, *v.f2, v.T2, v.index2_of((p + 7) % 40), c).has_value();
+  for (int p = 0; p < 40; ++p)
+    accepted += triangulate_pair(*v.f1, v.T1, p, *v.f2, v.T2, v.index2_of((p + 7) % 40), c).has_value();
   EXPECT_LE(accepted, 1);  // a wrong pair can only pass if it happens to lie on the epipolar line
   // A depth twice too far fails the virtual-right-coordinate check when the point comes from the
   // rays (its disparity is off by 5 px or more at these distances).
@@ -159,7 +162,8 @@ TEST(TriangulationSearch, FindsTheTruePairsAndRejectsOffEpipolarDescriptorTwins)
 TEST(CreateNewMapPoints, PointsOfAKeyframePairAreCreatedWithBothObservations) {
   // 40 shared points with depth connect the keyframes; 60 more without depth are to be triangulated.
   const int n = 100, linked = 40;
-  TwoViews v(n, 0.3, [&](int k) { return k < linked; }, [&](int k) { return k >= n - linked; });
+  TwoViews v(
+      n, 0.3, [&](int k) { return k < linked; }, [&](int k) { return k >= n - linked; });
   Map map(1, 0, std::make_shared<IdAllocator>(1));
   auto kf1 = std::make_shared<KeyFrame>(map.ids().next_keyframe(), v.f1, v.T1);
   auto kf2 = std::make_shared<KeyFrame>(map.ids().next_keyframe(), v.f2, v.T2);

@@ -36,7 +36,8 @@ struct Scene {
 TEST(FrameFlow, FollowsKeypointsThroughASubPixelShiftAndCarriesTheirFeatures) {
   const Scene s;
   const cv::Mat a = s.view(0, 0), b = s.view(3.4, -2.2);
-  const auto prev = make_frame_data(FrameId{1, 1}, 0.0, a, s.depth(2.0), s.camera, RgbdParams{}, s.extractor, s.pyramid, nullptr);
+  const auto prev =
+      make_frame_data(FrameId{1, 1}, 0.0, a, s.depth(2.0), s.camera, RgbdParams{}, s.extractor, s.pyramid, nullptr);
   ASSERT_GT(prev->size(), 300u);
   FlowConfig config;
   cv::Mat ga, gb;
@@ -49,8 +50,8 @@ TEST(FrameFlow, FollowsKeypointsThroughASubPixelShiftAndCarriesTheirFeatures) {
     // The motion model's guess is a pixel off: the flow must still land on the true shift.
     seeds.predicted.push_back(prev->features.keypoints[i].pt + cv::Point2f(4.2f, -1.5f));
   }
-  const FlowFrame f = make_flow_frame(FrameId{1, 2}, 0.033, b, s.depth(1.5), *prev, pa, pb, seeds, config, nullptr, 4, std::nullopt,
-                                      std::nullopt, true);
+  const FlowFrame f = make_flow_frame(FrameId{1, 2}, 0.033, b, s.depth(1.5), *prev, pa, pb, seeds, config, nullptr, 4,
+                                      std::nullopt, std::nullopt, true);
   ASSERT_EQ(f.data->size(), f.previous_index.size());
   ASSERT_GT(f.data->size(), prev->size() * 9 / 10);
   int close = 0;
@@ -83,7 +84,8 @@ TEST(FrameFlow, FollowsKeypointsThroughASubPixelShiftAndCarriesTheirFeatures) {
 TEST(FrameFlow, DropsTracksThatLeaveTheImageOrFail) {
   const Scene s;
   const cv::Mat a = s.view(0, 0), b = s.view(40, 0);  // 40 px to the right: the right edge's points leave
-  const auto prev = make_frame_data(FrameId{1, 1}, 0.0, a, s.depth(2.0), s.camera, RgbdParams{}, s.extractor, s.pyramid, nullptr);
+  const auto prev =
+      make_frame_data(FrameId{1, 1}, 0.0, a, s.depth(2.0), s.camera, RgbdParams{}, s.extractor, s.pyramid, nullptr);
   FlowConfig config;
   cv::Mat ga, gb;
   cv::cvtColor(a, ga, cv::COLOR_BGR2GRAY);
@@ -96,8 +98,9 @@ TEST(FrameFlow, DropsTracksThatLeaveTheImageOrFail) {
     if (prev->features.keypoints[i].pt.x + 40 >= 640) ++leaving;
   }
   ASSERT_GT(leaving, 10);
-  const FlowFrame f = make_flow_frame(FrameId{1, 2}, 0.033, b, cv::Mat(), *prev, build_flow_pyramid(ga, config),
-                                      build_flow_pyramid(gb, config), seeds, config, nullptr, 4, std::nullopt, std::nullopt, true);
+  const FlowFrame f =
+      make_flow_frame(FrameId{1, 2}, 0.033, b, cv::Mat(), *prev, build_flow_pyramid(ga, config),
+                      build_flow_pyramid(gb, config), seeds, config, nullptr, 4, std::nullopt, std::nullopt, true);
   for (std::size_t k = 0; k < f.data->size(); ++k) {
     EXPECT_LT(f.data->features.keypoints[k].pt.x, 640.0f);
     EXPECT_LT(f.data->depth[k], 0.0f);  // no depth image: no depth
@@ -109,8 +112,9 @@ TEST(FrameFlow, DropsTracksThatLeaveTheImageOrFail) {
   const cv::Mat black(480, 640, CV_8UC1, cv::Scalar(0));
   cv::Mat black_bgr;
   cv::cvtColor(black, black_bgr, cv::COLOR_GRAY2BGR);
-  const FlowFrame none = make_flow_frame(FrameId{1, 3}, 0.066, black_bgr, cv::Mat(), *prev, build_flow_pyramid(ga, config),
-                                         build_flow_pyramid(black, config), seeds, config, nullptr, 4, std::nullopt, std::nullopt, true);
+  const FlowFrame none =
+      make_flow_frame(FrameId{1, 3}, 0.066, black_bgr, cv::Mat(), *prev, build_flow_pyramid(ga, config),
+                      build_flow_pyramid(black, config), seeds, config, nullptr, 4, std::nullopt, std::nullopt, true);
   EXPECT_LT(none.data->size(), prev->size() / 2);
 }
 

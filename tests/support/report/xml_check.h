@@ -48,7 +48,9 @@ inline std::string xml_wellformed_error(const std::string& doc) {
     const bool closing = lt + 1 < doc.size() && doc[lt + 1] == '/';
     std::size_t p = lt + (closing ? 2 : 1);
     const std::size_t name_begin = p;
-    while (p < doc.size() && (std::isalnum(static_cast<unsigned char>(doc[p])) || doc[p] == '-' || doc[p] == ':' || doc[p] == '_')) ++p;
+    while (p < doc.size() &&
+           (std::isalnum(static_cast<unsigned char>(doc[p])) || doc[p] == '-' || doc[p] == ':' || doc[p] == '_'))
+      ++p;
     const std::string name = doc.substr(name_begin, p - name_begin);
     if (name.empty()) return "tag without a name" + at(lt);
     if (closing) {
@@ -72,7 +74,8 @@ inline std::string xml_wellformed_error(const std::string& doc) {
       }
       const std::size_t attr_begin = p;
       while (p < doc.size() && doc[p] != '=' && !std::isspace(static_cast<unsigned char>(doc[p])) && doc[p] != '>') ++p;
-      if (p == attr_begin || p >= doc.size() || doc[p] != '=') return "attribute without value in <" + name + at(attr_begin);
+      if (p == attr_begin || p >= doc.size() || doc[p] != '=')
+        return "attribute without value in <" + name + at(attr_begin);
       ++p;
       if (p >= doc.size() || (doc[p] != '"' && doc[p] != '\'')) return "unquoted attribute in <" + name + at(p);
       const char q = doc[p];

@@ -36,7 +36,7 @@ TEST(SynthDeterminism, SameSeedGivesIdenticalFiles) {
   TempDir tmp;
   SynthConfig a = small_config(42, tmp / "a"), b = small_config(42, tmp / "b");
   a.render.degradation.enabled = b.render.degradation.enabled = true;  // noise must be seeded too
-  b.output.threads = 1;  // thread count must not change the output
+  b.output.threads = 1;                                                // thread count must not change the output
   generate_dataset(a);
   generate_dataset(b);
   const auto files_a = test::list_files(tmp / "a"), files_b = test::list_files(tmp / "b");
@@ -120,6 +120,6 @@ TEST(SynthDeterminism, RowBandThreadsAndNoiseSeed) {
   const RenderedFrame a = r1.render(T, 11), b = r3.render(T, 11), other = r1.render(T, 12);
   EXPECT_EQ(cv::norm(a.bgr, b.bgr, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(a.depth, b.depth, cv::NORM_INF), 0.0);
-  EXPECT_GT(cv::norm(a.bgr, other.bgr, cv::NORM_INF), 0.0);    // another noise seed, other noise
+  EXPECT_GT(cv::norm(a.bgr, other.bgr, cv::NORM_INF), 0.0);  // another noise seed, other noise
   EXPECT_GT(cv::norm(a.depth, other.depth, cv::NORM_INF), 0.0);
 }

@@ -33,7 +33,9 @@ TEST(SynthFeatures, OrbFindsManyWellSpreadKeypointsOnDemoFrames) {
       std::vector<cv::KeyPoint> kps;
       orb->detect(gray, kps);
       bool cells[16] = {};
-      for (const auto& k : kps) cells[std::min(3, static_cast<int>(k.pt.y * 4 / gray.rows)) * 4 + std::min(3, static_cast<int>(k.pt.x * 4 / gray.cols))] = true;
+      for (const auto& k : kps)
+        cells[std::min(3, static_cast<int>(k.pt.y * 4 / gray.rows)) * 4 +
+              std::min(3, static_cast<int>(k.pt.x * 4 / gray.cols))] = true;
       const int occupied = static_cast<int>(std::count(cells, cells + 16, true));
       ++frames;
       good += kps.size() >= 500 && occupied >= 10;
@@ -46,8 +48,9 @@ TEST(SynthFeatures, OrbFindsManyWellSpreadKeypointsOnDemoFrames) {
           in_range += z >= 0.8 && z <= 4.0;
         }
     }
-  std::printf("ORB: %d/%d frames with >= 500 well-spread keypoints (min %d); depth in 0.8-4 m: %.1f%% of valid pixels\n", good, frames,
-              min_kp, 100.0 * in_range / valid);
+  std::printf(
+      "ORB: %d/%d frames with >= 500 well-spread keypoints (min %d); depth in 0.8-4 m: %.1f%% of valid pixels\n", good,
+      frames, min_kp, 100.0 * in_range / valid);
   ASSERT_GT(frames, 150);
   EXPECT_GE(good, static_cast<int>(std::ceil(0.95 * frames)));
   EXPECT_GT(in_range / valid, 0.7);
@@ -89,8 +92,10 @@ TEST(SynthFeatures, RepeatedTexturePatchLooksAlikeAndPlacesAreOtherwiseDistinct)
   const RepeatedPatch& p = repeated.repeated_patches[0];
   EXPECT_GT((p.center_a - p.center_b).norm(), 2.0);  // on two different walls
   const Renderer ra(repeated, c.camera), rp(plain, c.camera);
-  const int same = orb_matches(view_of(ra, repeated, p.face_a, p.center_a).bgr, view_of(ra, repeated, p.face_b, p.center_b).bgr);
-  const int different = orb_matches(view_of(rp, plain, p.face_a, p.center_a).bgr, view_of(rp, plain, p.face_b, p.center_b).bgr);
+  const int same =
+      orb_matches(view_of(ra, repeated, p.face_a, p.center_a).bgr, view_of(ra, repeated, p.face_b, p.center_b).bgr);
+  const int different =
+      orb_matches(view_of(rp, plain, p.face_a, p.center_a).bgr, view_of(rp, plain, p.face_b, p.center_b).bgr);
   std::printf("ORB matches between the two patch views: %d with --repeat-texture, %d without\n", same, different);
   EXPECT_GT(same, 150);
   EXPECT_LT(different, 40);
@@ -107,7 +112,8 @@ TEST(SynthFeatures, DemoRobotsSeeEachOthersPlaces) {
     size_t best = 0;
     double best_cost = 1e9;
     for (size_t i = 0; i < t.size(); ++i) {
-      const double cost = (t[i].T_world_cam.inverse() * T).rotation_angle() + 0.3 * (t[i].T_world_cam.translation() - T.translation()).norm();
+      const double cost = (t[i].T_world_cam.inverse() * T).rotation_angle() +
+                          0.3 * (t[i].T_world_cam.translation() - T.translation()).norm();
       if (cost < best_cost) {
         best_cost = cost;
         best = i;

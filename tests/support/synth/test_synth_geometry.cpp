@@ -48,13 +48,16 @@ class CloudIndex {
  private:
   long cell_index(double v) const { return static_cast<long>(std::floor(v / cell_)); }
   static long long pack(long x, long y, long z) { return ((x + 4096) << 26) | ((y + 4096) << 13) | (z + 4096); }
-  long long key(const Eigen::Vector3d& p) const { return pack(cell_index(p.x()), cell_index(p.y()), cell_index(p.z())); }
+  long long key(const Eigen::Vector3d& p) const {
+    return pack(cell_index(p.x()), cell_index(p.y()), cell_index(p.z()));
+  }
   const SurfacePoints& cloud_;
   double cell_;
   std::unordered_map<long long, std::vector<int>> grid_;
 };
 
-std::vector<Eigen::Vector3d> back_project(const cv::Mat& depth, const PinholeCamera& cam, const SE3& T_world_cam, int step) {
+std::vector<Eigen::Vector3d> back_project(const cv::Mat& depth, const PinholeCamera& cam, const SE3& T_world_cam,
+                                          int step) {
   std::vector<Eigen::Vector3d> out;
   for (int v = 0; v < depth.rows; v += step)
     for (int u = 0; u < depth.cols; u += step) {
@@ -115,8 +118,10 @@ TEST(SynthGeometry, BackProjectedDepthLandsOnSceneSurface) {
     }
   ASSERT_GT(to_ply.size(), 10000u);
   const double med_ply = median(to_ply), med_faces = median(to_faces);
-  std::printf("median point-to-surface: %.3f mm (scene.ply, point-to-plane), %.3f mm (analytic faces), %.1f mm with a 3 cm pose error\n",
-              med_ply * 1e3, med_faces * 1e3, median(shifted) * 1e3);
+  std::printf(
+      "median point-to-surface: %.3f mm (scene.ply, point-to-plane), %.3f mm (analytic faces), %.1f mm with a 3 cm "
+      "pose error\n",
+      med_ply * 1e3, med_faces * 1e3, median(shifted) * 1e3);
   EXPECT_LT(med_ply, 0.002);
   EXPECT_LT(med_faces, 0.002);
   EXPECT_GT(median(shifted), 0.005);

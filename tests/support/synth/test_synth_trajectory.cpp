@@ -54,9 +54,11 @@ TEST(SynthTrajectory, DemoPlanIsValidSharedAndLooped) {
   for (size_t k = 0; k < plan.robots.size(); ++k) {
     const Trajectory& t = plan.robots[k].trajectory;
     const TrajectoryCheck s = check_trajectory(scene, t, c.trajectory);
-    std::printf("robot %zu (%s): max %.1f mm and %.2f deg per frame, max accel %.2f m/s^2, >= %.2f m from furniture, height %.2f-%.2f m\n",
-                k + 1, plan.robots[k].kind.c_str(), s.max_step * 1e3, s.max_rotation_deg, s.max_acceleration, s.min_furniture_distance,
-                s.min_height, s.max_height);
+    std::printf(
+        "robot %zu (%s): max %.1f mm and %.2f deg per frame, max accel %.2f m/s^2, >= %.2f m from furniture, height "
+        "%.2f-%.2f m\n",
+        k + 1, plan.robots[k].kind.c_str(), s.max_step * 1e3, s.max_rotation_deg, s.max_acceleration,
+        s.min_furniture_distance, s.min_height, s.max_height);
     ASSERT_EQ(t.size(), 300u);
     EXPECT_DOUBLE_EQ(t.front().timestamp, 1000000000.0);
     expect_valid(scene, t, c.trajectory, "robot " + std::to_string(k + 1));
@@ -96,8 +98,12 @@ TEST(SynthTrajectory, WholeSequenceVisitsAllPathsSmoothly) {
   ASSERT_GT(whole.size(), 120u);
   expect_valid(scene, whole, c.trajectory, "whole");
   // Starts on robot 1's path and ends on robot 2's.
-  EXPECT_LT((whole.front().T_world_cam.translation() - plan.robots[0].trajectory.front().T_world_cam.translation()).norm(), 1e-9);
-  EXPECT_LT((whole.back().T_world_cam.translation() - plan.robots[1].trajectory.back().T_world_cam.translation()).norm(), 1e-9);
+  EXPECT_LT(
+      (whole.front().T_world_cam.translation() - plan.robots[0].trajectory.front().T_world_cam.translation()).norm(),
+      1e-9);
+  EXPECT_LT(
+      (whole.back().T_world_cam.translation() - plan.robots[1].trajectory.back().T_world_cam.translation()).norm(),
+      1e-9);
 }
 
 TEST(SynthTrajectory, SingleRobotLoopAndManyRobots) {
@@ -121,11 +127,13 @@ TEST(SynthTrajectory, CheckerCatchesViolations) {
   Trajectory t = plan_trajectories(scene, c.trajectory).robots[0].trajectory;
   ASSERT_TRUE(check_trajectory(scene, t, c.trajectory).ok);
   Trajectory jump = t;
-  jump[30].T_world_cam = SE3(jump[30].T_world_cam.rotation(), jump[30].T_world_cam.translation() + Eigen::Vector3d(0.05, 0, 0));
+  jump[30].T_world_cam =
+      SE3(jump[30].T_world_cam.rotation(), jump[30].T_world_cam.translation() + Eigen::Vector3d(0.05, 0, 0));
   EXPECT_FALSE(check_trajectory(scene, jump, c.trajectory).ok);
   Trajectory into_furniture = t;
   const auto& f = scene.furniture.at(0);
-  into_furniture[10].T_world_cam = SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(f.center.x(), f.center.y(), 1.0));
+  into_furniture[10].T_world_cam =
+      SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(f.center.x(), f.center.y(), 1.0));
   const TrajectoryCheck bad = check_trajectory(scene, into_furniture, c.trajectory);
   EXPECT_FALSE(bad.ok);
   EXPECT_FALSE(bad.problem.empty());
