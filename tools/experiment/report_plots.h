@@ -1,5 +1,5 @@
 #pragma once
-// The report's figures (SVG, src/report/svg_plot): per configuration, from its representative
+// The report's figures (SVG, src/support/report/svg_plot): per configuration, from its representative
 // run, APE over time with the fusion points, X-Y trajectories of every client against ground
 // truth (keyframes as dots), x/y/z and roll/pitch/yaw over time; one overview of SLAM time and
 // APE RMSE against the overlap rate (or the number of clients).
