@@ -4,6 +4,7 @@
 
 #include <Eigen/SVD>
 
+#include "optimize/reprojection_chi2.h"
 #include "slam/match/triangulation_search.h"
 
 namespace cslam {
@@ -36,16 +37,10 @@ std::optional<Eigen::Vector3d> linear_triangulation(const Eigen::Vector2d& x1, c
 // Reprojection check of a world point in one view, in units of the keypoint level's sigma^2.
 bool reprojects(const FrameData& f, const SE3& T_cam_world, int i, const Eigen::Vector3d& p_world,
                 const TriangulationConfig& c) {
-  const Eigen::Vector3d pc = T_cam_world * p_world;
-  if (pc.z() <= 0) return false;
-  const Eigen::Vector2d uv = f.camera.project(pc);
-  const Eigen::Vector2d& kp = f.features.undistorted[i];
-  const double sigma2 = f.pyramid->sigma2[f.features.keypoints[i].octave];
-  double e2 = (uv - kp).squaredNorm();
-  if (f.u_right[i] < 0) return e2 <= c.mono_chi2 * sigma2;
-  const double ur = uv.x() - f.rgbd.bf / pc.z();
-  e2 += (ur - f.u_right[i]) * (ur - f.u_right[i]);
-  return e2 <= c.stereo_chi2 * sigma2;
+  const StereoIntrinsics k{f.camera.fx, f.camera.fy, f.camera.cx, f.camera.cy, f.rgbd.bf};
+  const double chi2 = reprojection_chi2(k, T_cam_world * p_world, f.features.undistorted[i], f.u_right[i],
+                                        f.pyramid->inv_sigma2[f.features.keypoints[i].octave]);
+  return chi2 <= (f.u_right[i] < 0 ? c.mono_chi2 : c.stereo_chi2);
 }
 
 }  // namespace
