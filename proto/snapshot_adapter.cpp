@@ -348,6 +348,92 @@ struct Decoder {
 
 }  // namespace
 
+namespace {
+
+void to_proto(MapKey k, MapRef* p) {
+  p->set_client(k.client);
+  p->set_index(std::uint32_t(k.index));
+}
+
+void fusion_to_proto(const FusionState& f, Snapshot* snap) {
+  for (const SeamState& s : f.seams) {
+    Seam* q = snap->add_seams();
+    to_proto(s.kept_map, q->mutable_kept_map());
+    to_proto(s.moved_map, q->mutable_moved_map());
+    for (const auto& [kept, moved] : s.links) {
+      q->add_kept_points(kept.seq);
+      q->add_moved_points(moved.seq);
+    }
+    for (const SeamEdgeState& e : s.edges) {
+      q->add_edge_kept_keyframes(e.kept.seq);
+      q->add_edge_moved_keyframes(e.moved.seq);
+      q->add_edge_weights(e.weight);
+    }
+  }
+  for (const MapLinkState& l : f.last_links) {
+    MapLink* q = snap->add_map_links();
+    to_proto(l.query, q->mutable_query());
+    to_proto(l.other, q->mutable_other());
+    q->set_query_keyframes_at_link(l.query_keyframes_at_link);
+  }
+  for (const ConsistencyState& c : f.consistency) {
+    Consistency* q = snap->add_consistency();
+    to_proto(c.query, q->mutable_query());
+    to_proto(c.other, q->mutable_other());
+    for (const auto& [members, count] : c.groups) {
+      ConsistentGroup* g = q->add_groups();
+      for (KeyFrameId id : members) g->add_members(id.seq);
+      g->set_count(count);
+    }
+  }
+  for (const auto& [map, n] : f.keyframes_seen) {
+    KeyframesSeen* q = snap->add_keyframes_seen();
+    to_proto(map, q->mutable_map());
+    q->set_keyframes(n);
+  }
+}
+
+// The maps they name are checked when the state is restored (FusionManager::restore_state).
+FusionState fusion_from_proto(const Snapshot& snap, const std::string& source) {
+  auto key = [&](const MapRef& r) {
+    if (r.client() > 0xffff || r.index() > 0x7fffffff)
+      throw InputError(source, "map fusion names a map out of range (client " + std::to_string(r.client()) + ")");
+    return MapKey{ClientId(r.client()), int(r.index())};
+  };
+  FusionState f;
+  for (const Seam& q : snap.seams()) {
+    if (q.kept_points_size() != q.moved_points_size() ||
+        q.edge_kept_keyframes_size() != q.edge_moved_keyframes_size() ||
+        q.edge_kept_keyframes_size() != q.edge_weights_size())
+      throw InputError(source, "a fusion seam's point or edge lists differ in length");
+    SeamState s;
+    s.kept_map = key(q.kept_map());
+    s.moved_map = key(q.moved_map());
+    for (int i = 0; i < q.kept_points_size(); ++i)
+      s.links.emplace_back(MapPointId{s.kept_map.client, q.kept_points(i)},
+                           MapPointId{s.moved_map.client, q.moved_points(i)});
+    for (int i = 0; i < q.edge_weights_size(); ++i)
+      s.edges.push_back({KeyFrameId{s.kept_map.client, q.edge_kept_keyframes(i)},
+                         KeyFrameId{s.moved_map.client, q.edge_moved_keyframes(i)}, q.edge_weights(i)});
+    f.seams.push_back(std::move(s));
+  }
+  for (const MapLink& q : snap.map_links())
+    f.last_links.push_back({key(q.query()), key(q.other()), q.query_keyframes_at_link()});
+  for (const Consistency& q : snap.consistency()) {
+    ConsistencyState c{key(q.query()), key(q.other()), {}};
+    for (const ConsistentGroup& g : q.groups()) {
+      std::vector<KeyFrameId> members;
+      for (std::uint32_t seq : g.members()) members.push_back(KeyFrameId{c.other.client, seq});
+      c.groups.emplace_back(std::move(members), g.count());
+    }
+    f.consistency.push_back(std::move(c));
+  }
+  for (const KeyframesSeen& q : snap.keyframes_seen()) f.keyframes_seen.emplace_back(key(q.map()), q.keyframes());
+  return f;
+}
+
+}  // namespace
+
 std::string encode(const SystemState& state, const EncodeOptions& options) {
   Snapshot snap;
   Header* h = snap.mutable_header();
@@ -431,6 +517,7 @@ std::string encode(const SystemState& state, const EncodeOptions& options) {
       to_proto(r.T_cam_ref, fr->mutable_t_cam_ref());
     }
   }
+  fusion_to_proto(state.fusion, &snap);
   std::string out(kHeaderBytes, '\0');
   if (!snap.AppendToString(&out)) throw std::runtime_error("snapshot: serialisation failed");
   std::memcpy(out.data(), kMagic, sizeof kMagic);
@@ -526,6 +613,7 @@ SystemState decode(const std::string& bytes, const std::string& source, FileInfo
     }
     state.clients.push_back(std::move(cs));
   }
+  state.fusion = fusion_from_proto(snap, source);
   return state;
 }
 

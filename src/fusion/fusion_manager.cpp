@@ -279,6 +279,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     return n;
   };
   stop_group_ba();  // its result would be discarded by the move anyway
+  std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
   const std::size_t kf_q = keyframes_of(group_q), kf_c = keyframes_of(group_c);
   const bool move_candidate_side = kf_c <= kf_q;
   const auto& moving = move_candidate_side ? group_c : group_q;
@@ -307,6 +308,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     last_link_[{kept_map.get(), moved_map.get()}] = keyframes_seen_[kept_map.get()];
     last_link_[{moved_map.get(), kept_map.get()}] = keyframes_seen_[moved_map.get()];
   }
+  moving_maps.unlock();
   logger("fusion")->info(
       "fused client {} with client {} into group {} ({} keyframes moved onto {}): {} inliers, {} "
       "projection matches, window fit {} inliers over {} keyframes, {} seam points, {} cross-map "
@@ -370,6 +372,7 @@ bool FusionManager::run_group_ba_of(GroupId group) {
   const BaResult r = gba.solve(config_.group_ba_iterations, &group_ba_abort_);
   bool applied = false;
   {
+    std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
     auto locks = lock_maps<std::unique_lock<std::shared_mutex>>(maps);
     applied = gba.apply(r);
   }

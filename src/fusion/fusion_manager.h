@@ -18,11 +18,13 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <shared_mutex>
 #include <thread>
 #include <vector>
 
 #include "slam/bow/vocabulary.h"
 #include "fusion/fusion_event.h"
+#include "fusion/fusion_state.h"
 #include "slam/loop/overlap_verifier.h"
 #include "fusion/reencounter.h"
 #include "fusion/seam.h"
@@ -71,6 +73,15 @@ class FusionManager {
   // Persistence (fusion_manager_state.cpp): registers a restored map in its saved group (its
   // poses are already in that group's frame); invalid: a group of its own.
   void restore_group(ClientId client, const std::shared_ptr<Map>& map, GroupId group);
+  // The seams of every group and the pairs' last links, as values (points and keyframes gone bad
+  // are left out). Call under hold_links() together with the maps' export for one consistent state.
+  FusionState export_state() const;
+  // After every map of the state was restored and registered (restore_group): its seams and last
+  // links. Throws InputError(source, ...) if they name maps, points or keyframes not restored.
+  void restore_state(const FusionState& state, const std::string& source);
+  // While held, no fusion, re-encounter or group BA moves a map or links points: a snapshot that
+  // exports every client's maps under it sees each group in one frame.
+  std::shared_lock<std::shared_mutex> hold_links() const;
   std::vector<FusionEvent> events() const;
   GroupBaStats group_ba_stats() const;
   std::size_t dropped() const;
@@ -138,6 +149,9 @@ class FusionManager {
   std::condition_variable idle_cv_;
   std::size_t dropped_ = 0;
 
+  // Held exclusively while a fusion, a re-encounter or a group BA changes maps; shared by
+  // hold_links(). Taken before any map lock, never while one is held.
+  mutable std::shared_mutex links_mutex_;
   mutable std::mutex state_mutex_;  // groups, registry, events
   std::vector<Registered> registry_;
   std::map<const Map*, GroupId> group_;

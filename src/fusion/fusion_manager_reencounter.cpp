@@ -48,6 +48,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     }
   }
   stop_group_ba();  // its result would be discarded by the correction anyway
+  std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
   ReencounterCorrection c;
   Seam seam;
   Stopwatch locked;  // both maps held exclusively: the query robot's tracking waits this long at most
@@ -69,6 +70,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     last_link_[{p.map.get(), other.get()}] = keyframes_seen_[p.map.get()];
     consistency_.erase({p.map.get(), other.get()});
   }
+  moving_maps.unlock();
   logger("fusion")->info(
       "client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
       "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "

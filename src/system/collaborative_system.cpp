@@ -364,6 +364,9 @@ SystemState CollaborativeSystem::export_state() const {
       if (p->slam()) pipelines.push_back(p.get());
   }
   SystemState state;
+  // No fusion, re-encounter or group BA moves a map meanwhile: every group is in one frame.
+  std::shared_lock<std::shared_mutex> links;
+  if (impl_->fusion) links = impl_->fusion->hold_links();
   for (ClientPipeline* p : pipelines) {
     ClientSlamState cs = p->slam()->export_state();
     const auto maps = p->slam()->maps();
@@ -372,6 +375,9 @@ SystemState CollaborativeSystem::export_state() const {
         ms.group = impl_->fusion->group_of(maps[ms.index].get()).value();
     state.clients.push_back(std::move(cs));
   }
+  if (impl_->fusion) state.fusion = impl_->fusion->export_state();
+  links = {};
+  keep_fusion_within_maps(state);
   return state;
 }
 
@@ -411,6 +417,8 @@ void CollaborativeSystem::restore_state(const SystemState& state, const std::str
     }
     logger("system")->info("client {} ('{}') restored", cs.info.id, cs.info.name);
   }
+  // The seams hold the restored groups together in their global BA and re-encounters.
+  if (impl_->fusion) impl_->fusion->restore_state(state.fusion, source);
 }
 
 void CollaborativeSystem::start_new_session(ClientId id) {

@@ -1,11 +1,14 @@
 // The seam of a fusion (the same points found in both maps, cross-map covisibility) and the
 // group's global BA over both maps with the linked points as one.
 #include <algorithm>
+#include <chrono>
 #include <map>
+#include <thread>
 
 #include <gtest/gtest.h>
 
 #include "common/map_checks.h"
+#include "core/error.h"
 #include "eval/trajectory_eval.h"
 #include "fusion/fusion_manager.h"
 #include "fusion/seam.h"
@@ -140,4 +143,87 @@ TEST(Seam, GroupBaIsDiscardedWhenAMapChangedMeanwhile) {
       EXPECT_TRUE(kf->T_cam_world.translation() == poses.at(kf.get()).translation())
           << "map a written by a discarded BA";
   }
+}
+
+// A seam given back to a fusion manager from a snapshot (FusionManager::restore_state) is the seam
+// its group BA estimates and its next snapshot writes; a snapshot's copy that holds the links
+// (hold_links) sees no group BA change a map meanwhile.
+TEST(Seam, RestoredSeamsCarryTheGroupBaAndAHeldCopySeesNoMove) {
+  test::TempDir dir("cslam_seam_restore");
+  test::TwoMaps m = test::build_two_maps(dir);
+  transform_map(*m.b.map, small_error() * (m.a.T_gtworld_map.inverse() * m.b.T_gtworld_map));
+  FusionState state;
+  {
+    UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
+    const auto [ka, kb] = closest_pair(m.a, m.b);
+    ASSERT_TRUE(ka && kb);
+    const Seam seam = connect_seam(*m.a.map, *ka, *m.b.map, *kb);
+    SeamState s{MapKey{1, 0}, MapKey{2, 0}, {}, {}};
+    for (const auto& l : seam.points) s.links.emplace_back(l.kept->id, l.moved->id);
+    for (const auto& e : seam.edges) s.edges.push_back({e.kept->id, e.moved->id, e.weight});
+    state.seams.push_back(s);
+  }
+  state.last_links.push_back({MapKey{2, 0}, MapKey{1, 0}, 5});
+  state.keyframes_seen.emplace_back(MapKey{2, 0}, 9);
+  {
+    std::shared_lock<std::shared_mutex> lock(m.a.map->mutex);
+    const auto kfs = m.a.map->keyframes();
+    state.consistency.push_back({MapKey{2, 0}, MapKey{1, 0}, {{{kfs[0]->id, kfs[1]->id}, 2}}});
+  }
+  ASSERT_GE(state.seams[0].links.size(), 40u);
+
+  FusionConfig cfg;
+  cfg.threaded = false;
+  FusionManager fusion(cfg, std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
+  fusion.restore_group(1, m.a.map, GroupId::from_value(100));
+  fusion.restore_group(2, m.b.map, GroupId::from_value(100));
+  fusion.restore_state(state, "test.snapshot");
+  const FusionState out = fusion.export_state();
+  ASSERT_EQ(out.seams.size(), 1u);
+  EXPECT_EQ(out.seams[0].links, state.seams[0].links);
+  EXPECT_EQ(out.seams[0].edges.size(), state.seams[0].edges.size());
+  ASSERT_EQ(out.last_links.size(), 1u);
+  EXPECT_EQ(out.last_links[0].query_keyframes_at_link, 5);
+  ASSERT_EQ(out.consistency.size(), 1u);
+  ASSERT_EQ(out.consistency[0].groups.size(), 1u);
+  EXPECT_EQ(out.consistency[0].groups[0].second, 2);
+  EXPECT_EQ(out.consistency[0].groups[0].first.size(), 2u);
+
+  // The group BA waits for a held copy before it moves anything, then uses the restored links.
+  const Trajectory before = test::keyframe_trajectory(*m.b.map);
+  std::thread ba;
+  {
+    auto hold = fusion.hold_links();
+    ba = std::thread([&] { EXPECT_TRUE(fusion.run_group_ba(m.a.map.get())); });
+    while (fusion.group_ba_stats().started == 0) std::this_thread::yield();
+    // The solve of these two maps takes tens of ms; it must not be applied while the copy holds.
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    std::shared_lock<std::shared_mutex> lock(m.b.map->mutex);
+    const Trajectory now = test::keyframe_trajectory(*m.b.map);
+    ASSERT_EQ(now.size(), before.size());
+    for (std::size_t i = 0; i < now.size(); ++i)
+      EXPECT_EQ(now[i].T_world_cam.translation(), before[i].T_world_cam.translation()) << "moved while held";
+  }
+  ba.join();
+  EXPECT_EQ(fusion.group_ba_stats().completed, 1);
+  EXPECT_EQ(fusion.group_ba_stats().last_linked_points, int(state.seams[0].links.size()));
+
+  // Names that the restored maps do not hold are refused, naming the file.
+  for (int broken = 0; broken < 4; ++broken) {
+    FusionState bad = state;
+    if (broken == 0) bad.seams[0].moved_map = MapKey{3, 0};
+    if (broken == 1) bad.seams[0].links[0].first.seq = 0x7ffffff0;
+    if (broken == 2) bad.seams[0].edges[0].moved.seq = 0x7ffffff0;
+    if (broken == 3) bad.consistency[0].groups[0].first[0].seq = 0x7ffffff0;
+    FusionManager other(cfg, std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
+    other.restore_group(1, m.a.map, GroupId::from_value(100));
+    other.restore_group(2, m.b.map, GroupId::from_value(100));
+    try {
+      other.restore_state(bad, "test.snapshot");
+      ADD_FAILURE() << "case " << broken << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("test.snapshot"), std::string::npos) << e.what();
+    }
+  }
+  fusion.finish();
 }

@@ -1,5 +1,8 @@
 // Snapshot round trip: a client's SLAM state -> file bytes -> state -> a new ClientSlam, which
 // holds the same maps and trajectory and continues tracking in the restored map.
+#include <set>
+#include <tuple>
+
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -9,6 +12,7 @@
 #include "proto/snapshot_file.h"
 #include "snapshot.pb.h"
 #include "snapshot_fixture.h"
+#include "system/collaborative_system.h"
 
 namespace cslam {
 namespace {
@@ -237,6 +241,45 @@ TEST(SnapshotMerge, TwoOverlappingSessionsBecomeOneGroup) {
   };
   EXPECT_EQ(main_group(merged.clients[0]), main_group(merged.clients[1])) << r.output;
   EXPECT_GE(main_group(merged.clients[0]), 0);
+
+  // The fusion's seam is in the file and survives a restore: a system that loads the merged file
+  // holds the same links (its group BA and re-encounters use them), and writes them out again.
+  ASSERT_FALSE(merged.fusion.seams.empty()) << r.output;
+  std::size_t links = 0;
+  for (const auto& seam : merged.fusion.seams) links += seam.links.size();
+  EXPECT_GT(links, 20u);
+  EXPECT_FALSE(merged.fusion.keyframes_seen.empty());
+  SystemConfig config;
+  config.slam.threaded = false;
+  config.fusion.threaded = false;
+  SystemState again;
+  {
+    CollaborativeSystem restored(config);
+    restored.restore_state(merged, "merged.snapshot");
+    again = snapshot::decode(snapshot::encode(restored.export_state()), "again");
+  }
+  auto link_set = [](const SystemState& st) {
+    std::set<std::tuple<int, int, int, int, std::uint64_t, std::uint64_t>> out;
+    for (const auto& seam : st.fusion.seams)
+      for (const auto& [a, b] : seam.links)
+        out.emplace(seam.kept_map.client, seam.kept_map.index, seam.moved_map.client, seam.moved_map.index, a.packed(),
+                    b.packed());
+    return out;
+  };
+  EXPECT_EQ(link_set(again), link_set(merged));
+  EXPECT_EQ(again.fusion.last_links.size(), merged.fusion.last_links.size());
+
+  // A seam naming a point the maps do not hold is refused with the file's name.
+  SystemState broken = merged;
+  broken.fusion.seams[0].links[0].second.seq = 0x7ffffff0;
+  try {
+    CollaborativeSystem restored(config);
+    restored.restore_state(broken, "broken-seam.snapshot");
+    FAIL() << "a seam link to an unknown point was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("broken-seam.snapshot"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("seam"), std::string::npos) << e.what();
+  }
   // Merging a file with itself is refused (same client ids) with a clear error.
   const auto same = test::run_program("cslam-map", "merge " + (dir / "robot1.snapshot") + " " +
                                                        (dir / "robot1.snapshot") + " -o " + (dir / "x.snapshot"));

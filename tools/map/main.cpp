@@ -186,7 +186,7 @@ int cmd_merge(int argc, char** argv) {
   std::printf("merged %zu + %zu clients into %s: %zu group(s)\n", sa.clients.size(), sb.clients.size(), out.c_str(),
               groups.size());
   for (const auto& [g, members] : groups) {
-    std::printf("group %d:", g);
+    std::printf("group %d:", g.value());
     for (ClientId c : members) std::printf(" %d", int(c));
     std::printf("\n");
   }

@@ -137,7 +137,7 @@ int run_multi_client(const CliArgs& args) {
     std::printf(
         "fusion: client %u + client %u -> group %d at %.2f s (frame time %.3f), %d inliers, %d + %d keyframes, "
         "%d seam points, %d cross-map edges, %.1f ms\n",
-        e.client_a, e.client_b, e.group, e.wall_time_s, e.query_timestamp, e.inliers, e.keyframes_moved,
+        e.client_a, e.client_b, e.group.value(), e.wall_time_s, e.query_timestamp, e.inliers, e.keyframes_moved,
         e.keyframes_kept, e.seam_points, e.seam_edges, e.duration_ms);
   if (snap.group_ba.started > 0) {
     const Summary gba = summarize(snap.group_ba.ms);

@@ -29,6 +29,11 @@ ConsistencyChecker::ConsistencyChecker(int required) : required_(required) {
 
 void ConsistencyChecker::reset() { groups_.clear(); }
 
+void ConsistencyChecker::restore(std::vector<Tracked> groups) {
+  for (auto& g : groups) std::sort(g.members.begin(), g.members.end());
+  groups_ = std::move(groups);
+}
+
 std::vector<KeyFrameId> ConsistencyChecker::update(const std::vector<Group>& candidates) {
   std::vector<Tracked> next;
   next.reserve(candidates.size());

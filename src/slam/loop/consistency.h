@@ -35,6 +35,8 @@ class ConsistencyChecker {
     int count = 0;
   };
   const std::vector<Tracked>& tracked() const { return groups_; }
+  // Continues from a state read back from tracked() (a snapshot); members are sorted here.
+  void restore(std::vector<Tracked> groups);
   int required() const { return required_; }
 
  private:

@@ -62,6 +62,11 @@ KeyFramePtr Map::keyframe(KeyFrameId id) const {
   return it == keyframes_.end() ? nullptr : it->second;
 }
 
+MapPointPtr Map::map_point(MapPointId id) const {
+  auto it = map_points_.find(id);
+  return it == map_points_.end() ? nullptr : it->second;
+}
+
 KeyFramePtr Map::shared(KeyFrame* kf) const {
   if (!kf) return nullptr;
   auto it = keyframes_.find(kf->id);

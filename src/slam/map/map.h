@@ -75,6 +75,7 @@ class Map {
     return true;
   }
   KeyFramePtr keyframe(KeyFrameId id) const;
+  MapPointPtr map_point(MapPointId id) const;  // null if the map does not hold it
   std::size_t num_keyframes() const { return keyframes_.size(); }
   std::size_t num_map_points() const { return map_points_.size(); }
   KeyFramePtr origin() const { return origin_; }
