@@ -67,6 +67,7 @@ FusionState FusionManager::export_state() const {
 }
 
 void FusionManager::restore_state(const FusionState& state, const std::string& source) {
+  // Everything is resolved and checked before anything is installed: a refused state leaves none.
   std::map<MapKey, std::shared_ptr<Map>> maps;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -99,27 +100,35 @@ void FusionManager::restore_state(const FusionState& state, const std::string& s
     }
     seams.push_back(std::move(stored));
   }
+  std::vector<std::pair<std::pair<const Map*, const Map*>, ConsistencyChecker>> checkers;
   for (const ConsistencyState& c : state.consistency) {
+    const auto& query = map_of(c.query);
     const auto& other = map_of(c.other);
-    map_of(c.query);
-    std::shared_lock<std::shared_mutex> lock(other->mutex);
-    for (const auto& [members, count] : c.groups)
-      for (KeyFrameId id : members)
-        if (!other->keyframe(id))
-          throw InputError(source,
-                           "map fusion's place recognition names a keyframe " + name_of(c.other) + " does not hold");
-  }
-  std::lock_guard<std::mutex> lock(state_mutex_);
-  for (const ConsistencyState& c : state.consistency) {
     std::vector<ConsistencyChecker::Tracked> groups;
-    for (const auto& [members, count] : c.groups) groups.push_back({members, count});
+    {
+      std::shared_lock<std::shared_mutex> lock(other->mutex);
+      for (const auto& [members, count] : c.groups) {
+        for (KeyFrameId id : members)
+          if (!other->keyframe(id))
+            throw InputError(source,
+                             "map fusion's place recognition names a keyframe " + name_of(c.other) + " does not hold");
+        groups.push_back({members, count});
+      }
+    }
     ConsistencyChecker checker(config_.consistency);
     checker.restore(std::move(groups));
-    consistency_.insert_or_assign({map_of(c.query).get(), map_of(c.other).get()}, std::move(checker));
+    checkers.emplace_back(std::make_pair(query.get(), other.get()), std::move(checker));
   }
-  for (const auto& [key, seen] : state.keyframes_seen) keyframes_seen_[map_of(key).get()] = seen;
+  std::vector<std::pair<const Map*, int>> seen;
+  for (const auto& [key, n] : state.keyframes_seen) seen.emplace_back(map_of(key).get(), n);
+  std::vector<std::pair<std::pair<const Map*, const Map*>, int>> links;
   for (const MapLinkState& l : state.last_links)
-    last_link_[{map_of(l.query).get(), map_of(l.other).get()}] = l.query_keyframes_at_link;
+    links.emplace_back(std::make_pair(map_of(l.query).get(), map_of(l.other).get()), l.query_keyframes_at_link);
+
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  for (auto& [pair, checker] : checkers) consistency_.insert_or_assign(pair, std::move(checker));
+  for (const auto& [map, n] : seen) keyframes_seen_[map] = n;
+  for (const auto& [pair, n] : links) last_link_[pair] = n;
   for (auto& s : seams) seams_.push_back(std::move(s));
 }
 

@@ -7,6 +7,15 @@
 
 namespace cslam {
 
+namespace {
+
+template <class T, class Pred>
+void erase_where(std::vector<T>& v, Pred pred) {
+  v.erase(std::remove_if(v.begin(), v.end(), pred), v.end());
+}
+
+}  // namespace
+
 void keep_fusion_within_maps(SystemState& state) {
   struct Held {
     std::set<MapPointId> points;
@@ -21,37 +30,21 @@ void keep_fusion_within_maps(SystemState& state) {
     }
   FusionState& f = state.fusion;
   auto gone = [&](MapKey k) { return !held.count(k); };
-  f.seams.erase(std::remove_if(f.seams.begin(), f.seams.end(),
-                               [&](const SeamState& s) { return gone(s.kept_map) || gone(s.moved_map); }),
-                f.seams.end());
+  erase_where(f.seams, [&](const SeamState& s) { return gone(s.kept_map) || gone(s.moved_map); });
   for (SeamState& s : f.seams) {
     const Held &kept = held.at(s.kept_map), &moved = held.at(s.moved_map);
-    s.links.erase(
-        std::remove_if(s.links.begin(), s.links.end(),
-                       [&](const auto& l) { return !kept.points.count(l.first) || !moved.points.count(l.second); }),
-        s.links.end());
-    s.edges.erase(std::remove_if(s.edges.begin(), s.edges.end(),
-                                 [&](const SeamEdgeState& e) {
-                                   return !kept.keyframes.count(e.kept) || !moved.keyframes.count(e.moved);
-                                 }),
-                  s.edges.end());
+    erase_where(s.links, [&](const auto& l) { return !kept.points.count(l.first) || !moved.points.count(l.second); });
+    erase_where(s.edges, [&](const SeamEdgeState& e) {
+      return !kept.keyframes.count(e.kept) || !moved.keyframes.count(e.moved);
+    });
   }
-  f.consistency.erase(std::remove_if(f.consistency.begin(), f.consistency.end(),
-                                     [&](const ConsistencyState& c) { return gone(c.query) || gone(c.other); }),
-                      f.consistency.end());
+  erase_where(f.consistency, [&](const ConsistencyState& c) { return gone(c.query) || gone(c.other); });
   for (ConsistencyState& c : f.consistency) {
     const Held& other = held.at(c.other);
-    for (auto& [members, count] : c.groups)
-      members.erase(
-          std::remove_if(members.begin(), members.end(), [&](KeyFrameId id) { return !other.keyframes.count(id); }),
-          members.end());
+    for (auto& group : c.groups) erase_where(group.first, [&](KeyFrameId id) { return !other.keyframes.count(id); });
   }
-  f.last_links.erase(std::remove_if(f.last_links.begin(), f.last_links.end(),
-                                    [&](const MapLinkState& l) { return gone(l.query) || gone(l.other); }),
-                     f.last_links.end());
-  f.keyframes_seen.erase(
-      std::remove_if(f.keyframes_seen.begin(), f.keyframes_seen.end(), [&](const auto& k) { return gone(k.first); }),
-      f.keyframes_seen.end());
+  erase_where(f.last_links, [&](const MapLinkState& l) { return gone(l.query) || gone(l.other); });
+  erase_where(f.keyframes_seen, [&](const auto& k) { return gone(k.first); });
 }
 
 }  // namespace cslam

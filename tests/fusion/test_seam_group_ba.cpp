@@ -209,12 +209,13 @@ TEST(Seam, RestoredSeamsCarryTheGroupBaAndAHeldCopySeesNoMove) {
   EXPECT_EQ(fusion.group_ba_stats().last_linked_points, int(state.seams[0].links.size()));
 
   // Names that the restored maps do not hold are refused, naming the file.
-  for (int broken = 0; broken < 4; ++broken) {
+  for (int broken = 0; broken < 5; ++broken) {
     FusionState bad = state;
     if (broken == 0) bad.seams[0].moved_map = MapKey{3, 0};
     if (broken == 1) bad.seams[0].links[0].first.seq = 0x7ffffff0;
     if (broken == 2) bad.seams[0].edges[0].moved.seq = 0x7ffffff0;
     if (broken == 3) bad.consistency[0].groups[0].first[0].seq = 0x7ffffff0;
+    if (broken == 4) bad.last_links[0].other = MapKey{3, 0};  // after the seams and consistency
     FusionManager other(cfg, std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));
     other.restore_group(1, m.a.map, GroupId::from_value(100));
     other.restore_group(2, m.b.map, GroupId::from_value(100));
@@ -224,6 +225,8 @@ TEST(Seam, RestoredSeamsCarryTheGroupBaAndAHeldCopySeesNoMove) {
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("test.snapshot"), std::string::npos) << e.what();
     }
+    const FusionState left = other.export_state();  // a refused state installs nothing
+    EXPECT_TRUE(left.seams.empty() && left.consistency.empty() && left.last_links.empty()) << "case " << broken;
   }
   fusion.finish();
 }
