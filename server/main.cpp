@@ -138,6 +138,11 @@ int run(int argc, char** argv) {
               "after a new keyframe, a client's tracking waits until local mapping has created and fused its points "
               "(new-points), fully processed it (keyframe: repeatable runs, more latency) or not at all (none)",
               "new-points")
+      .option("tracking-slots",
+              "client workers tracking at a time, served in arrival order (0: no limit). Below the cores: each "
+              "frame is tracked at full speed and pose latency drops, at the cost of frames processed when the "
+              "machine is short of CPU (docs/performance.md)",
+              "0")
       .option("flow",
               "flow frames (optical-flow tracking between full frames, a fraction of their CPU): off, under-load "
               "(while a client's worker falls behind its live frames, instead of skipping more), always",
@@ -217,6 +222,8 @@ int run(int argc, char** argv) {
   sc.client_queue_capacity = std::size_t(capacity);
   sc.run_slam = !cli.flag_set("no-slam");
   sc.slam.mapper.tracking_wait = cslam::parse_tracking_wait(cli.get("tracking-wait"));
+  sc.tracking_slots = cli.get_int("tracking-slots");
+  if (sc.tracking_slots < 0) throw cslam::ConfigError("cslam-server: --tracking-slots must be >= 0 (0: no limit)");
   sc.slam.tracker.flow.mode = cslam::parse_flow_mode(cli.get("flow"));
   if (cli.flag_set("deterministic")) {
     sc.slam.threaded = false;

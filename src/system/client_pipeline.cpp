@@ -21,8 +21,12 @@ double percentile(std::vector<double> v, double p) {
 
 ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config,
                                std::shared_ptr<const Vocabulary> vocabulary, KeyFrameListener listener,
-                               std::function<GroupId(const Map*)> group_of)
-    : info_(info), config_(config), group_of_(std::move(group_of)), queue_(config.client_queue_capacity) {
+                               std::function<GroupId(const Map*)> group_of, FifoSlots* tracking_slots)
+    : info_(info),
+      config_(config),
+      group_of_(std::move(group_of)),
+      tracking_slots_(tracking_slots),
+      queue_(config.client_queue_capacity) {
   if (config_.run_slam)
     slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
   counters_.id = info_.id;
@@ -60,6 +64,8 @@ void ClientPipeline::run() {
   // Until then the worker counts as behind (overloaded) its live frames (WorkerLoad).
   std::chrono::steady_clock::time_point behind_until{}, overloaded_until{};
   while (auto frame = queue_.pop()) {
+    // The slot first: the frames that arrive while this worker waits for it are skipped below.
+    const FifoSlots::Hold slot(tracking_slots_);
     // Live: only the newest queued frame is worth processing; older ones are skipped (acked). A
     // frame with full depth (a possible keyframe) gives way only to a newer such frame.
     bool skipped_any = false;

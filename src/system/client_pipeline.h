@@ -12,6 +12,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/fifo_slots.h"
 #include "core/bounded_queue.h"
 #include "slam/client_slam.h"
 #include "system/collaborative_system.h"
@@ -23,7 +24,8 @@ class ClientPipeline {
   // `group_of` names the fused group of one of this client's maps (invalid: none yet); it is called
   // on the worker thread and must not lock the system's client table.
   ClientPipeline(const ClientInfo& info, const SystemConfig& config, std::shared_ptr<const Vocabulary> vocabulary,
-                 KeyFrameListener listener, std::function<GroupId(const Map*)> group_of = {});
+                 KeyFrameListener listener, std::function<GroupId(const Map*)> group_of = {},
+                 FifoSlots* tracking_slots = nullptr);
   ~ClientPipeline();
 
   // Stepped (SystemConfig::stepped): the frame is processed before submit returns.
@@ -54,6 +56,7 @@ class ClientPipeline {
   const ClientInfo info_;
   const SystemConfig& config_;
   std::function<GroupId(const Map*)> group_of_;
+  FifoSlots* tracking_slots_;         // shared by the system's workers (nullptr: no limit)
   std::unique_ptr<ClientSlam> slam_;  // null when run_slam is off
   BoundedQueue<RgbdFrame> queue_;
   mutable std::mutex mutex_;

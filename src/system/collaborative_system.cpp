@@ -26,6 +26,7 @@ const char* tracking_label(FrameFate state) { return state == FrameFate::kTracke
 struct CollaborativeSystem::Impl {
   SystemConfig config;
   std::shared_ptr<const Vocabulary> vocabulary;
+  std::unique_ptr<FifoSlots> tracking_slots;  // before the clients: their workers hold slots
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   mutable std::mutex mutex;  // guards the client table (not the clients' contents)
   std::map<ClientId, std::unique_ptr<ClientPipeline>> clients;
@@ -43,6 +44,8 @@ struct CollaborativeSystem::Impl {
 
 CollaborativeSystem::CollaborativeSystem(SystemConfig config) : impl_(std::make_unique<Impl>()) {
   impl_->config = std::move(config);
+  if (impl_->config.tracking_slots > 0 && !impl_->config.stepped)
+    impl_->tracking_slots = std::make_unique<FifoSlots>(impl_->config.tracking_slots);
   if (impl_->config.run_slam) {
     const std::string path =
         impl_->config.vocabulary_path.empty() ? default_vocabulary_path() : impl_->config.vocabulary_path;
@@ -79,10 +82,15 @@ void CollaborativeSystem::add_client(const ClientInfo& info) {
     FusionManager* fusion = impl_->fusion.get();
     group_of = [fusion](const Map* m) { return fusion->group_of(m); };
   }
-  impl_->clients.emplace(info.id, std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary,
-                                                                   std::move(listener), std::move(group_of)));
+  impl_->clients.emplace(info.id,
+                         std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary, std::move(listener),
+                                                          std::move(group_of), impl_->tracking_slots.get()));
   logger("system")->info("client {} ('{}') registered, camera {} {}x{}", info.id, info.name, info.camera.name,
                          info.camera.width, info.camera.height);
+}
+
+std::size_t CollaborativeSystem::tracking_slot_waiters() const {
+  return impl_->tracking_slots ? impl_->tracking_slots->waiting() : 0;
 }
 
 bool CollaborativeSystem::has_client(ClientId id) const {
@@ -402,7 +410,8 @@ void CollaborativeSystem::restore_state(const SystemState& state, const std::str
       listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) {
         fusion->notify(c, m, kf);
       };
-    auto pipeline = std::make_unique<ClientPipeline>(cs.info, impl_->config, impl_->vocabulary, std::move(listener));
+    auto pipeline = std::make_unique<ClientPipeline>(cs.info, impl_->config, impl_->vocabulary, std::move(listener),
+                                                     std::function<GroupId(const Map*)>{}, impl_->tracking_slots.get());
     pipeline->slam()->restore_state(cs, source);
     // Groups first: the maps are registered with fusion before any of their keyframes can be.
     // (A failed insert below leaves only expired weak entries behind.)

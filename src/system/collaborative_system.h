@@ -81,6 +81,8 @@ class CollaborativeSystem {
 
   // One consistent view of every client (one call, one lock).
   SystemSnapshot snapshot() const;
+  // Client workers waiting for a tracking slot now (SystemConfig::tracking_slots; 0 without).
+  std::size_t tracking_slot_waiters() const;
 
   // Processes every queued frame, stops the workers and the fusion thread. Idempotent.
   void finish();

@@ -21,6 +21,9 @@ struct SystemConfig {
   // and one that skipped again while behind as overloaded (WorkerLoad: flow frames under
   // FlowMode::kUnderLoad, longer runs of them while overloaded).
   double behind_hold_s = 1.0;
+  // Client workers tracking at a time, served in arrival order (0: no limit). Fewer than the
+  // robots on a machine with fewer cores: frames are tracked in turn at full speed.
+  int tracking_slots = 0;
   // Vocabulary file for BoW (empty: the project's default vocabulary).
   std::string vocabulary_path;
   // Map fusion across clients (rate, thresholds).
