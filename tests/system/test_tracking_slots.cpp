@@ -10,31 +10,21 @@
 
 #include <gtest/gtest.h>
 
+#include "common/small_camera.h"
 #include "system/collaborative_system.h"
 
 using namespace cslam;
 
 namespace {
 
-PinholeCamera small_camera() {
-  PinholeCamera cam;
-  cam.name = "slots";
-  cam.width = 64;
-  cam.height = 48;
-  cam.fx = cam.fy = 50;
-  cam.cx = 31.5;
-  cam.cy = 23.5;
-  cam.depth_factor = 5000;
-  return cam;
-}
-
 RgbdFrame frame_of(ClientId client, std::uint64_t seq) {
+  const PinholeCamera cam = test::small_camera();
   RgbdFrame f;
   f.client = client;
   f.seq = seq;
   f.timestamp = double(seq) / 30.0;
-  f.bgr = cv::Mat(48, 64, CV_8UC3, cv::Scalar(90, 90, 90));
-  f.depth = cv::Mat(48, 64, CV_16UC1, cv::Scalar(5000));
+  f.bgr = test::plane_colour(cam);
+  f.depth = test::plane_depth(cam, 1.0);
   return f;
 }
 
@@ -65,8 +55,8 @@ Outcome run_with_slots(int slots) {
     cv.notify_all();
   };
   CollaborativeSystem system(sc);
-  system.add_client({1, "one", small_camera()});
-  system.add_client({2, "two", small_camera()});
+  system.add_client({1, "one", test::small_camera()});
+  system.add_client({2, "two", test::small_camera()});
   EXPECT_TRUE(system.submit(frame_of(1, 1)));
   held.get_future().wait();
   EXPECT_TRUE(system.submit(frame_of(2, 1)));
