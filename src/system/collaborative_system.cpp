@@ -40,6 +40,19 @@ struct CollaborativeSystem::Impl {
     const GroupId g = map ? fusion->group_of(map.get()) : GroupId();
     return g.valid() ? g : GroupId::of_map(p.info().id, 0);
   }
+
+  // One client's pipeline, wired to fusion (keyframes in, fused groups out) the same way for a
+  // newly registered client and for one restored from a snapshot.
+  std::unique_ptr<ClientPipeline> make_pipeline(const ClientInfo& info) const {
+    KeyFrameListener listener;
+    std::function<GroupId(const Map*)> group_of_map;
+    if (FusionManager* f = fusion.get()) {
+      listener = [f](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { f->notify(c, m, kf); };
+      group_of_map = [f](const Map* m) { return f->group_of(m); };
+    }
+    return std::make_unique<ClientPipeline>(info, config, vocabulary, std::move(listener), std::move(group_of_map),
+                                            tracking_slots.get());
+  }
 };
 
 CollaborativeSystem::CollaborativeSystem(SystemConfig config) : impl_(std::make_unique<Impl>()) {
@@ -72,19 +85,7 @@ void CollaborativeSystem::add_client(const ClientInfo& info) {
       throw std::invalid_argument("client " + std::to_string(info.id) + " re-registered with a different camera");
     return;
   }
-  KeyFrameListener listener;
-  if (impl_->fusion) {
-    FusionManager* fusion = impl_->fusion.get();
-    listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion->notify(c, m, kf); };
-  }
-  std::function<GroupId(const Map*)> group_of;
-  if (impl_->fusion) {
-    FusionManager* fusion = impl_->fusion.get();
-    group_of = [fusion](const Map* m) { return fusion->group_of(m); };
-  }
-  impl_->clients.emplace(info.id,
-                         std::make_unique<ClientPipeline>(info, impl_->config, impl_->vocabulary, std::move(listener),
-                                                          std::move(group_of), impl_->tracking_slots.get()));
+  impl_->clients.emplace(info.id, impl_->make_pipeline(info));
   logger("system")->info("client {} ('{}') registered, camera {} {}x{}", info.id, info.name, info.camera.name,
                          info.camera.width, info.camera.height);
 }
@@ -404,14 +405,8 @@ void CollaborativeSystem::restore_state(const SystemState& state, const std::str
     }
     // Built and restored without the client table's lock (restoring recomputes BoW vectors):
     // frames of other clients keep flowing meanwhile.
-    KeyFrameListener listener;
     FusionManager* fusion = impl_->fusion.get();
-    if (fusion)
-      listener = [fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) {
-        fusion->notify(c, m, kf);
-      };
-    auto pipeline = std::make_unique<ClientPipeline>(cs.info, impl_->config, impl_->vocabulary, std::move(listener),
-                                                     std::function<GroupId(const Map*)>{}, impl_->tracking_slots.get());
+    auto pipeline = impl_->make_pipeline(cs.info);
     pipeline->slam()->restore_state(cs, source);
     // Groups first: the maps are registered with fusion before any of their keyframes can be.
     // (A failed insert below leaves only expired weak entries behind.)

@@ -1,5 +1,7 @@
 // Snapshot round trip: a client's SLAM state -> file bytes -> state -> a new ClientSlam, which
 // holds the same maps and trajectory and continues tracking in the restored map.
+#include <map>
+#include <mutex>
 #include <set>
 #include <tuple>
 
@@ -7,6 +9,7 @@
 #include <zlib.h>
 
 #include "eval/trajectory_eval.h"
+#include "io/dataset_frame.h"
 #include "slam/loop/global_ba.h"
 #include "proto/snapshot_adapter.h"
 #include "proto/snapshot_file.h"
@@ -268,6 +271,29 @@ TEST(SnapshotMerge, TwoOverlappingSessionsBecomeOneGroup) {
   };
   EXPECT_EQ(link_set(again), link_set(merged));
   EXPECT_EQ(again.fusion.last_links.size(), merged.fusion.last_links.size());
+
+  // Restored clients are wired to fusion like registered ones: the pose each frame acknowledges
+  // names the restored fused group (a robot reading it would otherwise think itself unfused).
+  {
+    SystemConfig live = config;
+    std::mutex mutex;
+    std::map<ClientId, GroupId> acked;
+    live.on_frame_done = [&](const FrameDone& d) {
+      std::lock_guard<std::mutex> lock(mutex);
+      acked[d.client] = d.group;
+    };
+    CollaborativeSystem restored(live);
+    restored.restore_state(merged, "merged.snapshot");
+    for (ClientId k = 1; k <= 2; ++k) {
+      const TumDataset ds = open_tum_dataset(s.dir / ("scene/robot_" + std::to_string(k)));
+      ASSERT_TRUE(restored.submit(load_dataset_frame(ds.pairs[ds.pairs.size() / 2], k, 100000)));
+    }
+    restored.finish();
+    const GroupId fused = GroupId::from_value(main_group(merged.clients[0]));
+    ASSERT_EQ(acked.size(), 2u);
+    EXPECT_EQ(acked[1], fused);
+    EXPECT_EQ(acked[2], fused);
+  }
 
   // A seam naming a point the maps do not hold is refused with the file's name.
   SystemState broken = merged;
