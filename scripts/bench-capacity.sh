@@ -12,6 +12,8 @@
 # (one variant). CSLAM_CAPACITY_VARIANTS="ARGS_A|ARGS_B|...": server variants alternated run by run
 # (run r: every N with A, then with B, ...), one table each, e.g. "--flow under-load|--flow off";
 # (e.g. --no-dense, to measure the live dense map's cost back to back with and without it).
+# A variant that starts with "server=PATH " runs that cslam-server binary (e.g. the previous
+# build's, copied aside) with the rest as its options.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/lib/bench-run.sh
@@ -39,9 +41,14 @@ run_case() {
   local name="$1" n="$2" first="${3:-1}" dir="$OUT/$1"
   rm -rf "$dir"; mkdir -p "$dir"
   local load_before; load_before=$(loadavg)
+  local server="$BIN/cslam-server" args="$SERVER_ARGS"
+  if [[ "$args" == server=* ]]; then
+    server="${args%% *}"; server="${server#server=}"
+    if [[ "$args" == *" "* ]]; then args="${args#* }"; else args=""; fi
+  fi
   /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
-    "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
-    --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $SERVER_ARGS > "$dir/server.log" 2>&1 &
+    "$server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
+    --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $args > "$dir/server.log" 2>&1 &
   local server_pid=$!
   wait_endpoint "$dir/endpoint"
   local endpoint; endpoint=$(head -1 "$dir/endpoint")

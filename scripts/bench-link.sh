@@ -7,6 +7,7 @@
 # alternated, and once with the default pair under adaptive rate (cslam-client --adapt: the
 # robots step to a lean stream while their acks say the link queues). Reports per robot: frames processed (of those captured), pose latency p50/p99
 # (capture to ack, client side), MB/s sent and ATE; medians and min-max over the runs.
+# A mode may end in @sS: the server runs with --tracking-slots S (e.g. "lean lean@s2").
 # Needs root (ip netns, tc). Usage:
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
@@ -40,10 +41,11 @@ if [ ! -f "$SCENE/robot_${N}/groundtruth.txt" ]; then
 fi
 
 run_case() {
-  local dir="$1" mode="$2"
+  local dir="$1" mode="${2%@s*}" server_extra=()
+  [ "$2" != "$mode" ] && server_extra=(--tracking-slots "${2##*@s}")
   rm -rf "$dir"; mkdir -p "$dir"
   inns /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
-    "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$N" --exit-when-done \
+    "$BIN/cslam-server" "${server_extra[@]}" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$N" --exit-when-done \
     --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn > "$dir/server.log" 2>&1 &
   local server_pid=$!
   wait_endpoint "$dir/endpoint"

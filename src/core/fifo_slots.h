@@ -23,30 +23,51 @@ class FifoSlots {
       if (owner_) owner_->acquire();
     }
     ~Hold() {
-      if (owner_) owner_->release();
+      if (owner_ && held_) owner_->release();
     }
     Hold(const Hold&) = delete;
     Hold& operator=(const Hold&) = delete;
 
+    // While the holder waits for another thread's work, its slot serves the next waiter; taking it
+    // back goes before every thread that has not held a slot yet (its frame is half done).
+    void lend() {
+      if (owner_ && held_) owner_->release();
+      held_ = false;
+    }
+    void take_back() {
+      if (owner_ && !held_) owner_->acquire_returning();
+      held_ = true;
+    }
+
    private:
     FifoSlots* owner_;
+    bool held_ = true;
   };
 
-  // Threads waiting for a slot now.
+  // Threads waiting for a slot now (new tickets and returning lenders).
   std::size_t waiting() const {
     std::lock_guard<std::mutex> lock(mutex_);
-    return std::size_t(next_ticket_ - serving_);
+    return std::size_t(next_ticket_ - serving_) + std::size_t(returning_);
   }
 
  private:
   void acquire() {
     std::unique_lock<std::mutex> lock(mutex_);
     const std::uint64_t ticket = next_ticket_++;
-    cv_.wait(lock, [&] { return ticket == serving_ && free_ > 0; });
+    cv_.wait(lock, [&] { return ticket == serving_ && free_ > 0 && returning_ == 0; });
     --free_;
     ++serving_;
     lock.unlock();
     cv_.notify_all();  // the next ticket may find a free slot too
+  }
+  void acquire_returning() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    ++returning_;
+    cv_.wait(lock, [&] { return free_ > 0; });
+    --free_;
+    --returning_;
+    lock.unlock();
+    cv_.notify_all();
   }
   void release() {
     {
@@ -59,6 +80,7 @@ class FifoSlots {
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   int free_;
+  int returning_ = 0;  // lent slots being taken back: served before new tickets
   std::uint64_t next_ticket_ = 0, serving_ = 0;
 };
 

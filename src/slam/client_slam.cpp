@@ -42,12 +42,18 @@ std::unique_ptr<LocalMapper> ClientSlam::attach_workers(const std::shared_ptr<Ma
   const ClientId client = info_.id;
   std::weak_ptr<Map> weak = map;
   LoopCloser* loop = loop_closer_.get();
+  mapper->set_wait_hooks(wait_hooks_);
   mapper->set_on_processed([this, client, weak, loop](const KeyFramePtr& kf) {
     loop->insert_keyframe(kf);
     if (listener_)
       if (auto m = weak.lock()) listener_(client, m, kf);
   });
   return mapper;
+}
+
+void ClientSlam::set_tracking_wait_hooks(TrackingWaitHooks hooks) {
+  wait_hooks_ = std::move(hooks);
+  if (mapper_) mapper_->set_wait_hooks(wait_hooks_);
 }
 
 void ClientSlam::start_new_map() {

@@ -106,6 +106,9 @@ class ClientSlam {
   // A new recording session of the same client: a new map (fused later by map fusion) and a new
   // time base; the restored maps are kept.
   void start_new_session();
+  // Runs around tracking's waits for local mapping, in every map's mapper; set before the first
+  // frame (the system lends the worker's tracking slot meanwhile).
+  void set_tracking_wait_hooks(TrackingWaitHooks hooks);
 
  private:
   // Finishes the current map's local mapper and loop closer and starts both on `map`, the mapper
@@ -129,6 +132,7 @@ class ClientSlam {
   std::shared_ptr<const ScalePyramid> pyramid_;
   std::shared_ptr<IdAllocator> ids_;
   KeyFrameListener listener_;
+  TrackingWaitHooks wait_hooks_;
   std::vector<std::shared_ptr<Map>> maps_;
   std::unique_ptr<LocalMapper> mapper_;
   std::unique_ptr<LoopCloser> loop_closer_;

@@ -29,6 +29,13 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
       queue_(config.client_queue_capacity) {
   if (config_.run_slam)
     slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
+  if (slam_ && tracking_slots_)  // on the worker thread, inside process(): slot_ is its frame's
+    slam_->set_tracking_wait_hooks({[this] {
+                                      if (slot_) slot_->lend();
+                                    },
+                                    [this] {
+                                      if (slot_) slot_->take_back();
+                                    }});
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = GroupId::from_value(info_.id);  // until the first frame reports its group
@@ -65,7 +72,8 @@ void ClientPipeline::run() {
   std::chrono::steady_clock::time_point behind_until{}, overloaded_until{};
   while (auto frame = queue_.pop()) {
     // The slot first: the frames that arrive while this worker waits for it are skipped below.
-    const FifoSlots::Hold slot(tracking_slots_);
+    FifoSlots::Hold slot(tracking_slots_);
+    slot_ = &slot;
     // Live: only the newest queued frame is worth processing; older ones are skipped (acked). A
     // frame with full depth (a possible keyframe) gives way only to a newer such frame.
     bool skipped_any = false;

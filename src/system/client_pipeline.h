@@ -57,6 +57,7 @@ class ClientPipeline {
   const SystemConfig& config_;
   std::function<GroupId(const Map*)> group_of_;
   FifoSlots* tracking_slots_;         // shared by the system's workers (nullptr: no limit)
+  FifoSlots::Hold* slot_ = nullptr;   // the worker's slot for its current frame (worker thread only)
   std::unique_ptr<ClientSlam> slam_;  // null when run_slam is off
   BoundedQueue<RgbdFrame> queue_;
   mutable std::mutex mutex_;

@@ -1,4 +1,4 @@
-// FifoSlots: at most N holders, waiters served in arrival order.
+// FifoSlots: at most N holders, waiters served in arrival order; a lent slot is taken back first.
 #include <atomic>
 #include <mutex>
 #include <thread>
@@ -68,4 +68,66 @@ TEST(FifoSlots, SecondSlotServesAWaiterWhileTheFirstIsHeld) {
   std::thread t([&] { const FifoSlots::Hold b(&slots); });  // must not block: one slot is free
   t.join();
   EXPECT_EQ(slots.waiting(), 0u);
+}
+
+// A holder that lends its slot while it waits lets the next waiter in, and taking it back goes
+// before a thread that arrived later (its frame is half done).
+TEST(FifoSlots, LentSlotServesAWaiterAndIsTakenBackBeforeNewcomers) {
+  FifoSlots slots(1);
+  FifoSlots::Hold a(&slots);
+  std::mutex m;
+  std::vector<char> order;
+  std::atomic<bool> b_in{false}, b_may_leave{false};
+  std::thread b([&] {
+    const FifoSlots::Hold hold(&slots);
+    b_in = true;
+    while (!b_may_leave) std::this_thread::yield();
+    std::lock_guard<std::mutex> lock(m);
+    order.push_back('b');
+  });
+  wait_for_waiters(slots, 1);
+  a.lend();
+  while (!b_in) std::this_thread::yield();  // b got the lent slot
+  std::thread c([&] {
+    const FifoSlots::Hold hold(&slots);
+    std::lock_guard<std::mutex> lock(m);
+    order.push_back('c');
+  });
+  wait_for_waiters(slots, 1);  // c waits behind b's slot
+  std::thread back([&] {
+    a.take_back();
+    {
+      std::lock_guard<std::mutex> lock(m);
+      order.push_back('a');
+    }
+    a.lend();  // a's frame is done: its slot goes to c
+  });
+  wait_for_waiters(slots, 2);  // a returning and c new, both waiting for b's slot
+  b_may_leave = true;
+  b.join();
+  back.join();
+  c.join();
+  EXPECT_EQ(order, (std::vector<char>{'b', 'a', 'c'}));
+  EXPECT_EQ(slots.waiting(), 0u);
+}
+
+TEST(FifoSlots, ALentSlotIsNotReleasedTwice) {
+  FifoSlots slots(1);
+  {
+    FifoSlots::Hold a(&slots);
+    a.lend();
+  }  // the destructor must not release the lent slot a second time
+  std::atomic<bool> got{false};
+  std::thread t;
+  {
+    const FifoSlots::Hold b(&slots);
+    t = std::thread([&] {
+      const FifoSlots::Hold c(&slots);
+      got = true;
+    });
+    while (slots.waiting() == 0 && !got) std::this_thread::yield();
+    EXPECT_FALSE(got.load()) << "two holders of one slot";
+  }
+  t.join();
+  EXPECT_TRUE(got.load());
 }

@@ -2,6 +2,7 @@
 // it never crashes or blocks.
 #include <cmath>
 #include <random>
+#include <thread>
 #include <shared_mutex>
 
 #include <gtest/gtest.h>
@@ -169,6 +170,35 @@ TEST_F(ClientSlamTest, FinalGlobalBaOffByConfig) {
   for (int i = 0; i < 20; ++i) ASSERT_EQ(slam.process(frame(i)).fate, FrameFate::kTracked) << i;
   slam.finish();
   EXPECT_EQ(slam.final_global_ba(), 0);
+}
+
+// Threaded: tracking's waits for local mapping run between the wait hooks (the system lends the
+// worker's tracking slot there), on the tracking thread, once per keyframe, never nested.
+TEST_F(ClientSlamTest, TrackingWaitHooksRunAroundEachWaitForLocalMapping) {
+  SlamConfig cfg;
+  cfg.threaded = true;
+  ClientSlam slam(info_, cfg, *vocabulary_);
+  const std::thread::id tracking_thread = std::this_thread::get_id();
+  int before = 0, after = 0, depth = 0, max_depth = 0;
+  bool other_thread = false;
+  slam.set_tracking_wait_hooks({[&] {
+                                  ++before;
+                                  max_depth = std::max(max_depth, ++depth);
+                                  other_thread |= std::this_thread::get_id() != tracking_thread;
+                                },
+                                [&] {
+                                  ++after;
+                                  --depth;
+                                  other_thread |= std::this_thread::get_id() != tracking_thread;
+                                }});
+  for (int i = 0; i < 60; ++i) ASSERT_EQ(slam.process(frame(i)).fate, FrameFate::kTracked) << i;
+  slam.finish();
+  const int keyframes = slam.snapshot().keyframes;
+  EXPECT_GE(keyframes, 3);
+  EXPECT_GE(before, keyframes);  // culled keyframes were inserted too
+  EXPECT_EQ(after, before);
+  EXPECT_EQ(max_depth, 1);
+  EXPECT_FALSE(other_thread);
 }
 
 // A robot that saves bandwidth sends full depth only every few frames (and when asked): the

@@ -28,8 +28,22 @@ TrackingWait parse_tracking_wait(const std::string& name) {
 void LocalMapper::insert_keyframe(const KeyFramePtr& kf) {
   // Backpressure: tracking waits while local mapping is a full queue behind, so that every
   // keyframe tracking decides on is processed completely (no skipped fusion or BA).
+  struct Waiting {  // the hooks run around both waits, also when one throws
+    const TrackingWaitHooks& hooks;
+    explicit Waiting(const TrackingWaitHooks& h) : hooks(h) {
+      if (hooks.before) hooks.before();
+    }
+    ~Waiting() {
+      if (hooks.after) hooks.after();
+    }
+  };
+  if (!threaded_) {
+    worker_.push_waiting(kf, config_.max_pending_keyframes);
+    return;
+  }
+  const Waiting waiting(wait_hooks_);
   const std::uint64_t n = worker_.push_waiting(kf, config_.max_pending_keyframes);
-  if (!threaded_ || config_.tracking_wait == TrackingWait::kNone) return;
+  if (config_.tracking_wait == TrackingWait::kNone) return;
   const bool whole_keyframe = config_.tracking_wait == TrackingWait::kKeyframe;
   worker_.wait_until([&] { return (whole_keyframe ? worker_.done() : points_done_) >= n; });
 }

@@ -51,12 +51,19 @@ struct LocalMapperStats {
 // Called after each processed keyframe (e.g. loop detection, map fusion). Runs on the mapper thread.
 using KeyFrameProcessedCallback = std::function<void(const KeyFramePtr&)>;
 
+// Called on the tracking thread around its waits for local mapping (a full queue, or the new
+// keyframe's points): a scheduler can lend what the tracking thread holds meanwhile.
+struct TrackingWaitHooks {
+  std::function<void()> before, after;
+};
+
 class LocalMapper : public KeyFrameSink {
  public:
   LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, bool threaded);
   ~LocalMapper() override;
 
   void set_on_processed(KeyFrameProcessedCallback cb) { on_processed_ = std::move(cb); }
+  void set_wait_hooks(TrackingWaitHooks hooks) { wait_hooks_ = std::move(hooks); }
 
   // KeyFrameSink
   void insert_keyframe(const KeyFramePtr& kf) override;
@@ -89,6 +96,7 @@ class LocalMapper : public KeyFrameSink {
   std::list<MapPointPtr> recent_points_;
   PointerSet ba_points_seen_;  // local_bundle_adjustment's scratch, reused keyframe to keyframe
   KeyFrameProcessedCallback on_processed_;
+  TrackingWaitHooks wait_hooks_;
   mutable std::mutex stats_mutex_;
   LocalMapperStats stats_;
   QueueWorker<KeyFramePtr> worker_;  // last: its thread ends before the members it uses go
