@@ -41,11 +41,9 @@ run_case() {
   local name="$1" n="$2" first="${3:-1}" dir="$OUT/$1"
   rm -rf "$dir"; mkdir -p "$dir"
   local load_before; load_before=$(loadavg)
-  local server="$BIN/cslam-server" args="$SERVER_ARGS"
-  if [[ "$args" == server=* ]]; then
-    server="${args%% *}"; server="${server#server=}"
-    if [[ "$args" == *" "* ]]; then args="${args#* }"; else args=""; fi
-  fi
+  local VARIANT_BIN VARIANT_ARGS
+  server_variant "$SERVER_ARGS"
+  local server="$VARIANT_BIN" args="$VARIANT_ARGS"
   /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
     "$server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
     --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $args > "$dir/server.log" 2>&1 &

@@ -4,7 +4,8 @@
 # against one cslam-server. Per run: each robot's frames tracked (poses in the server's trajectory
 # / frames in its range), frames skipped by the server, pose latency p50/p99 (capture to ack, from
 # the clients' summaries), flow frames, and the fused ATE (one alignment over the three robots).
-# Server variants are alternated run by run (VARIANTS="ARGS_A|ARGS_B", e.g. "--flow under-load|--flow off").
+# Server variants are alternated run by run (VARIANTS="ARGS_A|ARGS_B", e.g. "--flow under-load|--flow off"; a variant
+# "server=PATH ARGS" runs that cslam-server binary, e.g. the previous build's copied aside).
 # Usage: scripts/bench-live-split.sh [RUNS=3] [OUT=bench_out/live_split] [VARIANTS=""] [DATASET=../shared/data/tum_fr1_desk]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,11 +34,13 @@ mapfile -t RANGES < <("$BIN/cslam-eval" split --frames "$N" --clients 3 --overla
 echo "== machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg); revision $(git rev-parse --short HEAD)$(git diff --quiet || echo '+dirty')"
 echo "== $DS: $N frames, robots ${RANGES[*]}, $RUNS run(s) per variant"
 
-run_case() {  # dir server-args
-  local dir=$1 args=$2
+run_case() {  # dir variant
+  local dir=$1 VARIANT_BIN VARIANT_ARGS
+  server_variant "$2"
+  local args=$VARIANT_ARGS
   rm -rf "$dir"; mkdir -p "$dir"
   # shellcheck disable=SC2086
-  "$BIN/cslam-server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients 3 --exit-when-done --http off \
+  /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" "$VARIANT_BIN" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients 3 --exit-when-done --http off \
     --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $args > "$dir/server.log" 2>&1 &
   local server=$!
   wait_endpoint "$dir/endpoint"
@@ -70,10 +73,10 @@ def med(v):
     v = [x for x in v if x == x]
     return f"{statistics.median(v):.{2 if max(v) < 10 else 1}f} ({min(v):.{2 if max(v) < 10 else 1}f}–{max(v):.{2 if max(v) < 10 else 1}f})" if v else "–"
 print(f"fr1/desk split into 3 robots at 5 % ({', '.join(ranges)}), live at 30 Hz; median (min–max) over {runs} run(s).\n")
-print("| server options | tracked % (worst robot) | skipped per robot | flow frames % | pose latency p50 ms | p99 ms (worst robot) | fused ATE cm |")
-print("|---|---|---|---|---|---|---|")
+print("| server options | tracked % (worst robot) | skipped per robot | flow frames % | pose latency p50 ms | p99 ms (worst robot) | fused ATE cm | server CPU s |")
+print("|---|---|---|---|---|---|---|---|")
 for vi, v in enumerate(variants):
-    worst, skipped, flow, p50, p99, ate = [], [], [], [], [], []
+    worst, skipped, flow, p50, p99, ate, cpu = [], [], [], [], [], [], []
     for r in range(1, runs + 1):
         d = f"{out}/v{vi}_r{r}"
         try:
@@ -91,5 +94,7 @@ for vi, v in enumerate(variants):
         cmd = [f"{bins}/cslam-eval", "ate", gt, f"{d}/out/client_1.txt", "--json", "--also", gt, f"{d}/out/client_2.txt", gt, f"{d}/out/client_3.txt"]
         res = subprocess.run(cmd, capture_output=True, text=True)
         ate.append(100 * json.loads(res.stdout)["rmse"] if res.returncode == 0 else float("nan"))
-    print(f"| {v or '(defaults)'} | {med(worst)} | {med(skipped)} | {med(flow)} | {med(p50)} | {med(p99)} | {med(ate)} |")
+        user, system = open(f"{d}/server_time.txt").read().split()[:2]
+        cpu.append(float(user) + float(system))
+    print(f"| {v or '(defaults)'} | {med(worst)} | {med(skipped)} | {med(flow)} | {med(p50)} | {med(p99)} | {med(ate)} | {med(cpu)} |")
 PY

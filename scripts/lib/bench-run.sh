@@ -17,3 +17,14 @@ wait_run() {
   wait "$server" || rc=1
   [ "$rc" = 0 ] || echo "   (a process exited non-zero: see $dir/*.log)"
 }
+
+# server_variant VARIANT: sets VARIANT_BIN and VARIANT_ARGS from a benchmark's server variant. A
+# variant "server=PATH ARGS..." runs that cslam-server binary (e.g. the previous build's, copied
+# aside) with ARGS; any other variant is options for "$BIN/cslam-server".
+server_variant() {
+  VARIANT_BIN="$BIN/cslam-server" VARIANT_ARGS="$1"
+  if [[ "$1" == server=* ]]; then
+    VARIANT_BIN="${1%% *}"; VARIANT_BIN="${VARIANT_BIN#server=}"
+    if [[ "$1" == *" "* ]]; then VARIANT_ARGS="${1#* }"; else VARIANT_ARGS=""; fi
+  fi
+}

@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "core/thread_priority.h"
+#include "geometry/camera.h"
 
 namespace cslam::server {
 
@@ -127,7 +128,7 @@ bool DenseService::put_job(Job& job) {
     const ClientId c = job.client.id;
     std::lock_guard<std::mutex> lock(camera_mutex_);
     const auto known = store_cameras_.find(c);
-    if (known == store_cameras_.end() || !RayTable(known->second).matches(job.client.camera)) {
+    if (known == store_cameras_.end() || !same_projection(known->second, job.client.camera)) {
       store_.put_camera(c, job.client.camera);
       store_cameras_[c] = job.client.camera;
     }
@@ -210,7 +211,7 @@ void DenseService::integrate_jobs(std::vector<std::shared_ptr<Job>>& jobs) {
   for (const auto& job : jobs) {
     const ClientId c = job->client.id;
     const auto known = cameras_.find(c);
-    if (known == cameras_.end() || !RayTable(known->second).matches(job->client.camera)) {
+    if (known == cameras_.end() || !same_projection(known->second, job->client.camera)) {
       cameras_[c] = job->client.camera;
       map_.set_camera(c, job->client.camera);
     }

@@ -1,5 +1,6 @@
 #include "codec/depth_subsample.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -37,11 +38,16 @@ cv::Mat expand_depth(const cv::Mat& coarse, int subsample, int width, int height
   if (coarse.type() != CV_16UC1 || coarse.size() != subsampled_depth_size(width, height, subsample))
     throw std::invalid_argument("expand_depth: the coarse image is not the subsampled size of " +
                                 std::to_string(width) + "x" + std::to_string(height));
+  // Each coarse row is spread once into the first full row of its block, which the block's other
+  // rows copy: no division per pixel (this runs on every light frame before its tracking).
   cv::Mat out(height, width, CV_16UC1);
-  for (int y = 0; y < height; ++y) {
-    const auto* src = coarse.ptr<std::uint16_t>(y / subsample);
-    auto* dst = out.ptr<std::uint16_t>(y);
-    for (int x = 0; x < width; ++x) dst[x] = src[x / subsample];
+  for (int y0 = 0; y0 < height; y0 += subsample) {
+    const auto* src = coarse.ptr<std::uint16_t>(y0 / subsample);
+    auto* first = out.ptr<std::uint16_t>(y0);
+    for (int x0 = 0, i = 0; x0 < width; x0 += subsample, ++i)
+      std::fill(first + x0, first + std::min(x0 + subsample, width), src[i]);
+    for (int y = y0 + 1; y < std::min(y0 + subsample, height); ++y)
+      std::copy(first, first + width, out.ptr<std::uint16_t>(y));
   }
   return out;
 }

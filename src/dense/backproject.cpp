@@ -33,11 +33,7 @@ PixelProjector::PixelProjector(const RayTable& rays) {
   height_ = c.height;
 }
 
-bool RayTable::matches(const PinholeCamera& o) const {
-  const auto& c = camera_;
-  return c.fx == o.fx && c.fy == o.fy && c.cx == o.cx && c.cy == o.cy && c.dist == o.dist && c.width == o.width &&
-         c.height == o.height;
-}
+bool RayTable::matches(const PinholeCamera& other) const { return same_projection(camera_, other); }
 
 std::size_t backproject(const cv::Mat& bgr, const cv::Mat& depth, const RayTable& rays, const SE3& T_world_cam,
                         const BackprojectParams& params, ColoredCloud& out, const SE3* T_colourcam_depthcam) {

@@ -13,6 +13,11 @@ bool PinholeCamera::has_distortion() const {
   return false;
 }
 
+bool same_projection(const PinholeCamera& a, const PinholeCamera& b) {
+  return a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.dist == b.dist && a.width == b.width &&
+         a.height == b.height;
+}
+
 namespace {
 std::string num(double v) {
   char buf[32];

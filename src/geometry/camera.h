@@ -63,6 +63,10 @@ struct PinholeCamera {
   std::array<double, 4> undistorted_bounds() const;
 };
 
+// True if a and b project alike: the same intrinsics, distortion and size (depth scaling, readout
+// time and name aside).
+bool same_projection(const PinholeCamera& a, const PinholeCamera& b);
+
 // Presets for the TUM RGB-D cameras (colour camera, as published with the benchmark).
 PinholeCamera camera_tum_fr1();
 PinholeCamera camera_tum_fr2(bool depth_correction = false);

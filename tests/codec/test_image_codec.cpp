@@ -217,4 +217,22 @@ TEST(DepthSubsample, KeepsEverySthPixelAndSpreadsItOverItsBlock) {
   EXPECT_THROW(subsample_depth(wrong_type, 2), std::invalid_argument);
 }
 
+// Every subsample and sizes that do and do not divide by it: each pixel takes its block's sample.
+TEST(DepthSubsample, ExpandsEverySubsampleAndPartialBlock) {
+  for (const cv::Size size : {cv::Size(640, 480), cv::Size(33, 17), cv::Size(48, 49)}) {
+    cv::Mat depth(size, CV_16UC1);
+    for (int y = 0; y < depth.rows; ++y)
+      for (int x = 0; x < depth.cols; ++x) depth.at<std::uint16_t>(y, x) = std::uint16_t(1000 * (y % 60) + x);
+    for (int s = 1; s <= kMaxDepthSubsample; ++s) {
+      const cv::Mat back = expand_depth(subsample_depth(depth, s), s, size.width, size.height);
+      ASSERT_EQ(back.size(), size);
+      int wrong = 0;
+      for (int y = 0; y < depth.rows; ++y)
+        for (int x = 0; x < depth.cols; ++x)
+          wrong += back.at<std::uint16_t>(y, x) != depth.at<std::uint16_t>(y / s * s, x / s * s);
+      EXPECT_EQ(wrong, 0) << size << " S=" << s;
+    }
+  }
+}
+
 }  // namespace cslam

@@ -83,3 +83,26 @@ TEST(Camera, FileErrors) {
   EXPECT_THROW(load_camera_file("/nonexistent/cam.yaml"), InputError);
   std::filesystem::remove(path);
 }
+
+// Projection geometry decides whether ray tables and stored cameras can be reused: every
+// intrinsic, distortion coefficient and side counts; depth scaling, readout and name do not.
+TEST(Camera, SameProjectionComparesGeometryOnly) {
+  const PinholeCamera a = camera_tum_fr1();
+  PinholeCamera b = a;
+  b.depth_factor = 1000;
+  b.readout_time = 0;
+  b.name = "other";
+  EXPECT_TRUE(same_projection(a, b));
+  auto differs = [&](auto change) {
+    PinholeCamera c = a;
+    change(c);
+    return !same_projection(a, c) && !same_projection(c, a);
+  };
+  EXPECT_TRUE(differs([](PinholeCamera& c) { c.fx += 1e-9; }));
+  EXPECT_TRUE(differs([](PinholeCamera& c) { c.fy += 1; }));
+  EXPECT_TRUE(differs([](PinholeCamera& c) { c.cx += 1; }));
+  EXPECT_TRUE(differs([](PinholeCamera& c) { c.cy += 1; }));
+  for (int k = 0; k < 5; ++k) EXPECT_TRUE(differs([k](PinholeCamera& c) { c.dist[k] += 1e-6; })) << k;
+  EXPECT_TRUE(differs([](PinholeCamera& c) { c.width = 320; }));
+  EXPECT_TRUE(differs([](PinholeCamera& c) { c.height = 240; }));
+}
