@@ -40,7 +40,8 @@ run_case() {  # dir variant
   local args=$VARIANT_ARGS
   rm -rf "$dir"; mkdir -p "$dir"
   # shellcheck disable=SC2086
-  /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" "$VARIANT_BIN" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients 3 --exit-when-done --http off \
+  /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
+    "$VARIANT_BIN" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients 3 --exit-when-done --http off \
     --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $args > "$dir/server.log" 2>&1 &
   local server=$!
   wait_endpoint "$dir/endpoint"
