@@ -13,6 +13,7 @@
 #include "core/ids_json.h"
 #include "core/log.h"
 #include "frame/frame_check.h"
+#include "geometry/camera.h"
 #include "core/stats.h"
 #include "eval/stats_json.h"
 #include "system/loop_stats_json.h"
@@ -70,9 +71,9 @@ CollaborativeSystem::CollaborativeSystem(SystemConfig config) : impl_(std::make_
 
 CollaborativeSystem::~CollaborativeSystem() { finish(); }
 
+// A re-registering client must keep its projection and its depth units.
 static bool same_camera(const PinholeCamera& a, const PinholeCamera& b) {
-  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy &&
-         a.dist == b.dist && a.depth_factor == b.depth_factor;
+  return same_projection(a, b) && a.depth_factor == b.depth_factor;
 }
 
 void CollaborativeSystem::add_client(const ClientInfo& info) {
