@@ -54,6 +54,8 @@ int run(int argc, char** argv) {
               "4")
       .option("colour-crf", "lean stream: H.264 constant rate factor of the colour stream (lower: better, larger)",
               std::to_string(cslam::client::SenderConfig().colour_stream.crf))
+      .option("colour-preset", "lean stream: x264 preset of the colour stream (ultrafast .. placebo)",
+              cslam::client::SenderConfig().colour_stream.preset)
       .flag("adapt",
             "adapt the stream to the link: when acks come back later than the link's base latency (a queue builds) or "
             "a live frame is dropped, send full frames less often (lean stream, depth every --depth-every .. 30 "
@@ -94,6 +96,7 @@ int run(int argc, char** argv) {
   config.codecs.depth = cslam::parse_depth_codec(cli.get("depth-codec"));
   config.depth_every = cli.get_int("depth-every");
   config.colour_stream.crf = cli.get_int("colour-crf");
+  config.colour_stream.preset = cli.get("colour-preset");
   config.light_depth_subsample = cli.get_int("light-depth");
   config.adapt.enabled = cli.flag_set("adapt");
   config.reply_timeout_s = cli.get_double("reply-timeout");

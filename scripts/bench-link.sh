@@ -7,7 +7,8 @@
 # alternated, and once with the default pair under adaptive rate (cslam-client --adapt: the
 # robots step to a lean stream while their acks say the link queues). Reports per robot: frames processed (of those captured), pose latency p50/p99
 # (capture to ack, client side), MB/s sent and ATE; medians and min-max over the runs.
-# A mode may end in @sS: the server runs with --tracking-slots S (e.g. "lean lean@s2").
+# A mode may end in @sS: the server runs with --tracking-slots S (e.g. "lean lean@s2"), and in @pP:
+# the robots encode the colour stream with x264 preset P (e.g. "lean lean@pveryfast").
 # Needs root (ip netns, tc). Usage:
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
@@ -41,8 +42,16 @@ if [ ! -f "$SCENE/robot_${N}/groundtruth.txt" ]; then
 fi
 
 run_case() {
-  local dir="$1" mode="${2%@s*}" server_extra=()
-  [ "$2" != "$mode" ] && server_extra=(--tracking-slots "${2##*@s}")
+  local dir="$1" mode="${2%%@*}" server_extra=() client_extra=() opt
+  IFS=@ read -ra opts <<< "${2#"$mode"}"
+  for opt in "${opts[@]}"; do
+    case "$opt" in
+      '') ;;
+      s*) server_extra+=(--tracking-slots "${opt#s}") ;;
+      p*) client_extra+=(--colour-preset "${opt#p}") ;;
+      *) echo "bench-link.sh: unknown mode suffix @$opt in $2" >&2; exit 2 ;;
+    esac
+  done
   rm -rf "$dir"; mkdir -p "$dir"
   inns /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
     "$BIN/cslam-server" "${server_extra[@]}" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$N" --exit-when-done \
@@ -54,6 +63,7 @@ run_case() {
   local extra=()
   [ "$mode" = lean ] && extra=(--depth-every "$K")
   [ "$mode" = adapt ] && extra=(--adapt)
+  extra+=("${client_extra[@]}")
   local pids=() k
   for k in $(seq 1 "$N"); do
     inns "$BIN/cslam-client" --server "$endpoint" --id "$k" --dataset "$SCENE/robot_$k" --live --preload --start-at "$start_at" \

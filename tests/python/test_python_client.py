@@ -383,7 +383,7 @@ class PythonClientProtocol(unittest.TestCase):
         self.assertEqual(kinds, ["full", "key", "light", "full", "light", "key", "light", "light", "full"])
         s = sender.stats
         self.assertEqual((s.frames_light, s.colour_key_packets, s.depth_requests, s.stream_gaps), (6, 2, 1, 1))
-        stream = video.H264Encoder(64, 48, video.H264Options(crf=26))  # the sender's default colour stream
+        stream = video.H264Encoder(64, 48, video.light_colour_stream())  # the sender's default colour stream
         coarse = codecs.encode_depth(video.subsample_depth(depth, 4), codecs.Codecs())[1]
         for i, f in enumerate(got):
             with self.subTest(seq=f.seq):
@@ -432,6 +432,16 @@ class PythonClientProtocol(unittest.TestCase):
                     FrameSender("tcp://127.0.0.1:1", 1, self.cam, **kwargs)
         with self.assertRaisesRegex(ValueError, "31x24: sides must be even"):
             FrameSender("tcp://127.0.0.1:1", 1, camera.Camera(width=31, height=24, name="odd"), depth_every=2)
+
+    def test_light_colour_stream_is_the_cpp_clients_default(self):
+        # One default for both client libraries: the C++ client prints SenderConfig's in --help.
+        text = subprocess.run([harness.program("cslam-client"), "--help"], check=True, capture_output=True,
+                              text=True).stdout
+        def default(option):
+            block = text.split(f"--{option} V", 1)[1]
+            return block.split("(default: ", 1)[1].split(")", 1)[0]
+        light = video.light_colour_stream()
+        self.assertEqual((default("colour-crf"), default("colour-preset")), (str(light.crf), light.preset))
 
     def test_curve_keys_encrypt_and_authenticate(self):
         server_public, server_secret = zmq.curve_keypair()

@@ -158,6 +158,7 @@ class LeanStreamCodecsMatchCpp(unittest.TestCase):
     def test_h264_packets_are_the_cpp_bytes(self):
         cases = {
             "defaults": (160, 120, video.H264Options(), {9, 23}),
+            "light frames' default": (160, 120, video.light_colour_stream(), {9}),
             # Odd settings: another size (not a multiple of 16), CRF, preset, tune, frame rate, and
             # a key interval short enough for automatic IDR frames between the forced ones.
             "odd": (98, 62, video.H264Options(crf=30, preset="ultrafast", tune="zerolatency", key_interval=10,

@@ -65,12 +65,12 @@ class FrameSender:
         camera.validate()
         if not isinstance(depth_every, int) or depth_every < 1:
             raise ValueError(f"depth_every {depth_every} must be >= 1 (1: every frame full)")
-        # Lean stream: light frames between full ones. The C++ default colour stream is coarser
-        # than H264Options' (light frames are only tracked): CRF 26.
+        # Lean stream: light frames between full ones. The default colour stream is coarser than
+        # H264Options' (light frames are only tracked): video.light_colour_stream().
         self.lean = None
         if depth_every > 1:
             self.lean = video.LeanStream(camera.width, camera.height, depth_every, light_depth_subsample,
-                                         colour_stream or video.H264Options(crf=26))
+                                         colour_stream or video.light_colour_stream())
         self.reply_timeout = float(reply_timeout)
         self.heartbeat_interval = float(heartbeat_interval)
         self.max_reconnects = int(max_reconnects)

@@ -56,6 +56,13 @@ class H264Options:
             raise ValueError(f"h264 frame rate {self.frame_rate} out of range 1..1000")
 
 
+
+def light_colour_stream() -> H264Options:
+    """The lean stream's default colour stream, as client::SenderConfig::colour_stream
+    (client/frame_sender.h): CRF 26, preset superfast."""
+    return H264Options(crf=26, preset="superfast")
+
+
 @dataclass
 class PacketHeader:
     key: bool
