@@ -21,7 +21,7 @@ RUNS="${2:-3}"
 MODES="${3:-det threaded}"
 CASES="${4:-desk2 desk3 rpy2 synth2}"
 RATE="${CSLAM_SESSION_RATE:-max}"
-BIN="$PWD/build/bin"
+BIN="${CSLAM_BIN:-$PWD/build/bin}"  # CSLAM_BIN: another build's programs (A/B runs)
 DESK="${CSLAM_TUM_DESK:-../shared/data/tum_fr1_desk}"
 RPY="${CSLAM_TUM_RPY:-../shared/data/tum_fr1_rpy}"
 mkdir -p "$OUT"
