@@ -56,7 +56,6 @@ class H264Options:
             raise ValueError(f"h264 frame rate {self.frame_rate} out of range 1..1000")
 
 
-
 def light_colour_stream() -> H264Options:
     """The lean stream's default colour stream, as client::SenderConfig::colour_stream
     (client/frame_sender.h): CRF 26, preset superfast."""
