@@ -33,8 +33,6 @@ PixelProjector::PixelProjector(const RayTable& rays) {
   height_ = c.height;
 }
 
-bool RayTable::matches(const PinholeCamera& other) const { return same_projection(camera_, other); }
-
 std::size_t backproject(const cv::Mat& bgr, const cv::Mat& depth, const RayTable& rays, const SE3& T_world_cam,
                         const BackprojectParams& params, ColoredCloud& out, const SE3* T_colourcam_depthcam) {
   const PinholeCamera& cam = rays.camera();

@@ -16,8 +16,6 @@ class RayTable {
  public:
   explicit RayTable(const PinholeCamera& camera);
   const PinholeCamera& camera() const { return camera_; }
-  // True if `other` projects like the table's camera (same_projection).
-  bool matches(const PinholeCamera& other) const;
   const float* ray(int u, int v) const { return &rays_[2 * (size_t(v) * size_t(camera_.width) + size_t(u))]; }
   // Largest squared normalised radius inside the image (projections beyond it are rejected:
   // the distortion polynomial folds back outside the calibrated field of view).

@@ -22,7 +22,7 @@ LiveDenseMap::LiveDenseMap(LiveDenseConfig config) : config_(config) {
 
 void LiveDenseMap::set_camera(ClientId client, const PinholeCamera& camera) {
   auto& table = rays_[client];
-  if (!table || !table->matches(camera)) table = std::make_unique<RayTable>(camera);
+  if (!table || !same_projection(table->camera(), camera)) table = std::make_unique<RayTable>(camera);
 }
 
 void LiveDenseMap::add_keyframe(KeyFrameId id, std::optional<DenseImages> images, double now_s,

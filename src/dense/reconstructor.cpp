@@ -115,7 +115,7 @@ struct DenseReconstructor::Impl {
 
   const RayTable& rays_for(const PinholeCamera& camera) {
     for (const auto& t : ray_tables)
-      if (t->matches(camera)) return *t;
+      if (same_projection(t->camera(), camera)) return *t;
     ray_tables.push_back(std::make_unique<RayTable>(camera));
     return *ray_tables.back();
   }
