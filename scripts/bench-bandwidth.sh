@@ -8,7 +8,9 @@
 # depth requests, and the ATE of its trajectory
 # (cslam-eval, SE3 alignment); medians and min-max over the runs.
 # Sequences: desk (tum_fr1_desk, 1 robot), rpy (tum_fr1_rpy, 1 robot), demo (the demo scene:
-# 3 robots streaming together, cslam-synth --preset demo).
+# 3 robots streaming together, cslam-synth --preset demo), demo:SEED (the same preset with another
+# scene seed: one demo run is one chaotic outcome, so the lean/default ATE ratio is also reported
+# over every demo scene given, e.g. "demo demo:101 demo:102 ...").
 # Usage: scripts/bench-bandwidth.sh [OUT=bench_out/bandwidth] [RUNS=3] [K=5] [SEQUENCES="desk rpy demo"]
 # Environment: CSLAM_BANDWIDTH_CLIENT_ARGS: more cslam-client options for the lean runs (e.g. --colour-crf 26).
 set -euo pipefail
@@ -29,10 +31,11 @@ datasets_of() {
   case "$1" in
     desk) echo "$DATA/tum_fr1_desk" ;;
     rpy) echo "$DATA/tum_fr1_rpy" ;;
-    demo)
-      local scene="$OUT/demo_scene"
+    demo | demo:*)
+      local scene="$OUT/demo_scene" seed=()
+      if [ "$1" != demo ]; then scene="$OUT/demo_scene_${1#demo:}"; seed=(--seed "${1#demo:}"); fi
       if [ ! -f "$scene/robot_3/groundtruth.txt" ]; then
-        "$BIN/cslam-synth" --preset demo --out "$scene" --force --log-level warn > /dev/null
+        "$BIN/cslam-synth" --preset demo "${seed[@]}" --out "$scene" --force --log-level warn > /dev/null
       fi
       echo "$scene/robot_1 $scene/robot_2 $scene/robot_3" ;;
     *) echo "unknown sequence $1" >&2; exit 2 ;;
@@ -74,7 +77,7 @@ for seq in $SEQUENCES; do
   for r in $(seq 1 "$RUNS"); do
     for mode in default lean; do
       echo "-- $seq run $r $mode (load $(loadavg))"
-      run_case "$OUT/$seq/${mode}_r$r" "$mode" "${sets[@]}"
+      run_case "$OUT/${seq/:/_}/${mode}_r$r" "$mode" "${sets[@]}"
     done
   done
 done
@@ -86,11 +89,12 @@ def med(v):
     return f"{statistics.median(v):.4g} ({min(v):.4g}-{max(v):.4g})" if v else "n/a"
 print("\n| sequence | stream | MB/s per robot | KB/frame | light frames | depth requests | ATE m (mean over robots) | server CPU s |")
 print("|---|---|---|---|---|---|---|---|")
+demo_ates = {"default": [], "lean": []}
 for seq in seqs:
     for mode in ("default", "lean"):
         mbs, kbf, share, req, ate, cpu = [], [], [], [], [], []
         for r in range(1, runs + 1):
-            d = f"{out}/{seq}/{mode}_r{r}"
+            d = f"{out}/{seq.replace(':', '_')}/{mode}_r{r}"
             if not os.path.isdir(d): continue
             rates, kbs, shares, reqs, ates = [], [], [], [], []
             k = 1
@@ -110,4 +114,9 @@ for seq in seqs:
             t = open(f"{d}/server_time.txt").read().split()
             cpu.append(float(t[0]) + float(t[1]))
         print(f"| {seq} | {mode} | {med(mbs)} | {med(kbf)} | {med(share)} % | {med(req)} | {med(ate)} | {med(cpu)} |")
+        if seq.startswith("demo"): demo_ates[mode] += ate
+if len([s for s in seqs if s.startswith("demo")]) > 1 and demo_ates["default"] and demo_ates["lean"]:
+    d, l = statistics.mean(demo_ates["default"]), statistics.mean(demo_ates["lean"])
+    print(f"\nDemo scenes ({len(demo_ates['default'])} default / {len(demo_ates['lean'])} lean runs): mean ATE "
+          f"default {d:.5f} m, lean {l:.5f} m, lean/default {l / d:.3f}")
 EOF

@@ -371,10 +371,13 @@ bool FusionManager::run_group_ba_of(GroupId group) {
   }
   const BaResult r = gba.solve(config_.group_ba_iterations, &group_ba_abort_);
   bool applied = false;
+  double locked_ms = 0;  // every member map held exclusively: their robots' tracking waits this long
   {
     std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
     auto locks = lock_maps<std::unique_lock<std::shared_mutex>>(maps);
+    Stopwatch locked;
     applied = gba.apply(r);
+    locked_ms = locked.ms();
   }
   std::lock_guard<std::mutex> lock(state_mutex_);
   if (applied)
@@ -387,10 +390,13 @@ bool FusionManager::run_group_ba_of(GroupId group) {
     group_ba_stats_.last_keyframes = int(gba.num_keyframes());
     group_ba_stats_.last_points = int(gba.num_points());
     group_ba_stats_.last_linked_points = int(links.size());
-    logger("fusion")->info("group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms",
-                           group.value(), maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms());
+    logger("fusion")->info(
+        "group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms, maps locked {:.1f} ms",
+        group.value(), maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms(), locked_ms);
   } else {
     ++group_ba_stats_.discarded;
+    logger("fusion")->info("group {} global BA discarded ({}) after {:.0f} ms", group.value(),
+                           r.aborted ? "aborted" : "a map moved meanwhile", sw.ms());
   }
   return applied;
 }

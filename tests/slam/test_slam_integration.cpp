@@ -76,6 +76,28 @@ TEST_F(SlamIntegration, OfflineTwoClientsFuseIntoOneFrame) {
       std::ifstream(tmp("multi/fused_" + std::to_string(stats["clients"][0]["group"].get<int>()) + ".txt")).good());
 }
 
+// The lean stream simulated per client (--depth-every): light frames between full ones, full depth
+// when tracking asks (the server's depth requests), and the clients still fuse accurately.
+TEST_F(SlamIntegration, OfflineTwoLeanClientsFuse) {
+  const auto r = run_program("cslam-slam", "--datasets " + scene("robot_1") + " " + scene("robot_2") + " --out-dir " +
+                                               tmp("lean") + " --sync --depth-every 5 --log-level warn");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (int k = 1; k <= 2; ++k) {
+    const std::string tag = "client " + std::to_string(k) + ": light frames ";
+    const auto at = r.output.find(tag);
+    ASSERT_NE(at, std::string::npos) << r.output;
+    const int light = std::stoi(r.output.substr(at + tag.size()));
+    EXPECT_GT(light, 0) << r.output;
+    EXPECT_LE(light, 48) << r.output;  // 60 frames, every 5th full
+  }
+  const auto stats = nlohmann::json::parse(std::ifstream(tmp("lean/stats.json")));
+  ASSERT_EQ(stats["clients"].size(), 2u);
+  EXPECT_EQ(stats["clients"][0]["group"], stats["clients"][1]["group"]) << stats.dump(2);
+  const double joint = ate_rmse(scene("robot_1/groundtruth.txt") + " " + tmp("lean/client_1.txt") + " --also " +
+                                scene("robot_2/groundtruth.txt") + " " + tmp("lean/client_2.txt"));
+  EXPECT_LT(joint, 0.02);
+}
+
 // The threaded system (worker, local-mapping, loop and fusion threads) fuses the same robots; its
 // accuracy is checked by the stepped run above and measured by scripts/bench-accuracy.sh.
 TEST_F(SlamIntegration, ThreadedTwoClientsFuse) {

@@ -11,7 +11,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "codec/depth_subsample.h"
 #include "core/bounded_queue.h"
 #include "core/cli.h"
 #include "core/error.h"
@@ -26,6 +25,7 @@
 #include "geometry/camera_io.h"
 #include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
+#include "lean_sim.h"
 #include "multi.h"
 #include "slam/client_slam.h"
 #include "io/dataset_frame.h"
@@ -164,31 +164,15 @@ int run(int argc, char** argv) {
   int n = 0, lost = 0, rejected = 0;
   std::vector<double> inliers, features;
   const bool quiet = args.flag_set("quiet");
-  const int depth_every = args.get_int("depth-every"), depth_delay = args.get_int("depth-request-delay");
-  const int light_depth = args.get_int("light-depth");
-  if (depth_every < 1 || depth_delay < 0)
-    throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
-  int depth_requested_at = -1, light_frames = 0;
+  LeanStreamSim lean(lean_stream_config(args));
   while (auto item = loaded.pop()) {
     RgbdFrame frame = dataset_frame(item->first, std::move(item->second), info.id, std::uint64_t(n));
     if (const std::string why = frame_problem(frame, info.camera); !why.empty())  // the dataset is this tool's boundary
       throw InputError(args.get("dataset"),
                        "frame " + std::to_string(n) + ": " + why + " (does --camera match the dataset?)");
-    const bool requested = depth_requested_at >= 0 && n > depth_requested_at + depth_delay;
-    if (n % depth_every != 0 && !requested) {
-      if (light_depth > 1) {  // what the server makes of a light frame's depth
-        frame.depth =
-            expand_depth(subsample_depth(frame.depth, light_depth), light_depth, frame.depth.cols, frame.depth.rows);
-        frame.depth_subsample = light_depth;
-      } else {
-        frame.depth = cv::Mat();
-      }
-      ++light_frames;
-    } else {
-      depth_requested_at = -1;
-    }
+    lean.apply(frame, n);
     const ProcessResult r = slam.process(frame);
-    if (r.wants_depth && depth_requested_at < 0) depth_requested_at = n;
+    if (r.wants_depth) lean.requested(n);
     inliers.push_back(r.inliers);
     features.push_back(r.features);
     if (std::getenv("CSLAM_TRACE"))
@@ -241,7 +225,7 @@ int run(int argc, char** argv) {
       {"frames_tracked", snap.frames_tracked},
       {"frames_lost", lost},
       {"frames_rejected", rejected},
-      {"frames_light", light_frames},
+      {"frames_light", lean.light_frames()},
       {"frames_flow", snap.frames_flow},
       {"trajectory_poses", traj.size()},
       {"maps", snap.maps},
@@ -270,9 +254,10 @@ int run(int argc, char** argv) {
                 l.query_timestamp, l.candidate_timestamp, l.inliers, l.T_correction.translation().norm(),
                 l.T_correction.rotation_angle() * 180.0 / M_PI, l.correction_ms);
   if (args.has("stats")) std::ofstream(args.get("stats")) << stats.dump(2) << "\n";
-  if (light_frames > 0)
-    std::printf("light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d)\n", light_frames, n,
-                depth_every, depth_delay, light_depth);
+  if (lean.light_frames() > 0)
+    std::printf("light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d)\n",
+                lean.light_frames(), n, args.get_int("depth-every"), args.get_int("depth-request-delay"),
+                args.get_int("light-depth"));
   std::printf(
       "frames %d tracked %llu (flow %llu) lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
       "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",

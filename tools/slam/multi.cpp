@@ -5,12 +5,14 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <fstream>
 #include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "frame/frame_done.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "eval/split.h"
@@ -29,6 +31,7 @@ struct ClientJob {
   ClientInfo info;
   std::vector<RgbdPair> pairs;
   std::optional<Trajectory> groundtruth;
+  std::unique_ptr<LeanStreamSim> lean;
 };
 
 }  // namespace
@@ -40,6 +43,10 @@ PinholeCamera camera_for(const CliArgs& args, const std::string& dir) {
     camera.validate();
   }
   return camera;
+}
+
+LeanStreamConfig lean_stream_config(const CliArgs& args) {
+  return {args.get_int("depth-every"), args.get_int("depth-request-delay"), args.get_int("light-depth")};
 }
 
 int run_multi_client(const CliArgs& args) {
@@ -74,7 +81,16 @@ int run_multi_client(const CliArgs& args) {
     }
   }
 
+  for (auto& j : jobs) j.lean = std::make_unique<LeanStreamSim>(lean_stream_config(args));
+
   SystemConfig config;
+  // A light frame on which tracking wanted full depth: the client's next frames but the acks in
+  // flight stay light (as a lean stream's robot answers the request).
+  config.on_frame_done = [&jobs](const FrameDone& done) {
+    if (!done.wants_depth) return;
+    for (auto& j : jobs)
+      if (j.info.id == done.client) j.lean->requested(int(done.seq));
+  };
   config.vocabulary_path = args.get("vocab");
   // --sync: one thread steps every client frame by frame (round robin, as robots streaming at
   // once) with local mapping, loop closing and fusion run inline: the same input gives the same
@@ -100,7 +116,9 @@ int run_multi_client(const CliArgs& args) {
   auto feed = [&system](const ClientJob& j, std::size_t i) {
     const RgbdPair& p = j.pairs[i];
     try {
-      return system.submit(load_dataset_frame(p, j.info.id, std::uint64_t(i)));
+      RgbdFrame frame = load_dataset_frame(p, j.info.id, std::uint64_t(i));
+      j.lean->apply(frame, int(i));
+      return system.submit(std::move(frame));
     } catch (const InputError& e) {
       logger("slam")->error("client {}: {}", j.info.id, e.what());
       return true;
@@ -133,6 +151,9 @@ int run_multi_client(const CliArgs& args) {
   const auto snap = system.snapshot();
   nlohmann::json summary = {{"slam_time_s", slam_time}, {"clients", jobs.size()}};
   std::printf("SLAM time %.2f s for %zu clients\n", slam_time, jobs.size());
+  for (const auto& j : jobs)
+    if (j.lean->light_frames() > 0)
+      std::printf("client %u: light frames %d of %zu\n", j.info.id, j.lean->light_frames(), j.pairs.size());
   for (const auto& e : snap.events)
     std::printf(
         "fusion: client %u + client %u -> group %d at %.2f s (frame time %.3f), %d inliers, %d + %d keyframes, "

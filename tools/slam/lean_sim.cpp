@@ -1,0 +1,45 @@
+#include "lean_sim.h"
+
+#include <string>
+
+#include "codec/depth_subsample.h"
+#include "core/error.h"
+
+namespace cslam {
+
+LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config) {
+  if (config_.depth_every < 1 || config_.request_delay < 0)
+    throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
+  if (config_.light_depth < 0 || config_.light_depth > kMaxDepthSubsample)
+    throw ConfigError("--light-depth must be 0.." + std::to_string(kMaxDepthSubsample));
+}
+
+bool LeanStreamSim::apply(RgbdFrame& frame, int n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const bool requested = requested_at_ >= 0 && n > requested_at_ + config_.request_delay;
+  if (n % config_.depth_every == 0 || requested) {
+    requested_at_ = -1;
+    return false;
+  }
+  if (config_.light_depth > 1) {  // what the server makes of a light frame's depth
+    frame.depth = expand_depth(subsample_depth(frame.depth, config_.light_depth), config_.light_depth,
+                               frame.depth.cols, frame.depth.rows);
+    frame.depth_subsample = config_.light_depth;
+  } else {
+    frame.depth = cv::Mat();
+  }
+  ++light_frames_;
+  return true;
+}
+
+void LeanStreamSim::requested(int n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (requested_at_ < 0) requested_at_ = n;
+}
+
+int LeanStreamSim::light_frames() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return light_frames_;
+}
+
+}  // namespace cslam
