@@ -14,22 +14,21 @@ LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config) {
     throw ConfigError("--light-depth must be 0.." + std::to_string(kMaxDepthSubsample));
 }
 
-bool LeanStreamSim::apply(RgbdFrame& frame, int n) {
+void LeanStreamSim::apply(RgbdFrame& frame, int n) {
   std::lock_guard<std::mutex> lock(mutex_);
   const bool requested = requested_at_ >= 0 && n > requested_at_ + config_.request_delay;
   if (n % config_.depth_every == 0 || requested) {
     requested_at_ = -1;
-    return false;
+    return;
   }
   if (config_.light_depth > 1) {  // what the server makes of a light frame's depth
-    frame.depth = expand_depth(subsample_depth(frame.depth, config_.light_depth), config_.light_depth,
-                               frame.depth.cols, frame.depth.rows);
+    frame.depth = expand_depth(subsample_depth(frame.depth, config_.light_depth), config_.light_depth, frame.depth.cols,
+                               frame.depth.rows);
     frame.depth_subsample = config_.light_depth;
   } else {
     frame.depth = cv::Mat();
   }
   ++light_frames_;
-  return true;
 }
 
 void LeanStreamSim::requested(int n) {

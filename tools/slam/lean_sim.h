@@ -3,7 +3,9 @@
 // K-th frame, and the first frame `request_delay` frames after tracking asked for full depth
 // (the acks in flight), keeps its full depth; the others become light frames with the depth the
 // server expands from every S-th pixel of every S-th row (S = light_depth; 0 or 1: none). Colour
-// is not degraded (the light frames' H.264 colour is not modelled).
+// is not degraded (the light frames' H.264 colour is not modelled). Stepped (--sync) runs answer
+// a request exactly `request_delay` frames late; threaded multi-client runs queue frames ahead of
+// the workers, so there requests are answered later.
 #include <mutex>
 
 #include "frame/rgbd_frame.h"
@@ -18,9 +20,10 @@ struct LeanStreamConfig {
 
 class LeanStreamSim {
  public:
-  explicit LeanStreamSim(LeanStreamConfig config);  // ConfigError on depth_every < 1 or delay < 0
-  // Frame n of the client (0-based): made light unless it is due to carry full depth; true if made light.
-  bool apply(RgbdFrame& frame, int n);
+  // ConfigError on depth_every < 1, request_delay < 0 or light_depth outside 0..kMaxDepthSubsample.
+  explicit LeanStreamSim(LeanStreamConfig config);
+  // Frame n of the client (0-based): made light unless it is due to carry full depth.
+  void apply(RgbdFrame& frame, int n);
   // Tracking of frame n asked for full depth (FrameDone::wants_depth). Thread-safe with apply().
   void requested(int n);
   int light_frames() const;

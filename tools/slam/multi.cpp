@@ -5,18 +5,18 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <fstream>
+#include <memory>
 #include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
-#include "frame/frame_done.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
 #include "eval/split.h"
 #include "eval/trajectory_eval.h"
+#include "frame/frame_done.h"
 #include "geometry/camera_io.h"
 #include "io/dataset_camera.h"
 #include "io/tum_dataset.h"
