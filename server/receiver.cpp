@@ -412,6 +412,10 @@ void Receiver::on_frames_done() {
     Session* session = sessions_.by_client(done.client);
     if (!session) continue;
     if (session->in_flight > 0) --session->in_flight;
+    // An acknowledged frame was accepted: a Welcome after this Ack must not offer it again, though
+    // the decode result that records it too may still be on its way (a seq beyond what this
+    // session reserved is an earlier recording's).
+    if (done.seq <= session->reserved_seq()) session->last_seq = std::max(session->last_seq, done.seq);
     if (session->state != SessionState::kActive) continue;
     wire::ServerMessage reply;
     wire::to_wire_ack(done, 1, reply.mutable_ack());  // the frame's pose feedback and its credit
