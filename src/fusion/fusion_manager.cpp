@@ -391,9 +391,8 @@ bool FusionManager::run_group_ba_of(GroupId group) {
     group_ba_stats_.last_points = int(gba.num_points());
     group_ba_stats_.last_linked_points = int(links.size());
     logger("fusion")->info(
-        "group {} global BA: {} maps, {} keyframes, {} points ({} linked across maps), {:.0f} ms, maps locked {:.1f} "
-        "ms",
-        group.value(), maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms(), locked_ms);
+        "group {} global BA: {} maps, {} keyframes, {} points ({} linked), {:.0f} ms, locked {:.1f} ms", group.value(),
+        maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms(), locked_ms);
   } else {
     ++group_ba_stats_.discarded;
     logger("fusion")->info("group {} global BA discarded ({}) after {:.0f} ms", group.value(),

@@ -84,8 +84,8 @@ int run_multi_client(const CliArgs& args) {
   for (auto& j : jobs) j.lean = std::make_unique<LeanStreamSim>(lean_stream_config(args));
 
   SystemConfig config;
-  // A light frame on which tracking wanted full depth: the client's next frames but the acks in
-  // flight stay light (as a lean stream's robot answers the request).
+  // Tracking wanted full depth on a light frame: that client's robot sends it once the request
+  // has come back (LeanStreamSim's delay stands for the acks in flight).
   config.on_frame_done = [&jobs](const FrameDone& done) {
     if (!done.wants_depth) return;
     for (auto& j : jobs)
