@@ -48,6 +48,8 @@ run_case() {
     "$server" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$n" --exit-when-done \
     --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn $args > "$dir/server.log" 2>&1 &
   local server_pid=$!
+  python3 scripts/lib/thread-cpu.py "$server_pid" "$dir/thread_cpu.json" --child &
+  local sampler_pid=$!
   wait_endpoint "$dir/endpoint"
   local endpoint; endpoint=$(head -1 "$dir/endpoint")
   # Frames are loaded and encoded before the common start time (a robot preloads in ~2-4 s on a busy machine).
@@ -60,6 +62,7 @@ run_case() {
     pids+=($!)
   done
   wait_run "$dir" "$server_pid" "${pids[@]}"
+  wait "$sampler_pid" || true
   echo "$load_before" > "$dir/load_before.txt"; loadavg > "$dir/load_after.txt"
   # ATE per robot, and of each fused group with one alignment.
   for k in $(seq "$first" $((first + n - 1))); do
@@ -137,7 +140,8 @@ def case(dirname):
     net = load(d + "/out/network_stats.json", {})
     return {"loop_ms": net.get("receive_loop_max_ms", float("nan")), "loop_cpu_ms": net.get("receive_loop_max_cpu_ms", float("nan")),
             "robots": robots, "cpu_s": float(u) + float(s), "rss_mb": float(rss_kb) / 1024, "wall": float(wall),
-            "fused_n": int(fused[0]), "fused_ate": float(fused[1]), "load": load_b}
+            "fused_n": int(fused[0]), "fused_ate": float(fused[1]), "load": load_b,
+            "stages": load(d + "/thread_cpu.json", {}).get("stages", {})}
 
 def pct(v, p):
     if not v: return float("nan")
@@ -186,6 +190,15 @@ for n in ns:
           f"{fmt(med([c['loop_ms'] for c in rows]))} ({fmt(med([c['loop_cpu_ms'] for c in rows]))}) | "
           f"{', '.join(c['load'] for c in rows)} | {'ok' if ok else 'below target'} |")
     cases[n] = (rows, ok)
+# Where the server's CPU went: seconds per stage (threads named after their stage), medians.
+stage_names = sorted({s for n in ns for c in cases[n][0] for s in c["stages"]})
+if stage_names:
+    print("\nServer CPU s by stage (thread names; median (min–max) over runs):\n")
+    print("| N | " + " | ".join(stage_names) + " |")
+    print("|---|" + "---|" * len(stage_names))
+    for n in ns:
+        rows = cases[n][0]
+        print(f"| {n} | " + " | ".join(fmt(med([c["stages"].get(s, 0.0) for c in rows])) for s in stage_names) + " |")
 # Capacity: the largest N such that it and every smaller measured N meet the criteria.
 for n in sorted(ns):
     if not cases[n][1]: break

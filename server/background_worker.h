@@ -6,13 +6,19 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <string>
 #include <thread>
+#include <utility>
+
+#include "core/thread_priority.h"
 
 namespace cslam::server {
 
 class BackgroundWorker {
  public:
-  explicit BackgroundWorker(std::size_t capacity = 1024) : capacity_(capacity), thread_([this] { run(); }) {}
+  // `name`: the thread's name (name_current_thread).
+  explicit BackgroundWorker(std::string name, std::size_t capacity = 1024)
+      : name_(std::move(name)), capacity_(capacity), thread_([this] { run(); }) {}
   ~BackgroundWorker() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -37,6 +43,7 @@ class BackgroundWorker {
 
  private:
   void run() {
+    name_current_thread(name_);
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
       wake_.wait(lock, [this] { return stop_ || !tasks_.empty(); });
@@ -49,6 +56,7 @@ class BackgroundWorker {
     }
   }
 
+  const std::string name_;
   const std::size_t capacity_;
   std::mutex mutex_;
   std::condition_variable wake_;

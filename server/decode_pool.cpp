@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "core/stopwatch.h"
+#include "core/thread_priority.h"
 
 namespace cslam::server {
 
@@ -48,6 +49,7 @@ void DecodePool::finish() {
 }
 
 void DecodePool::run() {
+  name_current_thread("decode");
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     // The oldest job of a client that no other thread is decoding (keeps each client's order).

@@ -64,7 +64,7 @@ Receiver::Receiver(zmq::context_t& context, const ReceiverConfig& config, Collab
       sessions_(config.max_clients),
       pool_(config.decode_threads, std::max<std::size_t>(16, config.max_clients * config.window),
             [&system](RgbdFrame frame) { return system.submit(std::move(frame)); }),
-      reclaimer_(std::make_unique<BackgroundWorker>()) {
+      reclaimer_(std::make_unique<BackgroundWorker>("reclaim")) {
   router_.set(zmq::sockopt::maxmsgsize, config_.max_message_bytes);
   router_.set(zmq::sockopt::router_handover, 1);
   router_.set(zmq::sockopt::linger, 0);

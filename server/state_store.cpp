@@ -7,6 +7,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/stopwatch.h"
+#include "core/thread_priority.h"
 #include "proto/snapshot_adapter.h"
 #include "proto/snapshot_file.h"
 
@@ -57,6 +58,7 @@ void StateStore::stop() {
 }
 
 void StateStore::run() {
+  name_current_thread("snapshot");
   std::unique_lock<std::mutex> lock(mutex_);
   auto next = std::chrono::steady_clock::now() + std::chrono::duration<double>(config_.interval_s);
   for (;;) {

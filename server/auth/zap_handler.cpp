@@ -1,6 +1,7 @@
 #include "server/auth/zap_handler.h"
 
 #include "core/log.h"
+#include "core/thread_priority.h"
 
 namespace cslam::auth {
 
@@ -35,6 +36,7 @@ void ZapHandler::stop() {
 }
 
 void ZapHandler::run() {
+  name_current_thread("zap");
   for (;;) {
     zmq::pollitem_t items[] = {{zap_.handle(), 0, ZMQ_POLLIN, 0}, {control_in_.handle(), 0, ZMQ_POLLIN, 0}};
     try {

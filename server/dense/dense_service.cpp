@@ -178,6 +178,7 @@ bool DenseService::wait_stored(double timeout_s) {
 void DenseService::run() {
   // Well below SLAM's compute threads (nice +5): on a saturated machine the robots' poses come
   // first and the dense map catches up (its queue and pending list are bounded and counted).
+  name_current_thread("dense");
   lower_current_thread_priority(15);
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {

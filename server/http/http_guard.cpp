@@ -12,6 +12,7 @@
 #include <cstring>
 
 #include "core/log.h"
+#include "core/thread_priority.h"
 #include "server/http/guard_socket.h"
 #include "server/http/guard_stream.h"  // httplib.h (after every Eigen include)
 #include "server/http/http_request_parse.h"
@@ -334,6 +335,7 @@ void HttpGuard::expire_deadlines() {
 }
 
 void HttpGuard::loop() {
+  name_current_thread("http-accept");
   while (adopt_returned()) {
     dispatch_buffered();
     if (!poll_once()) return;
@@ -381,6 +383,7 @@ void HttpGuard::hand_back(std::unique_ptr<Connection> c) {
 }
 
 void HttpGuard::worker() {
+  name_current_thread("http-serve");
   while (std::unique_ptr<Job> job = next_job()) {
     serve(*job);
     if (job->connection) hand_back(std::move(job->connection));

@@ -10,6 +10,7 @@
 
 #include "cloud/ply_io.h"
 #include "core/log.h"
+#include "core/thread_priority.h"
 #include "server/heap.h"
 
 namespace cslam::http {
@@ -127,6 +128,7 @@ ReconStart ReconJobs::start(int group, ReconFunction reconstruct, ReconEstimate 
   ++started_;
   Job* raw = job.get();  // outlives the thread: joined before the job leaves jobs_
   job->thread = std::thread([this, raw, reconstruct = std::move(reconstruct), config]() mutable {
+    name_current_thread("recon-job");
     run(*raw, std::move(reconstruct), config);
   });
   out.id = job->id;

@@ -5,6 +5,7 @@
 
 #include "core/ids_json.h"
 #include "core/log.h"
+#include "core/thread_priority.h"
 
 #include <sstream>
 
@@ -48,6 +49,7 @@ std::shared_ptr<const CachedState> StatusCache::get() const {
 }
 
 void StatusCache::loop() {
+  name_current_thread("http-status");
   const auto period = std::chrono::duration<double>(1.0 / std::max(0.1, config_.refresh_hz));
   std::unique_lock<std::mutex> lock(mutex_);
   while (!wake_.wait_for(lock, period, [this] { return stop_; })) {

@@ -12,6 +12,7 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <utility>
 
@@ -24,7 +25,9 @@ class QueueWorker {
  public:
   using Step = std::function<void(const Item&)>;
 
-  QueueWorker(bool threaded, Step step) : threaded_(threaded), step_(std::move(step)) {}
+  // `name`: the thread's name (name_current_thread), e.g. "mapping/c3".
+  QueueWorker(bool threaded, std::string name, Step step)
+      : threaded_(threaded), name_(std::move(name)), step_(std::move(step)) {}
   QueueWorker(const QueueWorker&) = delete;
   QueueWorker& operator=(const QueueWorker&) = delete;
   // Owners call stop() first (their step function uses their members); this only ends the thread.
@@ -133,6 +136,7 @@ class QueueWorker {
   }
 
   void run() {
+    name_current_thread(name_);
     lower_current_thread_priority();
     for (;;) {
       Item item;
@@ -148,6 +152,7 @@ class QueueWorker {
   }
 
   const bool threaded_;
+  const std::string name_;
   const Step step_;
   mutable std::mutex mutex_;
   std::condition_variable queue_cv_, progress_cv_;

@@ -1,5 +1,6 @@
 #include "core/thread_priority.h"
 
+#include <pthread.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -18,6 +19,14 @@ bool lower_current_thread_priority(int delta) {
 #else
   (void)delta;
   return false;
+#endif
+}
+
+void name_current_thread(const std::string& name) {
+#ifdef __linux__
+  ::pthread_setname_np(::pthread_self(), name.substr(0, 15).c_str());
+#else
+  (void)name;
 #endif
 }
 

@@ -123,6 +123,7 @@ std::size_t FusionManager::dropped() const {
 }
 
 void FusionManager::run() {
+  name_current_thread("fusion");
   lower_current_thread_priority();
   const auto period = std::chrono::duration<double>(1.0 / std::max(0.1, config_.rate_hz));
   std::unique_lock<std::mutex> lock(queue_mutex_);
@@ -332,6 +333,7 @@ void FusionManager::start_group_ba(GroupId group) {
     return;
   }
   group_ba_thread_ = std::thread([this, group] {
+    name_current_thread("group-ba");
     lower_current_thread_priority();
     run_group_ba_of(group);
   });

@@ -67,6 +67,7 @@ void ClientPipeline::finish() {
 }
 
 void ClientPipeline::run() {
+  name_current_thread("track/c" + std::to_string(info_.id));
   lower_current_thread_priority();
   // Until then the worker counts as behind (overloaded) its live frames (WorkerLoad).
   std::chrono::steady_clock::time_point behind_until{}, overloaded_until{};

@@ -20,7 +20,7 @@ LoopCloser::LoopCloser(LoopClosingConfig config, std::shared_ptr<Map> map, bool 
       map_(std::move(map)),
       threaded_(threaded),
       consistency_(config_.consistency),
-      worker_(threaded, [this](const KeyFramePtr& kf) { process(kf); }) {
+      worker_(threaded, "loop/c" + std::to_string(map_->client()), [this](const KeyFramePtr& kf) { process(kf); }) {
   worker_.start();
 }
 
@@ -202,6 +202,7 @@ void LoopCloser::start_global_ba() {
   stop_global_ba();
   if (threaded_)
     gba_thread_ = std::thread([this] {
+      name_current_thread("loop-gba/c" + std::to_string(map_->client()));
       lower_current_thread_priority();
       run_global_ba();
     });

@@ -12,7 +12,7 @@ LocalMapper::LocalMapper(LocalMapperConfig config, std::shared_ptr<Map> map, boo
     : config_(std::move(config)),
       map_(std::move(map)),
       threaded_(threaded),
-      worker_(threaded, [this](const KeyFramePtr& kf) { process(kf); }) {
+      worker_(threaded, "mapping/c" + std::to_string(map_->client()), [this](const KeyFramePtr& kf) { process(kf); }) {
   worker_.start();
 }
 
