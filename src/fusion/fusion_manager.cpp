@@ -291,10 +291,16 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
   const std::shared_ptr<Map>& moved_map = move_candidate_side ? other : p.map;
   const KeyFramePtr& kept_kf = move_candidate_side ? p.kf : candidate;
   const KeyFramePtr& moved_kf = move_candidate_side ? candidate : p.kf;
+  // Matched under shared locks (the robots keep tracking), linked under unique ones.
+  std::vector<SeamLink> pairs;
+  {
+    auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({kept_map.get(), moved_map.get()});
+    if (!kept_kf->bad && !moved_kf->bad) pairs = match_seam(*kept_kf, *moved_kf, config_.seam);
+  }
   Seam seam;
   {
     auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({kept_map.get(), moved_map.get()});
-    if (!kept_kf->bad && !moved_kf->bad) seam = connect_seam(*kept_map, *kept_kf, *moved_map, *moved_kf, config_.seam);
+    seam = link_seam(*kept_map, *moved_map, pairs, config_.seam);
   }
   const GroupId kept = move_candidate_side ? gq : gc;
   FusionEvent e = link_event("fusion", p, other_client, kept, candidate, v, seam, hit);

@@ -49,17 +49,42 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
   }
   stop_group_ba();  // its result would be discarded by the correction anyway
   std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
-  ReencounterCorrection c;
-  Seam seam;
-  Stopwatch locked;  // both maps held exclusively: the query robot's tracking waits this long at most
+  // The robots' tracking reads both maps under shared locks: it goes on while the correction is
+  // planned and solved and the seam matched; only writing them holds a map exclusively.
+  Stopwatch locked;  // exclusive holds of the maps, summed: the robots' tracking waits this long at most
+  double correction_ms = 0, seam_ms = 0;
+  ReencounterPlan plan;
   {
-    auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({p.map.get(), other.get()});
+    auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), other.get()});
     if (p.kf->bad || candidate->bad) return;
     const SE3 T_kf_world_measured = v.S_query_candidate.to_se3() * candidate->T_cam_world;
-    c = correct_reencounter(*p.map, *p.kf, T_kf_world_measured, anchors, config_.reencounter);
-    seam = connect_seam(*other, *candidate, *p.map, *p.kf, config_.seam);
+    plan = plan_reencounter(*p.map, *p.kf, T_kf_world_measured, anchors, config_.reencounter);
   }
-  const double locked_ms = locked.ms();
+  solve_reencounter(plan, config_.reencounter);
+  {
+    std::unique_lock<std::shared_mutex> lock(p.map->mutex);
+    locked.reset();
+    const bool applied = apply_reencounter(*p.map, plan);
+    correction_ms = locked.ms();
+    if (!applied) {
+      logger("fusion")->info("client {} re-encounter of client {}'s map dropped: the map moved while it was solved",
+                             p.client, other_client);
+      return;
+    }
+  }
+  const ReencounterCorrection& c = plan.summary;
+  std::vector<SeamLink> pairs;
+  {
+    auto locks = lock_maps<std::shared_lock<std::shared_mutex>>({p.map.get(), other.get()});
+    if (!p.kf->bad && !candidate->bad) pairs = match_seam(*candidate, *p.kf, config_.seam);
+  }
+  Seam seam;
+  {
+    auto locks = lock_maps<std::unique_lock<std::shared_mutex>>({p.map.get(), other.get()});
+    locked.reset();
+    seam = link_seam(*other, *p.map, pairs, config_.seam);
+    seam_ms = locked.ms();
+  }
   FusionEvent e = link_event("reencounter", p, other_client, group, candidate, v, seam, hit);
   e.keyframes_moved = c.rigid;
   e.keyframes_kept = c.anchors;
@@ -74,10 +99,10 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
   logger("fusion")->info(
       "client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
       "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
-      "locked {:.1f} ms, {:.1f} ms from detection",
+      "locked {:.1f} ms (correction {:.1f}, seam {:.1f}), {:.1f} ms from detection",
       p.client, other_client, group.value(), v.final_inliers, 100 * c.T_correction.translation().norm(),
       Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors, c.pose_graph_ms,
-      e.seam_points, locked_ms, e.duration_ms);
+      e.seam_points, correction_ms + seam_ms, correction_ms, seam_ms, e.duration_ms);
   start_group_ba(group);
 }
 

@@ -8,10 +8,14 @@
 // seams) stay where they are, and the query map's essential graph spreads the difference between
 // the two; points follow their reference keyframes. The fusion manager then links the points the
 // two maps share around the pair (a seam) and re-runs the group's global BA with every link.
+#include <cstdint>
+#include <map>
 #include <set>
 #include <vector>
 
 #include "geometry/se3.h"
+#include "slam/loop/essential_graph.h"
+#include "slam/loop/pose_graph.h"
 #include "slam/map/map.h"
 
 namespace cslam {
@@ -32,10 +36,32 @@ struct ReencounterCorrection {
   double pose_graph_ms = 0;
 };
 
-// [unique lock on the query map; the candidate's map locked at least shared]
+// The correction in three steps, so that the query map is held exclusively only while it is
+// written (tracking reads it under shared locks and goes on while the graph is solved):
+//   1. plan_reencounter [query map locked at least shared; the candidate's map too]: the rigid
+//      set and its corrected poses, the anchors, the essential graph between them;
+//   2. solve_reencounter [no lock]: the pose graph;
+//   3. apply_reencounter [unique lock on the query map]: false (nothing written) if the map had a
+//      big change (loop correction, global BA) since step 1. Keyframes created meanwhile follow
+//      their anchor, and their points follow them, as after a global BA.
 // T_kf_world_measured: the query keyframe's pose as the verification measured it against the
 // candidate (whose map is in the same frame): S_query_candidate * T_candidate_world.
 // anchor_points: points of the query map linked across maps by earlier seams.
+struct ReencounterPlan {
+  ReencounterCorrection summary;
+  std::uint64_t change_index = 0;                    // the query map's big_change_index() at step 1
+  std::vector<KeyFramePtr> keyframes;                // every keyframe of the map at step 1, kept alive
+  std::map<KeyFrame*, SE3, ById> rigid_T_cam_world;  // the rigid set's corrected poses
+  EssentialGraph graph;
+  PoseGraphResult result;
+};
+ReencounterPlan plan_reencounter(const Map& query_map, const KeyFrame& kf, const SE3& T_kf_world_measured,
+                                 const std::vector<MapPointPtr>& anchor_points, const ReencounterConfig& config);
+void solve_reencounter(ReencounterPlan& plan, const ReencounterConfig& config);
+bool apply_reencounter(Map& query_map, ReencounterPlan& plan);
+
+// The three steps at once [unique lock on the query map; the candidate's map locked at least
+// shared].
 ReencounterCorrection correct_reencounter(Map& query_map, KeyFrame& kf, const SE3& T_kf_world_measured,
                                           const std::vector<MapPointPtr>& anchor_points,
                                           const ReencounterConfig& config);

@@ -26,7 +26,7 @@ std::vector<MapPointPtr> points_of(const std::vector<KeyFrame*>& kfs) {
 
 }  // namespace
 
-Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& moved_kf, const SeamConfig& config) {
+std::vector<SeamLink> match_seam(KeyFrame& kept_kf, KeyFrame& moved_kf, const SeamConfig& config) {
   const auto kept_side = neighbourhood(kept_kf, config.neighbours);
   const auto moved_side = neighbourhood(moved_kf, config.neighbours);
   // Votes for (moved point -> kept point) from both projection directions.
@@ -53,19 +53,28 @@ Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& mo
   for (const auto& [pair, n] : votes) ranked.push_back({n, pair});
   std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   std::set<MapPoint*> used;
+  std::vector<SeamLink> pairs;
+  for (const auto& [n, pair] : ranked) {
+    const MapPointPtr& moved = owner[pair.first];
+    const MapPointPtr& kept = owner[pair.second];
+    if (used.count(moved.get()) || used.count(kept.get())) continue;
+    used.insert(moved.get());
+    used.insert(kept.get());
+    pairs.push_back({kept, moved});
+  }
+  return pairs;
+}
+
+Seam link_seam(Map& kept_map, Map& moved_map, const std::vector<SeamLink>& pairs, const SeamConfig& config) {
   Seam seam;
   std::map<std::pair<KeyFrameId, KeyFrameId>, int> weight;
-  for (const auto& [n, pair] : ranked) {
-    MapPoint* moved = owner[pair.first].get();
-    MapPoint* kept = owner[pair.second].get();
-    if (used.count(moved) || used.count(kept)) continue;
-    used.insert(moved);
-    used.insert(kept);
-    seam.points.push_back({owner[pair.second], owner[pair.first]});
-    moved->position = kept->position;
-    moved_map.update_map_point(moved);
-    for (const auto& [a, ia] : kept->observations)
-      for (const auto& [b, ib] : moved->observations) ++weight[{a->id, b->id}];
+  for (const SeamLink& l : pairs) {
+    if (l.kept->bad || l.moved->bad) continue;
+    seam.points.push_back(l);
+    l.moved->position = l.kept->position;
+    moved_map.update_map_point(l.moved.get());
+    for (const auto& [a, ia] : l.kept->observations)
+      for (const auto& [b, ib] : l.moved->observations) ++weight[{a->id, b->id}];
   }
   for (const auto& [pair, w] : weight) {
     if (w < config.min_edge_weight) continue;
@@ -73,6 +82,10 @@ Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& mo
     if (a && b && !a->bad && !b->bad) seam.edges.push_back({a, b, w});
   }
   return seam;
+}
+
+Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& moved_kf, const SeamConfig& config) {
+  return link_seam(kept_map, moved_map, match_seam(kept_kf, moved_kf, config), config);
 }
 
 }  // namespace cslam

@@ -28,10 +28,17 @@ struct Seam {
   std::vector<SeamEdge> edges;
 };
 
-// [unique locks on both maps; the moved map already transformed into the kept map's frame]
-// Projects each side's neighbourhood points into the other side's keyframes; a point whose match
-// already carries a point of the other map is the same point: the pair is linked (the moved copy
-// takes the kept copy's position) and its observers on both sides count towards the edges.
+// In two steps, so that the maps are held exclusively only while the links are written:
+// match_seam [both maps locked at least shared; the moved map already transformed into the kept
+// map's frame] projects each side's neighbourhood points into the other side's keyframes; a point
+// whose match already carries a point of the other map is the same point; each point keeps its
+// partner of most votes (both directions vote). link_seam [unique locks on both maps] links the
+// pairs whose points are still good (the moved copy takes the kept copy's position); their
+// observers on both sides count towards the cross-map edges.
+std::vector<SeamLink> match_seam(KeyFrame& kept_kf, KeyFrame& moved_kf, const SeamConfig& config = {});
+Seam link_seam(Map& kept_map, Map& moved_map, const std::vector<SeamLink>& pairs, const SeamConfig& config = {});
+
+// Both steps at once [unique locks on both maps].
 Seam connect_seam(Map& kept_map, KeyFrame& kept_kf, Map& moved_map, KeyFrame& moved_kf, const SeamConfig& config = {});
 
 }  // namespace cslam

@@ -142,3 +142,73 @@ TEST(Reencounter, LoopClosureInAFusedMapRebalancesTheGroup) {
   EXPECT_EQ(fusion.group_ba_stats().started, 1) << "the same loop is balanced once";
   fusion.finish();
 }
+
+namespace {
+
+// Drifts every keyframe of `kfs` after the first `still` by an error growing with its order (on
+// the world side), its reference points with it [unique lock held].
+void drift(const std::vector<KeyFramePtr>& kfs, std::size_t still) {
+  Eigen::Matrix<double, 6, 1> xi;
+  xi << 0.04, -0.02, 0.02, 0.3 * M_PI / 180, 1.0 * M_PI / 180, 0.2 * M_PI / 180;  // [rho, phi]
+  const std::size_t n = kfs.size();
+  for (std::size_t i = still; i < n; ++i) {
+    const SE3 T_err = SE3::exp_small(double(i) / double(n - 1) * xi);
+    kfs[i]->T_cam_world = (T_err * kfs[i]->T_world_cam()).inverse();
+    for (const auto& mp : kfs[i]->map_points)
+      if (mp && !mp->bad && mp->reference == kfs[i].get()) mp->position = T_err * mp->position;
+  }
+}
+
+}  // namespace
+
+// The fusion thread plans and solves a re-encounter under shared locks and writes it under the
+// unique one. A keyframe tracking created in between (not in the plan) keeps its pose relative to
+// the keyframe it was tracked against; a big change in between (a loop correction) drops the
+// plan, and nothing is written.
+TEST(Reencounter, APlanAppliedLaterCarriesNewKeyframesAndYieldsToABigChange) {
+  test::TempDir dir("cslam_reencounter_plan");
+  const test::ClientMap b = build_long_map(dir);
+  std::unique_lock<std::shared_mutex> lock(b.map->mutex);
+  const std::vector<KeyFramePtr> kfs = in_order(*b.map);
+  ASSERT_GE(kfs.size(), 20u);
+  const KeyFramePtr query = kfs.back();
+  const SE3 T_measured = query->T_cam_world;
+  drift(kfs, 4);
+  std::vector<MapPointPtr> anchors;
+  for (std::size_t i = 0; i < 4; ++i)
+    for (const auto& mp : kfs[i]->map_points)
+      if (mp && !mp->bad) anchors.push_back(mp);
+
+  // A big change between planning and applying: nothing is written.
+  {
+    ReencounterPlan plan = plan_reencounter(*b.map, *query, T_measured, anchors, {});
+    solve_reencounter(plan, {});
+    b.map->note_big_change();
+    const SE3 before = query->T_cam_world;
+    EXPECT_FALSE(apply_reencounter(*b.map, plan));
+    EXPECT_EQ(query->T_cam_world.translation(), before.translation());
+  }
+
+  ReencounterPlan plan = plan_reencounter(*b.map, *query, T_measured, anchors, {});
+  solve_reencounter(plan, {});
+  ASSERT_TRUE(plan.result.converged);
+  // Tracking inserts a keyframe 5 cm ahead of the query meanwhile, and one more on top of it.
+  const SE3 T_new_query = SE3(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, -0.05));
+  auto fresh = std::make_shared<KeyFrame>(b.map->ids().next_keyframe(), query->data, T_new_query * query->T_cam_world);
+  fresh->creation_reference = query;
+  fresh->T_cam_creation_ref = T_new_query;
+  b.map->add_keyframe(fresh);
+  auto fresher =
+      std::make_shared<KeyFrame>(b.map->ids().next_keyframe(), query->data, T_new_query * fresh->T_cam_world);
+  fresher->creation_reference = fresh;
+  fresher->T_cam_creation_ref = T_new_query;
+  b.map->add_keyframe(fresher);
+  ASSERT_TRUE(apply_reencounter(*b.map, plan));
+  // The query sits at the measured pose; the new keyframes kept their poses relative to it.
+  EXPECT_LT((query->T_cam_world.translation() - T_measured.translation()).norm(), 1e-9);
+  const SE3 T_fresh_query = fresh->T_cam_world * query->T_world_cam();
+  const SE3 T_fresher_query = fresher->T_cam_world * query->T_world_cam();
+  EXPECT_LT((T_fresh_query.translation() - T_new_query.translation()).norm(), 1e-9);
+  EXPECT_LT((T_fresher_query.translation() - (T_new_query * T_new_query).translation()).norm(), 1e-9);
+  EXPECT_LT(T_fresh_query.rotation().angularDistance(Eigen::Quaterniond::Identity()), 1e-9);
+}
