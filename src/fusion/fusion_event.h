@@ -25,7 +25,8 @@ struct FusionEvent {
 // Global BA over the maps of fused groups (background, after each fusion).
 struct GroupBaStats {
   int started = 0, completed = 0, discarded = 0;
-  std::vector<double> ms;  // completed runs, wall time
+  int cut_short = 0;       // of the completed: stopped by the next link, what they solved written
+  std::vector<double> ms;  // completed runs (cut short ones too), wall time
   int last_keyframes = 0, last_points = 0, last_linked_points = 0;
 };
 

@@ -279,7 +279,7 @@ void FusionManager::fuse(const Pending& p, const std::shared_ptr<Map>& other, Cl
     }
     return n;
   };
-  stop_group_ba();  // its result would be discarded by the move anyway
+  stop_group_ba();  // cut short: what it solved so far is written before the move
   std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
   const std::size_t kf_q = keyframes_of(group_q), kf_c = keyframes_of(group_c);
   const bool move_candidate_side = kf_c <= kf_q;
@@ -377,21 +377,33 @@ bool FusionManager::run_group_ba_of(GroupId group) {
                      [](const Map* a, const Map* b) { return a->num_keyframes() > b->num_keyframes(); });
     gba.snapshot(maps, links);
   }
-  const BaResult r = gba.solve(config_.group_ba_iterations, &group_ba_abort_);
+  // Cut short by the next fusion or re-encounter, it still writes what it solved so far: every
+  // accepted step lowered the cost, and the next BA starts from there (nothing solved is thrown
+  // away when links come faster than a whole BA takes).
+  const BaResult r = gba.solve(config_.group_ba_iterations, &group_ba_abort_, true);
+  const bool progress = !r.partial || r.final_cost < r.initial_cost;
+  // Written map by map, each under its own exclusive lock (a robot's tracking waits only while its
+  // map is written); the links' lock keeps snapshots from seeing the group half written.
   bool applied = false;
-  double locked_ms = 0;  // every member map held exclusively: their robots' tracking waits this long
-  {
+  double locked_ms = 0;  // the longest exclusive hold of one map
+  if (progress) {
     std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
-    auto locks = lock_maps<std::unique_lock<std::shared_mutex>>(maps);
-    Stopwatch locked;
-    applied = gba.apply(r);
-    locked_ms = locked.ms();
+    applied = true;
+    for (std::size_t m = 0; m < maps.size(); ++m) {
+      std::unique_lock<std::shared_mutex> lock(maps[m]->mutex);
+      Stopwatch locked;
+      // A map that had a big change meanwhile (its loop correction) keeps it; the group is
+      // balanced again at its next keyframe (group_ba_pending_).
+      applied = gba.apply_map(m, r) && applied;
+      locked_ms = std::max(locked_ms, locked.ms());
+    }
   }
   std::lock_guard<std::mutex> lock(state_mutex_);
   if (applied)
     group_ba_pending_.erase(group);
   else if (!r.aborted)
     group_ba_pending_.insert(group);  // a map moved meanwhile: again at the next keyframe
+  if (applied && r.partial) ++group_ba_stats_.cut_short;
   if (applied) {
     ++group_ba_stats_.completed;
     group_ba_stats_.ms.push_back(sw.ms());
@@ -399,8 +411,10 @@ bool FusionManager::run_group_ba_of(GroupId group) {
     group_ba_stats_.last_points = int(gba.num_points());
     group_ba_stats_.last_linked_points = int(links.size());
     logger("fusion")->info(
-        "group {} global BA: {} maps, {} keyframes, {} points ({} linked), {:.0f} ms, locked {:.1f} ms", group.value(),
-        maps.size(), gba.num_keyframes(), gba.num_points(), links.size(), sw.ms(), locked_ms);
+        "group {} global BA{}: {} maps, {} keyframes, {} points ({} linked), {} iterations, {:.0f} ms, locked {:.1f} "
+        "ms",
+        group.value(), r.partial ? " (cut short, progress kept)" : "", maps.size(), gba.num_keyframes(),
+        gba.num_points(), links.size(), r.iterations, sw.ms(), locked_ms);
   } else {
     ++group_ba_stats_.discarded;
     logger("fusion")->info("group {} global BA discarded ({}) after {:.0f} ms", group.value(),

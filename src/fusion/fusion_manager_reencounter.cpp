@@ -47,7 +47,7 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
       }
     }
   }
-  stop_group_ba();  // its result would be discarded by the correction anyway
+  stop_group_ba();  // cut short: what it solved so far is written before the correction
   std::unique_lock<std::shared_mutex> moving_maps(links_mutex_);
   // The robots' tracking reads both maps under shared locks: it goes on while the correction is
   // planned and solved and the seam matched; only writing them holds a map exclusively.

@@ -45,6 +45,7 @@ BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::at
     res.iterations += lm.iterations;
     res.converged = lm.usable;
     if (lm.aborted) res.aborted = true;
+    if (lm.aborted && lm.usable) res.partial = true;
   };
   auto classify = [&] {
     std::vector<BaCamera> cams = prob.cameras;

@@ -39,6 +39,9 @@ struct BaConfig {
   // 0: Ceres' termination rules alone). Schur path only.
   double min_step_decrease = 1e-4;
   int threads = 1;  // Ceres threads (sparse path only; the Schur solver is single-threaded)
+  // An aborted solve returns its last accepted iterate (BaResult::partial) instead of the values
+  // it started from: every accepted step lowered the cost, so a cut-short solve is still progress.
+  bool keep_progress_on_abort = false;
 };
 
 struct BaResult {
@@ -48,9 +51,11 @@ struct BaResult {
   double initial_cost = 0, final_cost = 0;
   int iterations = 0;
   bool converged = false, aborted = false;
+  bool partial = false;  // aborted with keep_progress_on_abort: the result is the last accepted iterate
 };
 
-// `abort` (optional) stops the solver between iterations when set (e.g. a new keyframe arrived).
+// `abort` (optional) stops the solver between iterations when set (e.g. a new keyframe arrived);
+// the result is then the start, or with keep_progress_on_abort the last accepted iterate.
 BaResult bundle_adjust(const BaProblem& problem, const BaConfig& config = {}, const std::atomic<bool>* abort = nullptr);
 
 // Whitened squared reprojection error of one observation (infinite behind the camera).

@@ -11,13 +11,16 @@ namespace cslam::ceres_ba {
 
 class AbortCallback : public ceres::IterationCallback {
  public:
-  explicit AbortCallback(const std::atomic<bool>* flag) : flag_(flag) {}
+  // keep_progress: the solver ends at its current (last accepted) iterate, as USER_SUCCESS.
+  AbortCallback(const std::atomic<bool>* flag, bool keep_progress) : flag_(flag), keep_progress_(keep_progress) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    return flag_ && flag_->load() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
+    if (!flag_ || !flag_->load()) return ceres::SOLVER_CONTINUE;
+    return keep_progress_ ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_ABORT;
   }
 
  private:
   const std::atomic<bool>* flag_;
+  bool keep_progress_;
 };
 
 // Adds one solver stage to `res`: the first stage's initial cost, the last one's final cost.
@@ -27,6 +30,7 @@ inline void accumulate(const ceres::Solver::Summary& summary, BaResult& res) {
   res.iterations += int(summary.iterations.size());
   res.converged = summary.termination_type == ceres::CONVERGENCE || summary.termination_type == ceres::NO_CONVERGENCE;
   if (summary.termination_type == ceres::USER_FAILURE) res.aborted = true;
+  if (summary.termination_type == ceres::USER_SUCCESS) res.aborted = res.partial = res.converged = true;
 }
 
 }  // namespace cslam::ceres_ba

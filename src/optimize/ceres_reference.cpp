@@ -87,7 +87,7 @@ BaResult bundle_adjust_ceres(const BaProblem& prob, const BaConfig& cfg, const s
   for (const auto& p : prob.points) pts.push_back({p.x(), p.y(), p.z()});
   res.inlier.assign(prob.observations.size(), 1);
 
-  ceres_ba::AbortCallback callback(abort);
+  ceres_ba::AbortCallback callback(abort, cfg.keep_progress_on_abort);
   auto run_stage = [&](int iterations, bool robust) {
     ceres::Problem::Options popts;
     popts.loss_function_ownership = ceres::TAKE_OWNERSHIP;

@@ -42,9 +42,10 @@ inline double lm_damping(double h, double radius) {
 //                               derivatives are not finite, and the step counts as rejected
 //   void commit()               x <- x + step without derivatives: the accepted step that ends
 //                               the solve (early end, last iteration) needs none there
+// keep_on_abort: an abort ends the solve usable, at the last accepted iterate (the start if none).
 template <class Problem>
 LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<bool>* abort = nullptr,
-                              double min_step_decrease = 0.0) {
+                              double min_step_decrease = 0.0, bool keep_on_abort = false) {
   constexpr double kFunctionTolerance = 1e-6, kGradientTolerance = 1e-10, kParameterTolerance = 1e-8;
   constexpr double kMinRelativeDecrease = 1e-3, kMaxRadius = 1e16, kMinRadius = 1e-32;
   constexpr int kMaxConsecutiveInvalidSteps = 5;
@@ -59,7 +60,7 @@ LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<
   }
   auto aborted = [&] { return abort && abort->load(); };
   if (aborted()) {
-    out.usable = false;
+    out.usable = keep_on_abort;
     out.aborted = true;
     return out;
   }
@@ -117,7 +118,7 @@ LmOutcome levenberg_marquardt(Problem& p, int max_iterations, const std::atomic<
     }
     ++out.iterations;
     if (aborted()) {
-      out.usable = false;
+      out.usable = keep_on_abort;
       out.aborted = true;
       return out;
     }

@@ -301,7 +301,7 @@ LmOutcome schur_ba_stage(const BaProblem& problem, const std::vector<char>& acti
                          int max_iterations, const std::atomic<bool>* abort, std::vector<std::array<double, 6>>& poses,
                          std::vector<Eigen::Vector3d>& points) {
   SchurBaProblem p(problem, active, robust, config, poses, points);
-  return levenberg_marquardt(p, max_iterations, abort, config.min_step_decrease);
+  return levenberg_marquardt(p, max_iterations, abort, config.min_step_decrease, config.keep_progress_on_abort);
 }
 
 }  // namespace cslam

@@ -121,7 +121,7 @@ BaResult bundle_adjust_sparse(const BaProblem& prob, const BaConfig& cfg, const 
     ordering->AddElementToGroup(poses[c].data(), 1);
   }
 
-  ceres_ba::AbortCallback callback(abort);
+  ceres_ba::AbortCallback callback(abort, cfg.keep_progress_on_abort);
   auto run_stage = [&](int iterations) {
     if (problem.NumResidualBlocks() == 0) return;
     ceres::Solver::Options opts;

@@ -356,13 +356,11 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
                                       {"keyframes_moved", e.keyframes_moved},
                                       {"keyframes_kept", e.keyframes_kept},
                                       {"T_query_candidate", format_tum_line({0.0, e.T_query_candidate})}});
-  stats["group_ba"] = {{"started", snap.group_ba.started},
-                       {"completed", snap.group_ba.completed},
-                       {"discarded", snap.group_ba.discarded},
-                       {"ms", summary_json(snap.group_ba.ms)},
-                       {"last_keyframes", snap.group_ba.last_keyframes},
-                       {"last_points", snap.group_ba.last_points},
-                       {"last_linked_points", snap.group_ba.last_linked_points}};
+  stats["group_ba"] = {
+      {"started", snap.group_ba.started},         {"completed", snap.group_ba.completed},
+      {"discarded", snap.group_ba.discarded},     {"cut_short", snap.group_ba.cut_short},
+      {"ms", summary_json(snap.group_ba.ms)},     {"last_keyframes", snap.group_ba.last_keyframes},
+      {"last_points", snap.group_ba.last_points}, {"last_linked_points", snap.group_ba.last_linked_points}};
   std::ofstream(dir + "/stats.json") << stats.dump(2) << "\n";
 }
 

@@ -145,6 +145,63 @@ TEST(Seam, GroupBaIsDiscardedWhenAMapChangedMeanwhile) {
   }
 }
 
+// Written map by map (each under its own lock), the result for the maps that did not change is
+// the one apply() writes for both; a map that had a big change meanwhile keeps it.
+TEST(Seam, GroupBaWrittenMapByMapEqualsTheWholeAndSkipsAChangedMap) {
+  test::TempDir dir("cslam_seam_per_map");
+  test::TwoMaps m = test::build_two_maps(dir);
+  GlobalBa gba;
+  {
+    SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
+    gba.snapshot({m.a.map.get(), m.b.map.get()});
+  }
+  const BaResult r = gba.solve(3, nullptr);
+  std::map<const KeyFrame*, SE3> start;
+  std::map<const MapPoint*, Eigen::Vector3d> start_points;
+  for (const auto& map : {m.a.map, m.b.map}) {
+    for (const auto& kf : map->keyframes()) start[kf.get()] = kf->T_cam_world;
+    for (const auto& mp : map->map_points()) start_points[mp.get()] = mp->position;
+  }
+  std::map<const KeyFrame*, SE3> whole;
+  {
+    UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
+    ASSERT_TRUE(gba.apply(r));
+    for (const auto& map : {m.a.map, m.b.map})
+      for (const auto& kf : map->keyframes()) {
+        whole[kf.get()] = kf->T_cam_world;
+        kf->T_cam_world = start.at(kf.get());  // back to the start for the second writing
+      }
+    for (const auto& map : {m.a.map, m.b.map})
+      for (const auto& mp : map->map_points()) {
+        mp->position = start_points.at(mp.get());
+        map->update_map_point(mp.get());
+      }
+  }
+  GlobalBa again;
+  {
+    SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
+    again.snapshot({m.a.map.get(), m.b.map.get()});
+  }
+  const BaResult r2 = again.solve(3, nullptr);
+  {
+    std::unique_lock<std::shared_mutex> lock(m.b.map->mutex);
+    m.b.map->note_big_change();  // client 2 closed a loop while the BA solved
+  }
+  {
+    std::unique_lock<std::shared_mutex> lock(m.a.map->mutex);
+    ASSERT_TRUE(again.apply_map(0, r2));
+    for (const auto& kf : m.a.map->keyframes())
+      EXPECT_TRUE(kf->T_cam_world.translation() == whole.at(kf.get()).translation()) << "map a as apply() wrote it";
+    test::expect_consistent(*m.a.map);
+  }
+  {
+    std::unique_lock<std::shared_mutex> lock(m.b.map->mutex);
+    EXPECT_FALSE(again.apply_map(1, r2));
+    for (const auto& kf : m.b.map->keyframes())
+      EXPECT_TRUE(kf->T_cam_world.translation() == start.at(kf.get()).translation()) << "map b changed meanwhile";
+  }
+}
+
 // A seam given back to a fusion manager from a snapshot (FusionManager::restore_state) is the seam
 // its group BA estimates and its next snapshot writes; a snapshot's copy that holds the links
 // (hold_links) sees no group BA change a map meanwhile.

@@ -15,14 +15,17 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps,
   change_index_.clear();
   problem_ = {};
   cameras_.clear();
-  points_.clear();
+  camera_map_.clear();
+  map_points_.assign(maps.size(), {});
   std::map<KeyFrame*, int, ById> index;
-  for (Map* map : maps_) {
+  for (std::size_t m = 0; m < maps_.size(); ++m) {
+    Map* map = maps_[m];
     change_index_.push_back(map->big_change_index());
     for (const auto& kf : map->keyframes()) {
       if (kf->bad) continue;
       index[kf.get()] = int(cameras_.size());
       cameras_.push_back(kf);
+      camera_map_.push_back(m);
       const auto& c = kf->data->camera;
       problem_.cameras.push_back(
           {kf->T_cam_world, {c.fx, c.fy, c.cx, c.cy, kf->data->rgbd.bf}, map == maps_.front() && kf == map->origin()});
@@ -33,24 +36,21 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps,
   for (const auto& [a, b] : same_points)
     if (a && b && !a->bad && !b->bad && a != b) alias.emplace(b.get(), a.get());
   std::unordered_map<const MapPoint*, int> variable;
-  auto variable_of = [&](const MapPointPtr& mp) {
+  auto variable_of = [&](const MapPointPtr& mp, std::size_t m) {
     auto al = alias.find(mp.get());
     const MapPoint* key = al == alias.end() ? mp.get() : al->second;
-    auto [it, inserted] = variable.emplace(key, int(points_.size()));
-    if (inserted) {
-      points_.emplace_back();
-      problem_.points.push_back(mp->position);
-    }
-    points_[it->second].push_back(mp);
+    auto [it, inserted] = variable.emplace(key, int(problem_.points.size()));
+    if (inserted) problem_.points.push_back(mp->position);
+    map_points_[m].emplace_back(it->second, mp);
     return it->second;
   };
-  for (Map* map : maps_)
-    for (const auto& mp : map->map_points()) {
+  for (std::size_t m = 0; m < maps_.size(); ++m)
+    for (const auto& mp : maps_[m]->map_points()) {
       if (mp->bad) continue;
       bool observed = false;
       for (const auto& [kf, idx] : mp->observations) observed = observed || index.count(kf);
       if (!observed) continue;
-      const int p = variable_of(mp);
+      const int p = variable_of(mp, m);
       for (const auto& [kf, idx] : mp->observations) {
         auto it = index.find(kf);
         if (it == index.end()) continue;
@@ -66,50 +66,59 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps,
     }
 }
 
-BaResult GlobalBa::solve(int iterations, const std::atomic<bool>* abort) const {
+BaResult GlobalBa::solve(int iterations, const std::atomic<bool>* abort, bool keep_progress) const {
   BaConfig cfg;
+  cfg.keep_progress_on_abort = keep_progress;
   cfg.first_iterations = iterations;
   cfg.second_iterations = 0;
   return bundle_adjust(problem_, cfg, abort);
 }
 
+bool GlobalBa::usable(const BaResult& r) const {
+  return (!r.aborted || r.partial) && r.T_cam_world.size() == cameras_.size();
+}
+
 bool GlobalBa::apply(const BaResult& r) {
-  if (r.aborted || r.T_cam_world.size() != cameras_.size()) return false;
+  if (!usable(r)) return false;
   for (size_t m = 0; m < maps_.size(); ++m)
     if (maps_[m]->big_change_index() != change_index_[m]) return false;
+  for (size_t m = 0; m < maps_.size(); ++m) apply_map(m, r);
+  return true;
+}
+
+bool GlobalBa::apply_map(std::size_t m, const BaResult& r) {
+  if (!usable(r) || maps_[m]->big_change_index() != change_index_[m]) return false;
+  Map* map = maps_[m];
   // Optimised keyframes; each one's correction as a right factor on T_cam_world.
   std::map<KeyFrame*, SE3, ById> correction;
   for (size_t c = 0; c < cameras_.size(); ++c) {
-    if (cameras_[c]->bad) continue;
+    if (camera_map_[c] != m || cameras_[c]->bad) continue;
     correction[cameras_[c].get()] = cameras_[c]->T_world_cam() * r.T_cam_world[c];
     cameras_[c]->T_cam_world = r.T_cam_world[c];
   }
   std::unordered_set<MapPoint*> optimised;
-  for (size_t p = 0; p < points_.size(); ++p)
-    for (const auto& mp : points_[p]) {
-      optimised.insert(mp.get());
-      if (!mp->bad) mp->position = r.points[p];
-    }
-  for (Map* map : maps_) {
-    // Keyframes created meanwhile keep their pose relative to the nearest optimised anchor.
-    std::map<KeyFrame*, SE3, ById> moved_old_pose;
-    for (const auto& kf : map->keyframes()) {
-      if (correction.count(kf.get())) continue;
-      KeyFrame* anc = kf->anchor();
-      while (anc && !correction.count(anc)) anc = anc->anchor();
-      if (!anc) continue;
-      const SE3 T_kf_anc_old = kf->T_cam_world * (anc->T_cam_world * correction[anc].inverse()).inverse();
-      moved_old_pose[kf.get()] = kf->T_cam_world;
-      kf->T_cam_world = T_kf_anc_old * anc->T_cam_world;
-    }
-    for (const auto& mp : map->map_points()) {
-      if (optimised.count(mp.get())) continue;
-      auto it = moved_old_pose.find(mp->reference);
-      if (it != moved_old_pose.end()) mp->position = mp->reference->T_world_cam() * (it->second * mp->position);
-    }
-    for (const auto& mp : map->map_points()) map->update_map_point(mp.get());
-    map->note_big_change();  // tracking re-derives its last pose from its reference keyframe
+  for (const auto& [p, mp] : map_points_[m]) {
+    optimised.insert(mp.get());
+    if (!mp->bad) mp->position = r.points[p];
   }
+  // Keyframes created meanwhile keep their pose relative to the nearest optimised anchor.
+  std::map<KeyFrame*, SE3, ById> moved_old_pose;
+  for (const auto& kf : map->keyframes()) {
+    if (correction.count(kf.get())) continue;
+    KeyFrame* anc = kf->anchor();
+    while (anc && !correction.count(anc)) anc = anc->anchor();
+    if (!anc) continue;
+    const SE3 T_kf_anc_old = kf->T_cam_world * (anc->T_cam_world * correction[anc].inverse()).inverse();
+    moved_old_pose[kf.get()] = kf->T_cam_world;
+    kf->T_cam_world = T_kf_anc_old * anc->T_cam_world;
+  }
+  for (const auto& mp : map->map_points()) {
+    if (optimised.count(mp.get())) continue;
+    auto it = moved_old_pose.find(mp->reference);
+    if (it != moved_old_pose.end()) mp->position = mp->reference->T_world_cam() * (it->second * mp->position);
+  }
+  for (const auto& mp : map->map_points()) map->update_map_point(mp.get());
+  map->note_big_change();  // tracking re-derives its last pose from its reference keyframe
   return true;
 }
 

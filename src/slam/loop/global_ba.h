@@ -24,13 +24,20 @@ class GlobalBa {
   // `same_points`: pairs of points (in different maps) estimated as one.
   void snapshot(const std::vector<Map*>& maps,
                 const std::vector<std::pair<MapPointPtr, MapPointPtr>>& same_points = {});
-  // No lock needed. Stops early (aborted) when *abort becomes true.
-  BaResult solve(int iterations, const std::atomic<bool>* abort) const;
+  // No lock needed. Stops early (aborted) when *abort becomes true; with keep_progress the result
+  // is then the last accepted iterate (partial), which apply() takes like a completed solve.
+  BaResult solve(int iterations, const std::atomic<bool>* abort, bool keep_progress = false) const;
   // [no lock held]
   std::vector<Map*> maps() const { return maps_; }
   // [unique locks on every map] False (nothing written) if any map had a big change since the
-  // snapshot or the result was aborted.
+  // snapshot or the result was aborted without its progress.
   bool apply(const BaResult& result);
+  // [unique lock on maps()[m]] The result for one map alone (its keyframes, its points, its
+  // keyframes created meanwhile), so that each robot's tracking waits only while its own map is
+  // written. False (nothing written) if that map had a big change since the snapshot or the
+  // result was aborted without its progress. apply() is apply_map() over every map once each
+  // passed the check.
+  bool apply_map(std::size_t m, const BaResult& result);
 
   std::size_t num_keyframes() const { return cameras_.size(); }
   std::size_t num_points() const { return problem_.points.size(); }
@@ -38,9 +45,12 @@ class GlobalBa {
  private:
   std::vector<Map*> maps_;
   std::vector<std::uint64_t> change_index_;
+  bool usable(const BaResult& r) const;
   BaProblem problem_;
   std::vector<KeyFramePtr> cameras_;
-  std::vector<std::vector<MapPointPtr>> points_;  // per variable: every map point it stands for
+  std::vector<std::size_t> camera_map_;  // per camera: its map's index in maps_
+  // per map: (variable, point) for every point of that map that a variable stands for
+  std::vector<std::vector<std::pair<int, MapPointPtr>>> map_points_;
 };
 
 // One global BA over `map` on the calling thread (snapshot under the shared lock, solve without
