@@ -57,6 +57,15 @@ SE3 small_error() {
              Eigen::Vector3d(0.008, -0.006, 0.004));
 }
 
+// A group BA of both maps without links (snapshot under shared locks), 3 iterations.
+BaResult snapshot_and_solve(const test::TwoMaps& m, GlobalBa& gba) {
+  {
+    SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
+    gba.snapshot({m.a.map.get(), m.b.map.get()});
+  }
+  return gba.solve(3, nullptr);
+}
+
 }  // namespace
 
 TEST(Seam, LinksTheSamePointsAcrossMapsAndGroupBaRemovesTheMisalignment) {
@@ -128,11 +137,7 @@ TEST(Seam, GroupBaIsDiscardedWhenAMapChangedMeanwhile) {
   test::TempDir dir("cslam_seam_discard");
   test::TwoMaps m = test::build_two_maps(dir);
   GlobalBa gba;
-  {
-    SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-    gba.snapshot({m.a.map.get(), m.b.map.get()});
-  }
-  const BaResult r = gba.solve(3, nullptr);
+  const BaResult r = snapshot_and_solve(m, gba);
   std::map<const KeyFrame*, SE3> poses;
   {
     UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
@@ -151,11 +156,7 @@ TEST(Seam, GroupBaWrittenMapByMapEqualsTheWholeAndSkipsAChangedMap) {
   test::TempDir dir("cslam_seam_per_map");
   test::TwoMaps m = test::build_two_maps(dir);
   GlobalBa gba;
-  {
-    SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-    gba.snapshot({m.a.map.get(), m.b.map.get()});
-  }
-  const BaResult r = gba.solve(3, nullptr);
+  const BaResult r = snapshot_and_solve(m, gba);
   std::map<const KeyFrame*, SE3> start;
   std::map<const MapPoint*, Eigen::Vector3d> start_points;
   for (const auto& map : {m.a.map, m.b.map}) {
@@ -178,11 +179,7 @@ TEST(Seam, GroupBaWrittenMapByMapEqualsTheWholeAndSkipsAChangedMap) {
       }
   }
   GlobalBa again;
-  {
-    SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-    again.snapshot({m.a.map.get(), m.b.map.get()});
-  }
-  const BaResult r2 = again.solve(3, nullptr);
+  const BaResult r2 = snapshot_and_solve(m, again);
   {
     std::unique_lock<std::shared_mutex> lock(m.b.map->mutex);
     m.b.map->note_big_change();  // client 2 closed a loop while the BA solved
