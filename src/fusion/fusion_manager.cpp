@@ -418,7 +418,8 @@ bool FusionManager::run_group_ba_of(GroupId group) {
   } else {
     ++group_ba_stats_.discarded;
     logger("fusion")->info("group {} global BA discarded ({}) after {:.0f} ms", group.value(),
-                           r.aborted ? "aborted" : "a map moved meanwhile", sw.ms());
+                           progress ? "a map moved meanwhile; the others took it" : "cut short before its first step",
+                           sw.ms());
   }
   return applied;
 }
