@@ -3,6 +3,7 @@
 #include <unordered_set>
 
 #include "core/stopwatch.h"
+#include "slam/loop/global_ba.h"
 
 namespace cslam {
 
@@ -53,29 +54,6 @@ void solve_reencounter(ReencounterPlan& plan, const ReencounterConfig& config) {
   plan.summary.pose_graph_converged = plan.result.converged;
 }
 
-namespace {
-
-// Keyframes the plan did not know (created after it) keep their pose relative to the nearest
-// keyframe it moved; returns their poses before.
-std::map<KeyFrame*, SE3, ById> follow_anchors(const Map& map, const std::vector<KeyFramePtr>& known,
-                                              const std::map<KeyFrame*, SE3, ById>& before) {
-  std::unordered_set<const KeyFrame*> planned;
-  for (const auto& k : known) planned.insert(k.get());
-  std::map<KeyFrame*, SE3, ById> moved;
-  for (const auto& kf : map.keyframes()) {
-    if (kf->bad || planned.count(kf.get())) continue;
-    KeyFrame* anc = kf->anchor();
-    while (anc && !before.count(anc)) anc = anc->anchor();
-    if (!anc) continue;
-    const SE3 T_kf_anc = kf->T_cam_world * before.at(anc).inverse();
-    moved[kf.get()] = kf->T_cam_world;
-    kf->T_cam_world = T_kf_anc * anc->T_cam_world;
-  }
-  return moved;
-}
-
-}  // namespace
-
 bool apply_reencounter(Map& query_map, ReencounterPlan& plan) {
   if (query_map.big_change_index() != plan.change_index) return false;
   // The rigid set; points it sees move with the first keyframe of the set that sees them.
@@ -101,7 +79,9 @@ bool apply_reencounter(Map& query_map, ReencounterPlan& plan) {
       k->T_cam_world = plan.result.S_world_node[i].to_se3().inverse();
     }
   }
-  for (const auto& [k, T_old] : follow_anchors(query_map, plan.keyframes, before)) pre_opt[k] = T_old;
+  std::unordered_set<const KeyFrame*> planned;  // keyframes created since the plan are not in it
+  for (const auto& k : plan.keyframes) planned.insert(k.get());
+  for (const auto& [k, T_old] : carry_new_keyframes(query_map, before, planned)) pre_opt[k] = T_old;
   for (const auto& mp : query_map.map_points()) {
     if (moved.count(mp.get())) continue;
     auto it = pre_opt.find(mp->reference);

@@ -89,11 +89,11 @@ bool GlobalBa::apply(const BaResult& r) {
 bool GlobalBa::apply_map(std::size_t m, const BaResult& r) {
   if (!usable(r) || maps_[m]->big_change_index() != change_index_[m]) return false;
   Map* map = maps_[m];
-  // Optimised keyframes; each one's correction as a right factor on T_cam_world.
-  std::map<KeyFrame*, SE3, ById> correction;
+  // Optimised keyframes, and their poses before.
+  std::map<KeyFrame*, SE3, ById> old_pose;
   for (size_t c = 0; c < cameras_.size(); ++c) {
     if (camera_map_[c] != m || cameras_[c]->bad) continue;
-    correction[cameras_[c].get()] = cameras_[c]->T_world_cam() * r.T_cam_world[c];
+    old_pose[cameras_[c].get()] = cameras_[c]->T_cam_world;
     cameras_[c]->T_cam_world = r.T_cam_world[c];
   }
   std::unordered_set<MapPoint*> optimised;
@@ -102,16 +102,7 @@ bool GlobalBa::apply_map(std::size_t m, const BaResult& r) {
     if (!mp->bad) mp->position = r.points[p];
   }
   // Keyframes created meanwhile keep their pose relative to the nearest optimised anchor.
-  std::map<KeyFrame*, SE3, ById> moved_old_pose;
-  for (const auto& kf : map->keyframes()) {
-    if (correction.count(kf.get())) continue;
-    KeyFrame* anc = kf->anchor();
-    while (anc && !correction.count(anc)) anc = anc->anchor();
-    if (!anc) continue;
-    const SE3 T_kf_anc_old = kf->T_cam_world * (anc->T_cam_world * correction[anc].inverse()).inverse();
-    moved_old_pose[kf.get()] = kf->T_cam_world;
-    kf->T_cam_world = T_kf_anc_old * anc->T_cam_world;
-  }
+  const std::map<KeyFrame*, SE3, ById> moved_old_pose = carry_new_keyframes(*map, old_pose);
   for (const auto& mp : map->map_points()) {
     if (optimised.count(mp.get())) continue;
     auto it = moved_old_pose.find(mp->reference);
@@ -120,6 +111,21 @@ bool GlobalBa::apply_map(std::size_t m, const BaResult& r) {
   for (const auto& mp : map->map_points()) map->update_map_point(mp.get());
   map->note_big_change();  // tracking re-derives its last pose from its reference keyframe
   return true;
+}
+
+std::map<KeyFrame*, SE3, ById> carry_new_keyframes(const Map& map, const std::map<KeyFrame*, SE3, ById>& old_pose,
+                                                   const std::unordered_set<const KeyFrame*>& known) {
+  std::map<KeyFrame*, SE3, ById> carried;
+  for (const auto& kf : map.keyframes()) {
+    if (old_pose.count(kf.get()) || known.count(kf.get())) continue;
+    KeyFrame* anc = kf->anchor();
+    while (anc && !old_pose.count(anc)) anc = anc->anchor();
+    if (!anc) continue;
+    const SE3 T_kf_anc = kf->T_cam_world * old_pose.at(anc).inverse();
+    carried[kf.get()] = kf->T_cam_world;
+    kf->T_cam_world = T_kf_anc * anc->T_cam_world;
+  }
+  return carried;
 }
 
 bool run_global_ba_once(Map& map, int iterations) {

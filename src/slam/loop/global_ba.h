@@ -10,6 +10,8 @@
 //      were tracked against) and their points follow them, as ORB-SLAM2 merges its global BA.
 #include <atomic>
 #include <cstdint>
+#include <map>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -52,6 +54,14 @@ class GlobalBa {
   // per map: (variable, point) for every point of that map that a variable stands for
   std::vector<std::vector<std::pair<int, MapPointPtr>>> map_points_;
 };
+
+// [unique lock on `map`] After an optimisation moved some of its keyframes (`old_pose`: each moved
+// keyframe's pose before), every other keyframe not in `known` (one created after the
+// optimisation's snapshot) keeps its pose relative to the nearest anchor that moved (spanning-tree
+// parent, or the keyframe it was tracked against). Returns the carried keyframes' poses before, so
+// that their points can follow them.
+std::map<KeyFrame*, SE3, ById> carry_new_keyframes(const Map& map, const std::map<KeyFrame*, SE3, ById>& old_pose,
+                                                   const std::unordered_set<const KeyFrame*>& known = {});
 
 // One global BA over `map` on the calling thread (snapshot under the shared lock, solve without
 // it, apply under the unique lock): the refinement at the end of a session. False if the map has
