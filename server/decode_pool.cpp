@@ -91,6 +91,7 @@ DecodeResult DecodePool::process(DecodeJob& job, std::unique_ptr<video::H264Deco
     RgbdFrame decoded =
         wire::from_wire_frame(*job.frame, job.camera, job.source, colour_stream ? colour_stream->get() : nullptr);
     decoded.client = job.client;
+    decoded.arrived = job.arrived;
     // Only frames that may become keyframes are kept for the dense map.
     if (wire::keyframe_eligible(*job.frame))
       decoded.encoded = std::make_shared<const EncodedRgbd>(wire::take_encoded(*job.frame));

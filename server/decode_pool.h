@@ -5,6 +5,7 @@
 // submitted in the order they were posted; other clients' frames are decoded meanwhile by the
 // other threads, so one client's heavy frame never delays another client's acks.
 // The queue is bounded (post() returns false when full); with credits it never fills.
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -28,6 +29,7 @@ struct DecodeJob {
   PinholeCamera camera;
   std::string source;  // "client K frame S" for error messages
   std::unique_ptr<wire::RgbdFrame> frame;
+  std::chrono::steady_clock::time_point arrived;  // when the receiver read the packet
 };
 
 struct DecodeResult {

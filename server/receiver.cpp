@@ -343,6 +343,7 @@ void Receiver::on_frame(const std::string& routing_id, std::unique_ptr<wire::Rgb
   job.seq = seq;
   job.camera = session->info.camera;
   job.source = source;
+  job.arrived = now;
   const bool light = !wire::keyframe_eligible(*frame);
   job.frame = std::move(frame);
   if (!pool_.post(std::move(job))) return refuse(wire::ERROR_OVERLOADED, "decode queue full", 1);

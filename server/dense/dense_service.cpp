@@ -179,7 +179,7 @@ void DenseService::run() {
   // Well below SLAM's compute threads (nice +5): on a saturated machine the robots' poses come
   // first and the dense map catches up (its queue and pending list are bounded and counted).
   name_current_thread("dense");
-  lower_current_thread_priority(15);
+  lower_current_thread_priority(kDenseNice);
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     wake_.wait_for(lock, std::chrono::duration<double>(config_.step_interval_s),

@@ -6,6 +6,7 @@
 #include "server/http/status_cache.h"
 
 #include "core/ids_json.h"
+#include "system/pose_latency_json.h"
 
 namespace cslam::http {
 namespace {
@@ -145,11 +146,7 @@ nlohmann::json client_json(const ClientSnapshot& c, double fps, double input_fps
           {"frames_lost", c.frames_lost},
           {"frames_skipped", c.frames_skipped},
           {"frames_flow", c.frames_flow},
-          {"pose_latency_ms",
-           {{"last", c.pose_latency_last_ms},
-            {"p50", c.pose_latency_p50_ms},
-            {"p99", c.pose_latency_p99_ms},
-            {"samples", c.pose_latency_samples}}},
+          {"pose_latency_ms", pose_latency_json(c)},
           {"queue_depth", c.queue_depth},
           {"fps", fps},
           {"input_fps", input_fps},

@@ -42,6 +42,9 @@ struct RgbdFrame {
   bool live = false;
   // When the system got the frame (stamped by submit() if left at the epoch); pose latency.
   std::chrono::steady_clock::time_point received{};
+  // When the server read the frame's packet, before decoding it (the epoch offline): the decoding
+  // part of the pose latency's breakdown.
+  std::chrono::steady_clock::time_point arrived{};
   // The images as the robot sent them (the server's frames; null offline): what the keyframe
   // store keeps, so the dense map is built from the received bytes, never a re-encoding.
   std::shared_ptr<const EncodedRgbd> encoded;

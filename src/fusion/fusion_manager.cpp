@@ -340,7 +340,7 @@ void FusionManager::start_group_ba(GroupId group) {
   }
   group_ba_thread_ = std::thread([this, group] {
     name_current_thread("group-ba");
-    lower_current_thread_priority();
+    lower_current_thread_priority(kGroupBaNice);
     run_group_ba_of(group);
   });
 }

@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <shared_mutex>
 
+#include <time.h>
+
+#include <cstdio>
+
 #include "core/log.h"
 #include "core/thread_priority.h"
 
@@ -17,6 +21,26 @@ double percentile(std::vector<double> v, double p) {
   return v[k];
 }
 
+double thread_cpu_ms() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+// Time the calling thread has waited for a core so far (Linux schedstat), ms; 0 if unknown.
+double thread_runqueue_ms() {
+  std::FILE* f = std::fopen("/proc/thread-self/schedstat", "r");
+  if (!f) return 0;
+  unsigned long long run = 0, wait = 0;
+  const int n = std::fscanf(f, "%llu %llu", &run, &wait);
+  std::fclose(f);
+  return n == 2 ? double(wait) * 1e-6 : 0;
+}
+
+double ms_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
 }  // namespace
 
 ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& config,
@@ -29,17 +53,20 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
       queue_(config.client_queue_capacity) {
   if (config_.run_slam)
     slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
-  if (slam_ && tracking_slots_)  // on the worker thread, inside process(): slot_ is its frame's
+  if (slam_)  // on the worker thread, inside process(): slot_ is its frame's
     slam_->set_tracking_wait_hooks({[this] {
+                                      mapping_wait_start_ = Clock::now();
                                       if (slot_) slot_->lend();
                                     },
                                     [this] {
                                       if (slot_) slot_->take_back();
+                                      mapping_wait_ms_ += ms_since(mapping_wait_start_);
                                     }});
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = GroupId::from_value(info_.id);  // until the first frame reports its group
   latency_ms_.reserve(kLatencyWindow);
+  latency_parts_.reserve(kLatencyWindow);
   // Stepped (config.stepped): frames are processed inside submit(), in order.
   if (!config_.stepped) thread_ = std::thread([this] { run(); });
 }
@@ -54,7 +81,10 @@ bool ClientPipeline::submit(RgbdFrame frame) {
   }
   if (config_.stepped) {
     if (queue_.closed()) return false;
-    report(process(frame), frame);
+    const double cpu_started = thread_cpu_ms();
+    FrameDone done = process(frame);
+    done_cpu_ms_ = thread_cpu_ms() - cpu_started;
+    report(done, frame);
     return true;
   }
   return queue_.push(std::move(frame));
@@ -73,8 +103,10 @@ void ClientPipeline::run() {
   std::chrono::steady_clock::time_point behind_until{}, overloaded_until{};
   while (auto frame = queue_.pop()) {
     // The slot first: the frames that arrive while this worker waits for it are skipped below.
+    const auto popped = Clock::now();
     FifoSlots::Hold slot(tracking_slots_);
     slot_ = &slot;
+    const double slot_ms = tracking_slots_ ? ms_since(popped) : 0;
     // Live: only the newest queued frame is worth processing; older ones are skipped (acked). A
     // frame with full depth (a possible keyframe) gives way only to a newer such frame.
     bool skipped_any = false;
@@ -104,7 +136,14 @@ void ClientPipeline::run() {
     const WorkerLoad load = !frame->live || now >= behind_until ? WorkerLoad::kKeepingUp
                             : now < overloaded_until            ? WorkerLoad::kOverloaded
                                                                 : WorkerLoad::kBehind;
-    report(process(*frame, load), *frame);
+    const auto started = Clock::now();
+    const double cpu_started = thread_cpu_ms();
+    const bool tracing = logger("latency")->should_log(spdlog::level::trace);
+    const double runqueue_started = tracing ? thread_runqueue_ms() : 0;
+    FrameDone done = process(*frame, load);
+    done_cpu_ms_ = thread_cpu_ms() - cpu_started;
+    done_runqueue_ms_ = tracing ? thread_runqueue_ms() - runqueue_started : 0;
+    report(done, *frame, started, skipped_any ? 0 : slot_ms);
   }
 }
 
@@ -121,6 +160,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
     return done;
   }
   if (new_session_.exchange(false)) slam_->start_new_session();
+  mapping_wait_ms_ = 0;
   const ProcessResult r = slam_->process(frame, load);
   done.wants_depth = r.wants_depth;
   if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame, r.T_cam_depthcam);
@@ -145,11 +185,23 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
   return done;
 }
 
-void ClientPipeline::report(FrameDone done, const RgbdFrame& frame) {
+void ClientPipeline::report(FrameDone done, const RgbdFrame& frame, Clock::time_point started, double slot_ms) {
   done.client = frame.client;
   done.seq = frame.seq;
   done.timestamp = frame.timestamp;
-  done.server_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame.received).count();
+  const auto now = Clock::now();
+  done.server_ms = std::chrono::duration<double, std::milli>(now - frame.received).count();
+  // Stepped: processed inside submit (no queue, no slot).
+  if (started == Clock::time_point{}) started = frame.received;
+  ClientSnapshot::LatencyParts parts;
+  if (frame.arrived != Clock::time_point{})
+    parts.decode_ms = std::chrono::duration<double, std::milli>(frame.received - frame.arrived).count();
+  parts.slot_ms = slot_ms;
+  parts.queue_ms = std::max(0.0, std::chrono::duration<double, std::milli>(started - frame.received).count() - slot_ms);
+  parts.mapping_wait_ms = done.fate == FrameFate::kSkipped ? 0 : mapping_wait_ms_;
+  parts.work_ms =
+      std::max(0.0, std::chrono::duration<double, std::milli>(now - started).count() - parts.mapping_wait_ms);
+  parts.work_cpu_ms = done.fate == FrameFate::kSkipped ? 0 : done_cpu_ms_;
   if (slam_) {
     // Group and epoch of the map the frame belongs to (the current map when it has no pose).
     const auto maps = slam_->maps();
@@ -168,28 +220,52 @@ void ClientPipeline::report(FrameDone done, const RgbdFrame& frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     done.frames_skipped = counters_.frames_skipped;
     if (done.fate != FrameFate::kSkipped) {
-      if (latency_ms_.size() < kLatencyWindow)
+      if (latency_ms_.size() < kLatencyWindow) {
         latency_ms_.push_back(done.server_ms);
-      else
+        latency_parts_.push_back(parts);
+      } else {
         latency_ms_[latency_next_] = done.server_ms;
+        latency_parts_[latency_next_] = parts;
+      }
       latency_next_ = (latency_next_ + 1) % kLatencyWindow;
       counters_.pose_latency_last_ms = done.server_ms;
     }
   }
+  if (done.fate != FrameFate::kSkipped)
+    logger("latency")->trace(
+        "client {} frame {}: {:.1f} ms from arrival (decode {:.1f}, queue {:.1f}, slot {:.1f}, "
+        "mapping wait {:.1f}, work {:.1f}, of it CPU {:.1f}, waiting for a core {:.1f})",
+        info_.id, frame.seq, parts.decode_ms + done.server_ms, parts.decode_ms, parts.queue_ms, parts.slot_ms,
+        parts.mapping_wait_ms, parts.work_ms, parts.work_cpu_ms, done_runqueue_ms_);
   if (config_.on_frame_done) config_.on_frame_done(done);
 }
 
 ClientSnapshot ClientPipeline::snapshot() const {
   ClientSnapshot s;
   std::vector<double> latencies;
+  std::vector<ClientSnapshot::LatencyParts> parts;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     s = counters_;
     latencies = latency_ms_;
+    parts = latency_parts_;
   }
   s.pose_latency_samples = latencies.size();
   s.pose_latency_p50_ms = percentile(latencies, 0.5);
   s.pose_latency_p99_ms = percentile(latencies, 0.99);
+  const auto p99_of = [&parts](double ClientSnapshot::LatencyParts::*part) {
+    std::vector<double> v;
+    v.reserve(parts.size());
+    for (const auto& p : parts) v.push_back(p.*part);
+    return percentile(std::move(v), 0.99);
+  };
+  auto& p99 = s.pose_latency_parts_p99;
+  p99.decode_ms = p99_of(&ClientSnapshot::LatencyParts::decode_ms);
+  p99.queue_ms = p99_of(&ClientSnapshot::LatencyParts::queue_ms);
+  p99.slot_ms = p99_of(&ClientSnapshot::LatencyParts::slot_ms);
+  p99.mapping_wait_ms = p99_of(&ClientSnapshot::LatencyParts::mapping_wait_ms);
+  p99.work_ms = p99_of(&ClientSnapshot::LatencyParts::work_ms);
+  p99.work_cpu_ms = p99_of(&ClientSnapshot::LatencyParts::work_cpu_ms);
   s.queue_depth = queue_.size();
   if (slam_) {
     const ClientSlamSnapshot q = slam_->snapshot();

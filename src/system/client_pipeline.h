@@ -6,6 +6,7 @@
 // it is behind, its SLAM may track frames by optical flow (FlowMode::kUnderLoad), which costs a
 // fraction of a full frame, so that fewer frames are skipped.
 #include <atomic>
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -47,9 +48,11 @@ class ClientPipeline {
   void start_new_session() { new_session_ = true; }
 
  private:
+  using Clock = std::chrono::steady_clock;
   void run();
   FrameDone process(const RgbdFrame& frame, WorkerLoad load = WorkerLoad::kKeepingUp);
-  void report(FrameDone done, const RgbdFrame& frame);
+  // `started`: when the worker began this frame; `slot_ms`: how long it waited for a slot first.
+  void report(FrameDone done, const RgbdFrame& frame, Clock::time_point started = {}, double slot_ms = 0);
 
   static constexpr std::size_t kLatencyWindow = 512;  // frames kept for the latency percentiles
 
@@ -64,8 +67,13 @@ class ClientPipeline {
   ClientSnapshot counters_;
   Trajectory counted_trajectory_;  // run_slam off: timestamps with identity poses
   std::atomic<bool> new_session_{false};
-  std::vector<double> latency_ms_;  // ring of the last kLatencyWindow frames
+  std::vector<double> latency_ms_;                           // ring of the last kLatencyWindow frames
+  std::vector<ClientSnapshot::LatencyParts> latency_parts_;  // the same frames' parts
   std::size_t latency_next_ = 0;
+  double mapping_wait_ms_ = 0;   // the current frame's wait for local mapping (worker thread only)
+  double done_cpu_ms_ = 0;       // the worker's CPU time for its last processed frame (worker thread only)
+  double done_runqueue_ms_ = 0;  // ... and its time waiting for a core (traced only)
+  Clock::time_point mapping_wait_start_;
   std::thread thread_;
 };
 

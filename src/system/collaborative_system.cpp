@@ -17,6 +17,7 @@
 #include "core/stats.h"
 #include "eval/stats_json.h"
 #include "system/loop_stats_json.h"
+#include "system/pose_latency_json.h"
 #include "system/client_pipeline.h"
 #include "system/system_state.h"
 
@@ -295,23 +296,21 @@ void CollaborativeSystem::write_outputs(const std::string& dir) const {
     const std::string id = std::to_string(c.id);
     write_tum_trajectory(dir + "/client_" + id + ".txt", trajs.at(c.id),
                          "client " + id + ", frame of group " + std::to_string(c.group.value()));
-    nlohmann::json cj = {
-        {"id", c.id},
-        {"name", c.name},
-        {"frames_submitted", c.frames_submitted},
-        {"frames_processed", c.frames_processed},
-        {"frames_rejected", c.frames_rejected},
-        {"frames_lost", c.frames_lost},
-        {"frames_skipped", c.frames_skipped},
-        {"frames_flow", c.frames_flow},
-        {"pose_latency_ms",
-         {{"p50", c.pose_latency_p50_ms}, {"p99", c.pose_latency_p99_ms}, {"samples", c.pose_latency_samples}}},
-        {"trajectory_poses", trajs.at(c.id).size()},
-        {"keyframes", c.keyframes},
-        {"map_points", c.map_points},
-        {"maps", c.maps},
-        {"group", c.group},
-        {"tracking", tracking_label(c.tracking)}};
+    nlohmann::json cj = {{"id", c.id},
+                         {"name", c.name},
+                         {"frames_submitted", c.frames_submitted},
+                         {"frames_processed", c.frames_processed},
+                         {"frames_rejected", c.frames_rejected},
+                         {"frames_lost", c.frames_lost},
+                         {"frames_skipped", c.frames_skipped},
+                         {"frames_flow", c.frames_flow},
+                         {"pose_latency_ms", pose_latency_json(c)},
+                         {"trajectory_poses", trajs.at(c.id).size()},
+                         {"keyframes", c.keyframes},
+                         {"map_points", c.map_points},
+                         {"maps", c.maps},
+                         {"group", c.group},
+                         {"tracking", tracking_label(c.tracking)}};
     std::lock_guard<std::mutex> lock(impl_->mutex);
     const auto& p = impl_->clients.at(c.id);
     if (impl_->config.run_slam) {

@@ -30,6 +30,14 @@ struct ClientSnapshot {
   // Receipt to pose (frame done) on the server over the client's last frames, milliseconds.
   double pose_latency_last_ms = 0, pose_latency_p50_ms = 0, pose_latency_p99_ms = 0;
   std::size_t pose_latency_samples = 0;
+  // Where a frame's time on the server goes, each part's p99 over the same frames: decoding (the
+  // packet read to submit; 0 offline), waiting in the client's queue, waiting for a tracking slot,
+  // the tracker waiting for local mapping (a keyframe's new points), and the rest of processing;
+  // work_cpu_ms is the worker thread's CPU time within `work` (much less than it: the thread
+  // waited for a core or a lock).
+  struct LatencyParts {
+    double decode_ms = 0, queue_ms = 0, slot_ms = 0, mapping_wait_ms = 0, work_ms = 0, work_cpu_ms = 0;
+  } pose_latency_parts_p99;
   int maps = 1;
   std::size_t queue_depth = 0;
   int keyframes = 0, map_points = 0;

@@ -3,6 +3,7 @@
 // live frames, every frame is acknowledged once with its fate, lossless mode still loses nothing,
 // an old-protocol peer gets a clear error, and a flooding client cannot starve another.
 #include <future>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -84,7 +85,8 @@ TEST(LiveMode, NoCreditKeepsTheNewestFrameAndTheSlowWorkerSkipsStaleOnes) {
   EXPECT_EQ(sender.stats().frames_sent, 4u);
   EXPECT_EQ(sender.stats().frames_dropped_live, 5u);
   EXPECT_TRUE(sender.has_waiting_frame());
-  ASSERT_TRUE(wait_queue_depth(srv.system(), 3, 3));  // frames 2, 3, 4 queued behind the stalled one
+  ASSERT_TRUE(wait_queue_depth(srv.system(), 3, 3));           // frames 2, 3, 4 queued behind the stalled one
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // frame 4 stays queued at least this long
   gate.set_value();
   // The client reads no reply until the worker has consumed 1..4, so its waiting frame cannot
   // overtake them (deterministic skipping).
@@ -128,6 +130,16 @@ TEST(LiveMode, NoCreditKeepsTheNewestFrameAndTheSlowWorkerSkipsStaleOnes) {
   EXPECT_EQ(snap.clients[0].frames_skipped, 2u);
   EXPECT_EQ(snap.clients[0].frames_processed, 3u);
   EXPECT_EQ(snap.clients[0].pose_latency_samples, 3u);
+  // Where the time went: frame 4 waited in the queue while frame 1 stalled; each part's p99 (here
+  // the largest of 3 frames) is within the whole's, and the worker's CPU within its work.
+  const auto& parts = snap.clients[0].pose_latency_parts_p99;
+  EXPECT_GE(parts.queue_ms, 50.0);
+  EXPECT_LE(parts.queue_ms, snap.clients[0].pose_latency_p99_ms);
+  EXPECT_GE(parts.decode_ms, 0.0);
+  EXPECT_EQ(parts.slot_ms, 0.0);          // no tracking slots
+  EXPECT_EQ(parts.mapping_wait_ms, 0.0);  // no SLAM
+  EXPECT_LE(parts.work_ms, snap.clients[0].pose_latency_p99_ms);
+  EXPECT_LE(parts.work_cpu_ms, parts.work_ms + 1.0);
 }
 
 TEST(LiveMode, LosslessModeStillProcessesEveryFrameBehindASlowWorker) {
