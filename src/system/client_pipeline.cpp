@@ -1,13 +1,11 @@
 #include "system/client_pipeline.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <shared_mutex>
 
-#include <time.h>
-
-#include <cstdio>
-
 #include "core/log.h"
+#include "core/stopwatch.h"
 #include "core/thread_priority.h"
 
 namespace cslam {
@@ -19,12 +17,6 @@ double percentile(std::vector<double> v, double p) {
   const std::size_t k = std::min(v.size() - 1, std::size_t(p * double(v.size() - 1) + 0.5));
   std::nth_element(v.begin(), v.begin() + long(k), v.end());
   return v[k];
-}
-
-double thread_cpu_ms() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
 // Time the calling thread has waited for a core so far (Linux schedstat), ms; 0 if unknown.
@@ -50,7 +42,8 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
       config_(config),
       group_of_(std::move(group_of)),
       tracking_slots_(tracking_slots),
-      queue_(config.client_queue_capacity) {
+      queue_(config.client_queue_capacity),
+      latency_log_(logger("latency")) {
   if (config_.run_slam)
     slam_ = std::make_unique<ClientSlam>(info_, config_.slam, std::move(vocabulary), std::move(listener));
   if (slam_)  // on the worker thread, inside process(): slot_ is its frame's
@@ -81,10 +74,7 @@ bool ClientPipeline::submit(RgbdFrame frame) {
   }
   if (config_.stepped) {
     if (queue_.closed()) return false;
-    const double cpu_started = thread_cpu_ms();
-    FrameDone done = process(frame);
-    done_cpu_ms_ = thread_cpu_ms() - cpu_started;
-    report(done, frame);
+    report(process_timed(frame), frame);
     return true;
   }
   return queue_.push(std::move(frame));
@@ -137,14 +127,18 @@ void ClientPipeline::run() {
                             : now < overloaded_until            ? WorkerLoad::kOverloaded
                                                                 : WorkerLoad::kBehind;
     const auto started = Clock::now();
-    const double cpu_started = thread_cpu_ms();
-    const bool tracing = logger("latency")->should_log(spdlog::level::trace);
-    const double runqueue_started = tracing ? thread_runqueue_ms() : 0;
-    FrameDone done = process(*frame, load);
-    done_cpu_ms_ = thread_cpu_ms() - cpu_started;
-    done_runqueue_ms_ = tracing ? thread_runqueue_ms() - runqueue_started : 0;
-    report(done, *frame, started, skipped_any ? 0 : slot_ms);
+    report(process_timed(*frame, load), *frame, started, skipped_any ? 0 : slot_ms);
   }
+}
+
+FrameDone ClientPipeline::process_timed(const RgbdFrame& frame, WorkerLoad load) {
+  const double cpu_started = thread_cpu_ms();
+  const bool tracing = latency_log_->should_log(spdlog::level::trace);
+  const double runqueue_started = tracing ? thread_runqueue_ms() : 0;
+  FrameDone done = process(frame, load);
+  done_cpu_ms_ = thread_cpu_ms() - cpu_started;
+  done_runqueue_ms_ = tracing ? thread_runqueue_ms() - runqueue_started : 0;
+  return done;
 }
 
 FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
@@ -232,7 +226,7 @@ void ClientPipeline::report(FrameDone done, const RgbdFrame& frame, Clock::time_
     }
   }
   if (done.fate != FrameFate::kSkipped)
-    logger("latency")->trace(
+    latency_log_->trace(
         "client {} frame {}: {:.1f} ms from arrival (decode {:.1f}, queue {:.1f}, slot {:.1f}, "
         "mapping wait {:.1f}, work {:.1f}, of it CPU {:.1f}, waiting for a core {:.1f})",
         info_.id, frame.seq, parts.decode_ms + done.server_ms, parts.decode_ms, parts.queue_ms, parts.slot_ms,
@@ -259,13 +253,10 @@ ClientSnapshot ClientPipeline::snapshot() const {
     for (const auto& p : parts) v.push_back(p.*part);
     return percentile(std::move(v), 0.99);
   };
-  auto& p99 = s.pose_latency_parts_p99;
-  p99.decode_ms = p99_of(&ClientSnapshot::LatencyParts::decode_ms);
-  p99.queue_ms = p99_of(&ClientSnapshot::LatencyParts::queue_ms);
-  p99.slot_ms = p99_of(&ClientSnapshot::LatencyParts::slot_ms);
-  p99.mapping_wait_ms = p99_of(&ClientSnapshot::LatencyParts::mapping_wait_ms);
-  p99.work_ms = p99_of(&ClientSnapshot::LatencyParts::work_ms);
-  p99.work_cpu_ms = p99_of(&ClientSnapshot::LatencyParts::work_cpu_ms);
+  using Parts = ClientSnapshot::LatencyParts;
+  for (double Parts::*part : {&Parts::decode_ms, &Parts::queue_ms, &Parts::slot_ms, &Parts::mapping_wait_ms,
+                              &Parts::work_ms, &Parts::work_cpu_ms})
+    s.pose_latency_parts_p99.*part = p99_of(part);
   s.queue_depth = queue_.size();
   if (slam_) {
     const ClientSlamSnapshot q = slam_->snapshot();

@@ -15,6 +15,7 @@
 
 #include "core/fifo_slots.h"
 #include "core/bounded_queue.h"
+#include "core/log.h"
 #include "slam/client_slam.h"
 #include "system/collaborative_system.h"
 
@@ -51,6 +52,8 @@ class ClientPipeline {
   using Clock = std::chrono::steady_clock;
   void run();
   FrameDone process(const RgbdFrame& frame, WorkerLoad load = WorkerLoad::kKeepingUp);
+  // process() with the worker's CPU time (and, when tracing, its wait for a core) kept for report().
+  FrameDone process_timed(const RgbdFrame& frame, WorkerLoad load = WorkerLoad::kKeepingUp);
   // `started`: when the worker began this frame; `slot_ms`: how long it waited for a slot first.
   void report(FrameDone done, const RgbdFrame& frame, Clock::time_point started = {}, double slot_ms = 0);
 
@@ -63,6 +66,7 @@ class ClientPipeline {
   FifoSlots::Hold* slot_ = nullptr;   // the worker's slot for its current frame (worker thread only)
   std::unique_ptr<ClientSlam> slam_;  // null when run_slam is off
   BoundedQueue<RgbdFrame> queue_;
+  std::shared_ptr<spdlog::logger> latency_log_;  // per-frame parts at trace level
   mutable std::mutex mutex_;
   ClientSnapshot counters_;
   Trajectory counted_trajectory_;  // run_slam off: timestamps with identity poses
