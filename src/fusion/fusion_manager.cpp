@@ -340,9 +340,18 @@ void FusionManager::start_group_ba(GroupId group) {
   }
   group_ba_thread_ = std::thread([this, group] {
     name_current_thread("group-ba");
-    lower_current_thread_priority(kGroupBaNice);
     run_group_ba_of(group);
   });
+}
+
+BaResult FusionManager::solve_group_ba(GlobalBa& gba) {
+  if (!config_.threaded) return gba.solve(config_.group_ba_iterations, &group_ba_abort_, true);
+  // Only the solve runs at the lowest priority: the snapshot before it and the writes after it
+  // hold the maps' locks that the robots' tracking waits on.
+  BaResult r;
+  run_at_lower_priority(kGroupBaNice, "group-ba",
+                        [&] { r = gba.solve(config_.group_ba_iterations, &group_ba_abort_, true); });
+  return r;
 }
 
 bool FusionManager::run_group_ba(const Map* map) {
@@ -380,7 +389,7 @@ bool FusionManager::run_group_ba_of(GroupId group) {
   // Cut short by the next fusion or re-encounter, it still writes what it solved so far: every
   // accepted step lowered the cost, and the next BA starts from there (nothing solved is thrown
   // away when links come faster than a whole BA takes).
-  const BaResult r = gba.solve(config_.group_ba_iterations, &group_ba_abort_, true);
+  const BaResult r = solve_group_ba(gba);
   const bool progress = !r.partial || r.final_cost < r.initial_cost;
   // Written map by map, each under its own exclusive lock (a robot's tracking waits only while its
   // map is written); the links' lock keeps snapshots from seeing the group half written.

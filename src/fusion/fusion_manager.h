@@ -30,8 +30,11 @@
 #include "fusion/seam.h"
 #include "slam/loop/consistency.h"
 #include "slam/map/map.h"
+#include "optimize/bundle_adjustment.h"
 
 namespace cslam {
+
+class GlobalBa;
 
 struct FusionConfig {
   bool enabled = true;
@@ -130,6 +133,7 @@ class FusionManager {
   std::vector<KeyFrameId> consistent_candidates(const Pending& p, Map& other, const BowVector& bow, double min_score);
   void start_group_ba(GroupId group);
   bool run_group_ba_of(GroupId group);
+  BaResult solve_group_ba(GlobalBa& gba);  // at kGroupBaNice on a thread of its own when threaded
   void stop_group_ba();
   struct StoredSeam {
     std::weak_ptr<Map> kept_map, moved_map;

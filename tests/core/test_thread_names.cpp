@@ -1,6 +1,12 @@
-// Threads named after their stage: name_current_thread and QueueWorker's consumer thread.
+// Threads named after their stage (name_current_thread, QueueWorker's consumer thread), and a
+// computation run below its caller's priority (run_at_lower_priority).
 #include <pthread.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
@@ -16,6 +22,8 @@ std::string current_thread_name() {
   pthread_getname_np(pthread_self(), name, sizeof(name));
   return name;
 }
+
+int current_thread_nice() { return ::getpriority(PRIO_PROCESS, id_t(::syscall(SYS_gettid))); }
 
 }  // namespace
 
@@ -52,4 +60,25 @@ TEST(ThreadNames, SteppedQueueWorkerRunsOnTheCallersThreadUnrenamed) {
     EXPECT_TRUE(worker.step());
   }).join();
   EXPECT_EQ(seen, "caller");
+}
+
+TEST(ThreadPriority, RunAtLowerPriorityLowersOnlyTheComputation) {
+  int before = 0, inside = 0, after = 0;
+  std::string name;
+  std::thread([&] {
+    before = current_thread_nice();
+    cslam::run_at_lower_priority(3, "solve", [&] {
+      inside = current_thread_nice();
+      name = current_thread_name();
+    });
+    after = current_thread_nice();
+  }).join();
+  EXPECT_EQ(inside, std::min(19, before + 3));
+  EXPECT_EQ(after, before);  // the caller keeps its priority for what it does next
+  EXPECT_EQ(name, "solve");
+}
+
+TEST(ThreadPriority, RunAtLowerPriorityRethrowsOnTheCaller) {
+  EXPECT_THROW(cslam::run_at_lower_priority(1, "solve", [] { throw std::runtime_error("solve failed"); }),
+               std::runtime_error);
 }

@@ -73,15 +73,12 @@ void LocalMapper::process(const KeyFramePtr& kf) {
     std::lock_guard<std::mutex> stats_lock(stats_mutex_);
     stats_.points_triangulated += int(created.size());
   }
-  {
-    MapWriteLock lock(*map_);
-    fuse_with_neighbours(kf.get());
-  }
+  fuse_with_neighbours(kf.get());
   worker_.update([&] { ++points_done_; });
   if (config_.local_ba && map_->num_keyframes() > 2) local_bundle_adjustment(kf.get());
+  cull_keyframes(kf.get());
   {
     MapWriteLock lock(*map_);
-    if (!kf->bad) cull_keyframes(kf.get());
     if (!kf->bad) map_->database.add(kf->id, kf->data->bow);
   }
   {
@@ -137,71 +134,111 @@ void LocalMapper::cull_map_points(KeyFrame* kf) {
 }
 
 void LocalMapper::fuse_with_neighbours(KeyFrame* kf) {
+  // Read and matched under the shared lock; each target's writes under the unique one, so that
+  // tracking reads between them. Only this thread culls keyframes, so the targets stay valid.
   std::set<KeyFrame*, ById> targets;
-  for (KeyFrame* n : kf->best_covisibles(config_.fuse_neighbours)) {
-    if (n->bad || n == kf) continue;
-    targets.insert(n);
-    for (KeyFrame* n2 : n->best_covisibles(config_.fuse_second_neighbours))
-      if (!n2->bad && n2 != kf) targets.insert(n2);
+  std::vector<MapPointPtr> own;
+  {
+    std::shared_lock<std::shared_mutex> lock(map_->mutex);
+    for (KeyFrame* n : kf->best_covisibles(config_.fuse_neighbours)) {
+      if (n->bad || n == kf) continue;
+      targets.insert(n);
+      for (KeyFrame* n2 : n->best_covisibles(config_.fuse_second_neighbours))
+        if (!n2->bad && n2 != kf) targets.insert(n2);
+    }
+    for (const auto& mp : kf->map_points)
+      if (mp && !mp->bad) own.push_back(mp);
   }
   int fused = 0;
-  std::vector<MapPointPtr> own;
-  for (const auto& mp : kf->map_points)
-    if (mp && !mp->bad) own.push_back(mp);
-  for (KeyFrame* t : targets) fused += fuse(*map_, t, own);
+  for (KeyFrame* t : targets) fused += fuse_into(t, own);
   std::vector<MapPointPtr> theirs;
-  std::set<MapPoint*> seen;
-  for (KeyFrame* t : targets)
-    for (const auto& mp : t->map_points)
-      if (mp && !mp->bad && seen.insert(mp.get()).second) theirs.push_back(mp);
-  fused += fuse(*map_, kf, theirs);
-  for (const auto& mp : kf->map_points)
-    if (mp && !mp->bad) map_->update_map_point(mp.get());
-  map_->update_connections(kf);
+  {
+    std::shared_lock<std::shared_mutex> lock(map_->mutex);
+    std::set<MapPoint*> seen;
+    for (KeyFrame* t : targets)
+      for (const auto& mp : t->map_points)
+        if (mp && !mp->bad && seen.insert(mp.get()).second) theirs.push_back(mp);
+  }
+  fused += fuse_into(kf, theirs);
+  {
+    MapWriteLock lock(*map_);
+    for (const auto& mp : kf->map_points)
+      if (mp && !mp->bad) map_->update_map_point(mp.get());
+    map_->update_connections(kf);
+  }
   std::lock_guard<std::mutex> lock(stats_mutex_);
   stats_.points_fused += fused;
 }
 
+int LocalMapper::fuse_into(KeyFrame* target, const std::vector<MapPointPtr>& points) {
+  std::vector<FuseMatch> matches;
+  std::uint64_t change_index = 0;
+  {
+    std::shared_lock<std::shared_mutex> lock(map_->mutex);
+    change_index = map_->big_change_index();
+    matches = match_for_fuse(target, points);
+  }
+  MapWriteLock lock(*map_);
+  // The map was moved meanwhile (fusion, loop correction): the matches are in the old frame.
+  if (map_->big_change_index() != change_index) matches = match_for_fuse(target, points);
+  return apply_fuse(*map_, target, matches);
+}
+
 void LocalMapper::cull_keyframes(KeyFrame* kf) {
+  // Each candidate is judged under the shared lock and culled under the unique one. Other
+  // threads only add to a candidate's points' observations meanwhile, so a redundant one stays so.
+  std::vector<KeyFrame*> candidates;
+  {
+    std::shared_lock<std::shared_mutex> lock(map_->mutex);
+    if (kf->bad) return;
+    candidates = kf->covisibles();
+  }
   int culled = 0;
-  for (KeyFrame* cand : kf->covisibles()) {
-    if (cand->bad || cand == map_->origin().get() || cand == kf) continue;
-    const FrameData& f = *cand->data;
-    auto counted = [&](size_t i) {
-      const auto& mp = cand->map_points[i];
-      return mp && !mp->bad && f.is_close(int(i));
-    };
-    int points = 0;
-    for (size_t i = 0; i < cand->map_points.size(); ++i) points += counted(i) ? 1 : 0;
-    // Culled when more than redundant_ratio of the points are redundant; the count stops as soon
-    // as the points not (yet) found redundant rule that out (most candidates are kept).
-    const double needed = config_.redundant_ratio * points;
-    int redundant = 0, other = 0;
-    for (size_t i = 0; i < cand->map_points.size() && points - other > needed; ++i) {
-      if (!counted(i)) continue;
-      const MapPoint& mp = *cand->map_points[i];
-      bool is_redundant = false;
-      if (mp.num_obs > 3) {
-        const int level = f.features.keypoints[i].octave;
-        int seen_by = 0;
-        for (const auto& [okf, idx] : mp.observations) {
-          if (okf == cand) continue;
-          if (okf->data->features.keypoints[idx].octave <= level + 1 && ++seen_by >= 3) break;
-        }
-        is_redundant = seen_by >= 3;
-      }
-      if (is_redundant)
-        ++redundant;
-      else
-        ++other;
+  for (KeyFrame* cand : candidates) {
+    {
+      std::shared_lock<std::shared_mutex> lock(map_->mutex);
+      if (cand->bad || cand == map_->origin().get() || cand == kf || !redundant(*cand)) continue;
     }
-    if (points > 0 && redundant > needed) {
-      map_->set_keyframe_bad(cand);
-      ++culled;
-    }
+    MapWriteLock lock(*map_);
+    if (cand->bad) continue;
+    map_->set_keyframe_bad(cand);
+    ++culled;
   }
   std::lock_guard<std::mutex> lock(stats_mutex_);
   stats_.keyframes_culled += culled;
+}
+
+bool LocalMapper::redundant(const KeyFrame& cand) const {
+  const FrameData& f = *cand.data;
+  auto counted = [&](size_t i) {
+    const auto& mp = cand.map_points[i];
+    return mp && !mp->bad && f.is_close(int(i));
+  };
+  int points = 0;
+  for (size_t i = 0; i < cand.map_points.size(); ++i) points += counted(i) ? 1 : 0;
+  // Culled when more than redundant_ratio of the points are redundant; the count stops as soon
+  // as the points not (yet) found redundant rule that out (most candidates are kept).
+  const double needed = config_.redundant_ratio * points;
+  int redundant = 0, other = 0;
+  for (size_t i = 0; i < cand.map_points.size() && points - other > needed; ++i) {
+    if (!counted(i)) continue;
+    const MapPoint& mp = *cand.map_points[i];
+    bool is_redundant = false;
+    if (mp.num_obs > 3) {
+      const int level = f.features.keypoints[i].octave;
+      int seen_by = 0;
+      for (const auto& [okf, idx] : mp.observations) {
+        if (okf == &cand) continue;
+        if (okf->data->features.keypoints[idx].octave <= level + 1 && ++seen_by >= 3) break;
+      }
+      is_redundant = seen_by >= 3;
+    }
+    if (is_redundant)
+      ++redundant;
+    else
+      ++other;
+  }
+  return points > 0 && redundant > needed;
 }
 
 }  // namespace cslam

@@ -251,12 +251,20 @@ int match_point_in_keyframe(const MapPoint& mp, const KeyFrame& kf, double th) {
   return best <= kThLow ? best_idx : -1;
 }
 
-int fuse(Map& map, KeyFrame* kf, const std::vector<MapPointPtr>& points, double th) {
-  int n = 0;
+std::vector<FuseMatch> match_for_fuse(KeyFrame* kf, const std::vector<MapPointPtr>& points, double th) {
+  std::vector<FuseMatch> matches;
   for (const auto& mp : points) {
     if (!mp || mp->bad || mp->in_keyframe(kf)) continue;
     const int best_idx = match_point_in_keyframe(*mp, *kf, th);
-    if (best_idx < 0) continue;
+    if (best_idx >= 0) matches.push_back({mp, best_idx});
+  }
+  return matches;
+}
+
+int apply_fuse(Map& map, KeyFrame* kf, const std::vector<FuseMatch>& matches) {
+  int n = 0;
+  for (const auto& [mp, best_idx] : matches) {
+    if (mp->bad || mp->in_keyframe(kf)) continue;
     if (auto existing = kf->map_points[best_idx]; existing && !existing->bad) {
       if (existing->observations.size() > mp->observations.size())
         map.replace_map_point(mp, existing);
@@ -268,6 +276,10 @@ int fuse(Map& map, KeyFrame* kf, const std::vector<MapPointPtr>& points, double 
     ++n;
   }
   return n;
+}
+
+int fuse(Map& map, KeyFrame* kf, const std::vector<MapPointPtr>& points, double th) {
+  return apply_fuse(map, kf, match_for_fuse(kf, points, th));
 }
 
 }  // namespace cslam

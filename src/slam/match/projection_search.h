@@ -1,7 +1,7 @@
 #pragma once
 // Matching of map points to keypoints, guided by poses (projection) or by the vocabulary (BoW).
-// All functions read map data: the caller holds the map mutex (shared), except fuse() which
-// writes (unique).
+// All functions read map data: the caller holds the map mutex (shared), except fuse() and
+// apply_fuse(), which write (unique).
 #include <vector>
 
 #include "slam/map/map.h"
@@ -48,5 +48,18 @@ int match_point_in_keyframe(const MapPoint& mp, const KeyFrame& kf, double th = 
 // a point is merged with it (the one with more observations survives), otherwise an observation
 // is added. Requires the unique map lock. Returns the number of fused/added points.
 int fuse(Map& map, KeyFrame* kf, const std::vector<MapPointPtr>& points, double radius = 3.0);
+
+// fuse() in two steps, so that the matching, its costly part, runs under the shared lock and only
+// the writes under the unique one. match_for_fuse [shared]: for each point, in order, that is not
+// bad and not yet in kf, the keypoint it matches. apply_fuse [unique]: fuses or adds each match in
+// order, skipping a point that is bad or in kf by then. fuse() is apply_fuse(match_for_fuse(..)):
+// no match depends on an earlier one's write (a match reads the point and kf's pose and features,
+// never kf's slots, and a point an earlier write touches is bad or in kf by then).
+struct FuseMatch {
+  MapPointPtr point;
+  int index = -1;  // keypoint of the keyframe
+};
+std::vector<FuseMatch> match_for_fuse(KeyFrame* kf, const std::vector<MapPointPtr>& points, double radius = 3.0);
+int apply_fuse(Map& map, KeyFrame* kf, const std::vector<FuseMatch>& matches);
 
 }  // namespace cslam
