@@ -1,5 +1,6 @@
 #include "slam/loop/global_ba.h"
 
+#include <algorithm>
 #include <map>
 #include <shared_mutex>
 #include <stdexcept>
@@ -96,21 +97,36 @@ bool GlobalBa::apply_map(std::size_t m, const BaResult& r) {
     old_pose[cameras_[c].get()] = cameras_[c]->T_cam_world;
     cameras_[c]->T_cam_world = r.T_cam_world[c];
   }
-  std::unordered_set<MapPoint*> optimised;
-  for (const auto& [p, mp] : map_points_[m]) {
-    optimised.insert(mp.get());
+  for (const auto& [p, mp] : map_points_[m])
     if (!mp->bad) mp->position = r.points[p];
-  }
-  // Keyframes created meanwhile keep their pose relative to the nearest optimised anchor.
+  // Keyframes created meanwhile keep their pose relative to the nearest optimised anchor, and the
+  // points they reference that were not optimised follow them.
   const std::map<KeyFrame*, SE3, ById> moved_old_pose = carry_new_keyframes(*map, old_pose);
-  for (const auto& mp : map->map_points()) {
-    if (optimised.count(mp.get())) continue;
-    auto it = moved_old_pose.find(mp->reference);
-    if (it != moved_old_pose.end()) mp->position = mp->reference->T_world_cam() * (it->second * mp->position);
-  }
-  for (const auto& mp : map->map_points()) map->update_map_point(mp.get());
+  if (!moved_old_pose.empty()) move_followers(m, moved_old_pose);
+  // Every point's normal and distance bounds (this hold is the one tracking waits on: no copies).
+  map->for_each_map_point([&](MapPoint& mp) { map->update_map_point(&mp); });
   map->note_big_change();  // tracking re-derives its last pose from its reference keyframe
   return true;
+}
+
+void GlobalBa::move_followers(std::size_t m, const std::map<KeyFrame*, SE3, ById>& moved_old_pose) {
+  // The few points referenced by a carried keyframe, less those the BA optimised (found by a
+  // binary search each, instead of indexing every optimised point).
+  std::vector<MapPoint*> followers;
+  maps_[m]->for_each_map_point([&](MapPoint& mp) {
+    if (moved_old_pose.count(mp.reference)) followers.push_back(&mp);
+  });
+  std::sort(followers.begin(), followers.end());
+  std::vector<char> optimised(followers.size(), 0);
+  for (const auto& [p, mp] : map_points_[m]) {
+    const auto it = std::lower_bound(followers.begin(), followers.end(), mp.get());
+    if (it != followers.end() && *it == mp.get()) optimised[std::size_t(it - followers.begin())] = 1;
+  }
+  for (std::size_t i = 0; i < followers.size(); ++i) {
+    if (optimised[i]) continue;
+    MapPoint& mp = *followers[i];
+    mp.position = mp.reference->T_world_cam() * (moved_old_pose.at(mp.reference) * mp.position);
+  }
 }
 
 std::map<KeyFrame*, SE3, ById> carry_new_keyframes(const Map& map, const std::map<KeyFrame*, SE3, ById>& old_pose,

@@ -48,6 +48,9 @@ class GlobalBa {
   std::vector<Map*> maps_;
   std::vector<std::uint64_t> change_index_;
   bool usable(const BaResult& r) const;
+  // [unique lock on maps_[m]] Points of map m that were not optimised and whose reference keyframe
+  // was carried (created meanwhile) move with it; moved_old_pose: each carried keyframe's pose before.
+  void move_followers(std::size_t m, const std::map<KeyFrame*, SE3, ById>& moved_old_pose);
   BaProblem problem_;
   std::vector<KeyFramePtr> cameras_;
   std::vector<std::size_t> camera_map_;  // per camera: its map's index in maps_

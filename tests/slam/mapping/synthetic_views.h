@@ -32,8 +32,8 @@ inline Scene make_scene(int n, std::uint32_t seed) {
 // Every keypoint sits under one vocabulary node, so matching relies on descriptors and geometry;
 // the grid serves searches by projection.
 inline std::shared_ptr<const FrameData> make_view(const Scene& s, const SE3& T_cam_world, const std::vector<int>& order,
-                                           const std::function<bool(int)>& with_depth,
-                                           const std::shared_ptr<const ScalePyramid>& pyramid) {
+                                                  const std::function<bool(int)>& with_depth,
+                                                  const std::shared_ptr<const ScalePyramid>& pyramid) {
   auto f = std::make_shared<FrameData>();
   f->camera = camera_preset("synthetic");
   f->pyramid = pyramid;

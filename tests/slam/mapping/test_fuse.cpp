@@ -22,8 +22,10 @@ struct FuseScene {
     const SE3 T1;
     const SE3 T2(Eigen::Quaterniond(Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY())), Eigen::Vector3d(-0.05, 0, 0));
     const auto all = [](int) { return true; };
-    kf1 = std::make_shared<KeyFrame>(map.ids().next_keyframe(), make_view(scene, T1, identity_order(kPoints), all, pyramid), T1);
-    kf2 = std::make_shared<KeyFrame>(map.ids().next_keyframe(), make_view(scene, T2, identity_order(kPoints), all, pyramid), T2);
+    kf1 = std::make_shared<KeyFrame>(map.ids().next_keyframe(),
+                                     make_view(scene, T1, identity_order(kPoints), all, pyramid), T1);
+    kf2 = std::make_shared<KeyFrame>(map.ids().next_keyframe(),
+                                     make_view(scene, T2, identity_order(kPoints), all, pyramid), T2);
     map.add_keyframe(kf1);
     map.add_keyframe(kf2);
     for (int p = 0; p < kPoints; ++p) {
@@ -88,7 +90,7 @@ TEST(Fuse, AWriteBetweenTheStepsIsLeftAsItIs) {
   s.map.set_map_point_bad(s.points[culled]);
   Map::add_observation(s.kf2.get(), entered, s.points[entered]);
   EXPECT_EQ(apply_fuse(s.map, s.kf2.get(), matches), int(matches.size()) - 2);
-  EXPECT_EQ(s.kf2->map_points[culled], nullptr);         // the culled point is not brought back
+  EXPECT_EQ(s.kf2->map_points[culled], nullptr);          // the culled point is not brought back
   EXPECT_EQ(s.points[entered]->observations.size(), 2u);  // observed once by kf2, as it was
   EXPECT_EQ(s.kf2->map_points[entered], s.points[entered]);
   // The rest is fused as without the writer.
