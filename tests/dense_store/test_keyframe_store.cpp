@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <csignal>
 #include <cstring>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include <functional>
 #include <iostream>
 #include <limits>
+#include <mutex>
 #include <random>
 #include <thread>
 
@@ -724,9 +726,17 @@ TEST(KeyframeStore, ConcurrentWriterAndReaders) {
   std::atomic<bool> done{false};
   std::atomic<int> bad{0};
   std::atomic<std::uint64_t> reads{0};
-  // The writer puts every record and erases every 5th one soon after.
+  std::mutex read_mutex;
+  std::condition_variable read_cv;
+  // The writer puts every record and erases every 5th one soon after. Halfway it waits for a first
+  // read, so that the readers read while it writes even when the machine is too loaded to start
+  // them before it is through.
   std::thread writer([&] {
     for (std::uint32_t i = 0; i < kRecords; ++i) {
+      if (i == kRecords / 2) {
+        std::unique_lock<std::mutex> lock(read_mutex);
+        read_cv.wait(lock, [&] { return reads.load() > 0; });
+      }
       if (store.put(make_record({ClientId(i % 3), i}, 20000)) != PutStatus::kStored) ++bad;
       if (i % 5 == 4 && !store.erase({ClientId((i - 2) % 3), i - 2})) ++bad;
       if (i % 50 == 0) store.put_camera(ClientId(i % 3), camera_tum_fr1());
@@ -749,7 +759,11 @@ TEST(KeyframeStore, ConcurrentWriterAndReaders) {
                 got->timestamp != want.timestamp)
               ++bad;
           }
-          ++reads;
+          {
+            std::lock_guard<std::mutex> lock(read_mutex);
+            ++reads;
+          }
+          read_cv.notify_all();
         }
         const auto s = store.stats();
         if (s.errors != 0 || s.payload_bytes > s.max_bytes) ++bad;
