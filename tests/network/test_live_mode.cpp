@@ -230,8 +230,10 @@ TEST(LiveMode, AClientSendingFasterThanItsCreditsIsRefusedAndDoesNotStarveOthers
   // makes the next accepted frame's timestamp a jump, refused as such: every refusal is counted.
   while (auto r = flooder.receive(10000)) {
     if (r->has_ack()) ++acks;
-    if (r->has_error()) ++errors;
-    if (r->has_error() && r->error().code() == wire::ERROR_NO_CREDIT) ++no_credit;
+    if (r->has_error()) {
+      ++errors;
+      if (r->error().code() == wire::ERROR_NO_CREDIT) ++no_credit;
+    }
     if (acks + errors == 300) break;
   }
   srv.stop();

@@ -197,7 +197,7 @@ void LocalMapper::cull_keyframes(KeyFrame* kf) {
   for (KeyFrame* cand : candidates) {
     {
       std::shared_lock<std::shared_mutex> lock(map_->mutex);
-      if (cand->bad || cand == map_->origin().get() || cand == kf || !redundant(*cand)) continue;
+      if (cand->bad || cand == map_->origin().get() || cand == kf || !is_redundant(*cand)) continue;
     }
     MapWriteLock lock(*map_);
     if (cand->bad) continue;
@@ -208,7 +208,7 @@ void LocalMapper::cull_keyframes(KeyFrame* kf) {
   stats_.keyframes_culled += culled;
 }
 
-bool LocalMapper::redundant(const KeyFrame& cand) const {
+bool LocalMapper::is_redundant(const KeyFrame& cand) const {
   const FrameData& f = *cand.data;
   auto counted = [&](size_t i) {
     const auto& mp = cand.map_points[i];
@@ -223,7 +223,7 @@ bool LocalMapper::redundant(const KeyFrame& cand) const {
   for (size_t i = 0; i < cand.map_points.size() && points - other > needed; ++i) {
     if (!counted(i)) continue;
     const MapPoint& mp = *cand.map_points[i];
-    bool is_redundant = false;
+    bool point_redundant = false;
     if (mp.num_obs > 3) {
       const int level = f.features.keypoints[i].octave;
       int seen_by = 0;
@@ -231,9 +231,9 @@ bool LocalMapper::redundant(const KeyFrame& cand) const {
         if (okf == &cand) continue;
         if (okf->data->features.keypoints[idx].octave <= level + 1 && ++seen_by >= 3) break;
       }
-      is_redundant = seen_by >= 3;
+      point_redundant = seen_by >= 3;
     }
-    if (is_redundant)
+    if (point_redundant)
       ++redundant;
     else
       ++other;

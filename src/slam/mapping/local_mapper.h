@@ -86,7 +86,7 @@ class LocalMapper : public KeyFrameSink {
   int fuse_into(KeyFrame* target, const std::vector<MapPointPtr>& points);  // matched shared, written unique
   void local_bundle_adjustment(KeyFrame* kf);
   void cull_keyframes(KeyFrame* kf);
-  bool redundant(const KeyFrame& candidate) const;  // [shared] most of its close points seen by 3 others
+  bool is_redundant(const KeyFrame& candidate) const;  // [shared] most of its close points seen by 3 others
 
   LocalMapperConfig config_;
   std::shared_ptr<Map> map_;
