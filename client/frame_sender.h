@@ -57,16 +57,7 @@ struct SenderConfig {
   // depth_every 1: every frame is full (no colour stream).
   int depth_every = 1;
   int light_depth_subsample = 4;
-  // Light frames are only tracked, never stored: a coarser colour stream than H264Options'
-  // default (CRF 17, JPEG q75's PSNR) is 40 % smaller at no measured cost in ATE, and x264's
-  // superfast preset encodes it in two thirds of veryfast's CPU at a higher PSNR and more ORB
-  // features kept, for ~1 KB more per frame (docs/network.md, "Light frames' colour").
-  video::H264Options colour_stream = [] {
-    video::H264Options o;
-    o.crf = 26;
-    o.preset = "superfast";
-    return o;
-  }();
+  video::H264Options colour_stream = video::light_colour_stream();
   // Adaptive rate (client/rate_control.h): depth_every becomes the finest step of a ladder the
   // sender moves along as the acks' latency says the link queues or is calm.
   RateControlConfig adapt;

@@ -103,6 +103,13 @@ std::size_t max_bitstream_bytes(int width, int height) { return std::size_t(widt
 
 }  // namespace
 
+H264Options light_colour_stream() {
+  H264Options o;
+  o.crf = 26;
+  o.preset = "superfast";
+  return o;
+}
+
 void H264Options::validate() const {
   static const char* const kPresets[] = {"ultrafast", "superfast", "veryfast", "faster",   "fast",
                                          "medium",    "slow",      "slower",   "veryslow", "placebo"};

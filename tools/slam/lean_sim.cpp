@@ -12,6 +12,9 @@ LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config) {
     throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
   if (config_.light_depth < 0 || config_.light_depth > kMaxDepthSubsample)
     throw ConfigError("--light-depth must be 0.." + std::to_string(kMaxDepthSubsample));
+  CodecOptions jpeg;
+  jpeg.jpeg_quality = config_.jpeg_quality;
+  jpeg.validate();
 }
 
 void LeanStreamSim::apply(RgbdFrame& frame, int n) {
@@ -19,8 +22,10 @@ void LeanStreamSim::apply(RgbdFrame& frame, int n) {
   const bool requested = requested_at_ >= 0 && n > requested_at_ + config_.request_delay;
   if (n % config_.depth_every == 0 || requested) {
     requested_at_ = -1;
+    code_colour(frame, true);
     return;
   }
+  code_colour(frame, false);
   if (config_.light_depth > 1) {  // what the server makes of a light frame's depth
     frame.depth = expand_depth(subsample_depth(frame.depth, config_.light_depth), config_.light_depth, frame.depth.cols,
                                frame.depth.rows);
@@ -29,6 +34,25 @@ void LeanStreamSim::apply(RgbdFrame& frame, int n) {
     frame.depth = cv::Mat();
   }
   ++light_frames_;
+}
+
+void LeanStreamSim::code_colour(RgbdFrame& frame, bool full) {
+  if (!config_.coded_colour) return;
+  const int w = frame.bgr.cols, h = frame.bgr.rows;
+  const std::string source = "coded colour, frame " + std::to_string(frame.seq);
+  if (full) {
+    CodecOptions jpeg;
+    jpeg.jpeg_quality = config_.jpeg_quality;
+    const Bytes bytes = encode_rgb(frame.bgr, jpeg);
+    frame.bgr = decode_rgb(jpeg.rgb, bytes.data(), bytes.size(), w, h, source);
+    return;
+  }
+  if (!encoder_) {
+    encoder_ = std::make_unique<video::H264Encoder>(w, h, video::light_colour_stream());
+    decoder_ = std::make_unique<video::H264Decoder>(w, h);
+  }
+  const Bytes packet = encoder_->encode(frame.bgr);
+  frame.bgr = decoder_->decode(packet.data(), packet.size(), source);
 }
 
 void LeanStreamSim::requested(int n) {

@@ -100,6 +100,11 @@ int run(int argc, char** argv) {
               "with --depth-every: frames between tracking asking for full depth and the robot sending it (the acks in "
               "flight)",
               "3")
+      .flag("coded-colour",
+            "colour through the client's codecs and back: JPEG on full frames, the lean stream's H.264 on light "
+            "frames (--depth-every)")
+      .option("jpeg-quality", "with --coded-colour: the full frames' JPEG quality (cslam-client --jpeg-quality)",
+              std::to_string(CodecOptions().jpeg_quality))
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -145,6 +150,8 @@ int run(int argc, char** argv) {
       info, config, vocabulary,
       [&fusion](ClientId c, const std::shared_ptr<Map>& m, const KeyFramePtr& kf) { fusion.notify(c, m, kf); });
 
+  LeanStreamSim lean(lean_stream_config(args));  // checks its options before any thread starts
+
   // Images are decoded on a second thread, ahead of tracking.
   BoundedQueue<std::pair<RgbdPair, RgbdImages>> loaded(4);
   std::thread loader([&] {
@@ -159,12 +166,20 @@ int run(int argc, char** argv) {
     }
     loaded.close();
   });
+  // A frame that throws below stops the loader and joins it before the error leaves.
+  struct StopLoader {
+    BoundedQueue<std::pair<RgbdPair, RgbdImages>>& queue;
+    std::thread& thread;
+    ~StopLoader() {
+      queue.close();
+      if (thread.joinable()) thread.join();
+    }
+  } stop_loader{loaded, loader};
 
   Stopwatch wall;
   int n = 0, lost = 0, rejected = 0;
   std::vector<double> inliers, features;
   const bool quiet = args.flag_set("quiet");
-  LeanStreamSim lean(lean_stream_config(args));
   while (auto item = loaded.pop()) {
     RgbdFrame frame = dataset_frame(item->first, std::move(item->second), info.id, std::uint64_t(n));
     if (const std::string why = frame_problem(frame, info.camera); !why.empty())  // the dataset is this tool's boundary

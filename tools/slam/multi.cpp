@@ -46,7 +46,8 @@ PinholeCamera camera_for(const CliArgs& args, const std::string& dir) {
 }
 
 LeanStreamConfig lean_stream_config(const CliArgs& args) {
-  return {args.get_int("depth-every"), args.get_int("depth-request-delay"), args.get_int("light-depth")};
+  return {args.get_int("depth-every"), args.get_int("depth-request-delay"), args.get_int("light-depth"),
+          args.flag_set("coded-colour"), args.get_int("jpeg-quality")};
 }
 
 int run_multi_client(const CliArgs& args) {

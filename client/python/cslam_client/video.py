@@ -57,8 +57,8 @@ class H264Options:
 
 
 def light_colour_stream() -> H264Options:
-    """The lean stream's default colour stream, as client::SenderConfig::colour_stream
-    (client/frame_sender.h): CRF 26, preset superfast."""
+    """The lean stream's default colour stream, as video::light_colour_stream()
+    (src/codec/video_codec.h, client::SenderConfig's default): CRF 26, preset superfast."""
     return H264Options(crf=26, preset="superfast")
 
 
