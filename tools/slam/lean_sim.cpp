@@ -12,9 +12,8 @@ LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config) {
     throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
   if (config_.light_depth < 0 || config_.light_depth > kMaxDepthSubsample)
     throw ConfigError("--light-depth must be 0.." + std::to_string(kMaxDepthSubsample));
-  CodecOptions jpeg;
-  jpeg.jpeg_quality = config_.jpeg_quality;
-  jpeg.validate();
+  full_colour_.jpeg_quality = config_.jpeg_quality;
+  full_colour_.validate();
 }
 
 void LeanStreamSim::apply(RgbdFrame& frame, int n) {
@@ -41,10 +40,8 @@ void LeanStreamSim::code_colour(RgbdFrame& frame, bool full) {
   const int w = frame.bgr.cols, h = frame.bgr.rows;
   const std::string source = "coded colour, frame " + std::to_string(frame.seq);
   if (full) {
-    CodecOptions jpeg;
-    jpeg.jpeg_quality = config_.jpeg_quality;
-    const Bytes bytes = encode_rgb(frame.bgr, jpeg);
-    frame.bgr = decode_rgb(jpeg.rgb, bytes.data(), bytes.size(), w, h, source);
+    const Bytes bytes = encode_rgb(frame.bgr, full_colour_);
+    frame.bgr = decode_rgb(full_colour_.rgb, bytes.data(), bytes.size(), w, h, source);
     return;
   }
   if (!encoder_) {

@@ -41,6 +41,7 @@ class LeanStreamSim {
   void code_colour(RgbdFrame& frame, bool full);
 
   const LeanStreamConfig config_;
+  CodecOptions full_colour_;  // the full frames' JPEG, checked once in the constructor
   std::unique_ptr<video::H264Encoder> encoder_;
   std::unique_ptr<video::H264Decoder> decoder_;
   mutable std::mutex mutex_;
