@@ -10,8 +10,10 @@ using detail::log;
 using detail::to_ms;
 
 FrameSender::FrameSender(SenderConfig config)
-    : config_(std::move(config)), context_(1), rate_(config_.adapt, std::max(config_.depth_every, 1)) {
-  config_.codecs.validate();
+    : config_(std::move(config)),
+      context_(1),
+      full_images_(config_.codecs),
+      rate_(config_.adapt, std::max(config_.depth_every, 1)) {
   config_.info.camera.validate();  // the camera model alone (cslam_camera): no calib3d
   if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");
   if (config_.light_depth_subsample < 0 || config_.light_depth_subsample == 1 ||
@@ -76,9 +78,9 @@ void FrameSender::reconnect() {
   }
 }
 
-wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) const {
+wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) {
   wire::RgbdFrame out;
-  wire::to_wire_frame(frame, config_.codecs, &out);
+  wire::to_wire_frame(frame, full_images_, &out);
   return out;
 }
 

@@ -63,6 +63,8 @@ struct SenderConfig {
   RateControlConfig adapt;
   // Whether frames may be light (a colour stream exists): a lean stream or an adaptive one.
   bool colour_stream_on() const { return depth_every > 1 || adapt.enabled; }
+  // The full frames' colour codec unless one is chosen (cslam-client --rgb-codec auto).
+  RgbCodec auto_rgb_codec() const { return cslam::auto_rgb_codec(colour_stream_on()); }
 };
 
 struct SenderStats {
@@ -102,8 +104,9 @@ class FrameSender {
   void reconnect();
 
   // Encodes the frame's images with config.codecs (the frame's client/seq are ignored: the
-  // sender stamps its own id and the next sequence number). Always with depth.
-  wire::RgbdFrame encode(const RgbdFrame& frame) const;
+  // sender stamps its own id and the next sequence number). Always with depth. With
+  // --rgb-codec h264-intra the pictures come from one encoder: encode frames in sending order.
+  wire::RgbdFrame encode(const RgbdFrame& frame);
   // The next frame of the stream: with depth (encode()) or, in a lean stream, colour only as the
   // colour stream's next packet. Call it only for a frame that is sent right away.
   wire::RgbdFrame encode_next(const RgbdFrame& frame);
@@ -179,6 +182,7 @@ class FrameSender {
   // Live, lean stream: the waiting frame is encoded only when it is sent (a colour packet that
   // never leaves would break the stream).
   std::optional<RgbdFrame> waiting_raw_;
+  ImageEncoder full_images_;  // full frames' images (config.codecs)
   std::unique_ptr<video::H264Encoder> colour_encoder_;
   RateController rate_;
   int frames_since_depth_ = 0;

@@ -42,8 +42,13 @@ int run(int argc, char** argv) {
           "tum1 | tum2 | tum2-corrected | tum3 | synthetic | camera file (default: DIR/camera.yaml, else its "
           "calibration.txt (fx fy cx cy), else the TUM camera the folder name says (freiburg1..3, fr1..3), else tum1)",
           "")
-      .option("rgb-codec", "raw | jpeg | png", "jpeg")
+      .option("rgb-codec",
+              "raw | jpeg | png | h264-intra (each image a standalone H.264 picture) | auto (h264-intra in a lean or "
+              "adaptive stream, else jpeg)",
+              "auto")
       .option("jpeg-quality", "JPEG quality 1..100", std::to_string(cslam::CodecOptions().jpeg_quality))
+      .option("h264-intra-crf", "with --rgb-codec h264-intra: the pictures' constant rate factor 0..51",
+              std::to_string(cslam::CodecOptions().h264_intra_crf))
       .option("depth-codec", "raw | png | rvl | zstd (all lossless)", "zstd")
       .option("depth-every",
               "lean stream: depth (with --rgb-codec colour) on every K-th frame and when the server asks; the light "
@@ -91,14 +96,16 @@ int run(int argc, char** argv) {
   config.info.id = cslam::ClientId(id);
   config.info.name = cli.has("name") ? cli.get("name") : "client" + std::to_string(id);
   config.info.camera = cslam::dataset_camera(dir, cli.get("camera")).camera;
-  config.codecs.rgb = cslam::parse_rgb_codec(cli.get("rgb-codec"));
   config.codecs.jpeg_quality = cli.get_int("jpeg-quality");
+  config.codecs.h264_intra_crf = cli.get_int("h264-intra-crf");
   config.codecs.depth = cslam::parse_depth_codec(cli.get("depth-codec"));
   config.depth_every = cli.get_int("depth-every");
   config.colour_stream.crf = cli.get_int("colour-crf");
   config.colour_stream.preset = cli.get("colour-preset");
   config.light_depth_subsample = cli.get_int("light-depth");
   config.adapt.enabled = cli.flag_set("adapt");
+  const std::string rgb_codec = cli.get("rgb-codec");
+  config.codecs.rgb = rgb_codec == "auto" ? config.auto_rgb_codec() : cslam::parse_rgb_codec(rgb_codec);
   config.reply_timeout_s = cli.get_double("reply-timeout");
   {
     const double mb = cli.get_double("resend-buffer");

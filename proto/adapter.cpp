@@ -23,6 +23,9 @@ bool rgb_codec_from_wire(Encoding e, RgbCodec* out) {
     case RGB_PNG:
       *out = RgbCodec::kPng;
       return true;
+    case RGB_H264_INTRA:
+      *out = RgbCodec::kH264Intra;
+      return true;
     default:
       return false;
   }
@@ -125,10 +128,9 @@ void check_frame(const RgbdFrame& frame, const PinholeCamera& camera, const std:
                       "unknown depth encoding " + std::to_string(int(frame.depth().encoding())));
     const int s = depth_subsample_of(frame);
     if (s == 1 && inter_coded)
-      throw WireError(
-          ERROR_MALFORMED, source,
-          "a frame with full depth may become a keyframe, so its colour must decode on its own (JPEG, PNG or "
-          "raw), not as an inter-coded (RGB_H264) packet");
+      throw WireError(ERROR_MALFORMED, source,
+                      "a frame with full depth may become a keyframe, so its colour must decode on its own (JPEG, PNG, "
+                      "H.264 intra or raw), not as an inter-coded (RGB_H264) packet");
     if (s == 1) {
       check_size(frame.depth(), camera, "depth", source);
     } else {

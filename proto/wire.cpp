@@ -14,6 +14,8 @@ Encoding to_wire(RgbCodec codec) {
       return RGB_JPEG;
     case RgbCodec::kPng:
       return RGB_PNG;
+    case RgbCodec::kH264Intra:
+      return RGB_H264_INTRA;
   }
   return ENCODING_UNSPECIFIED;
 }
@@ -65,14 +67,15 @@ Hello to_hello(const ClientInfo& info) {
   return h;
 }
 
-void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, RgbdFrame* out) {
+void to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out) {
+  const CodecOptions& options = images.options();
   out->set_client_id(frame.client);
   out->set_seq(frame.seq);
   out->set_timestamp(frame.timestamp);
   out->set_depth_time_offset(frame.depth_time_offset);
   out->set_live(frame.live);
-  const Bytes rgb = encode_rgb(frame.bgr, options);
-  const Bytes depth = encode_depth(frame.depth, options);
+  const Bytes rgb = images.rgb(frame.bgr);
+  const Bytes depth = images.depth(frame.depth);
   Image* r = out->mutable_rgb();
   r->set_width(std::uint32_t(frame.bgr.cols));
   r->set_height(std::uint32_t(frame.bgr.rows));

@@ -9,6 +9,7 @@
 
 #include "cslam.pb.h"
 #include "codec/image_codec.h"
+#include "codec/image_encoder.h"
 #include "core/error.h"
 #include "frame/rgbd_frame.h"
 
@@ -39,8 +40,9 @@ constexpr std::uint64_t kDefaultMaxPixels = 1920ull * 1080ull;
 // ClientInfo -> Hello (the server's from_hello, proto/adapter.h, is the way back).
 Hello to_hello(const ClientInfo& info);
 
-// Encodes a frame's images with the given codecs into `out` (reused to avoid reallocations).
-void to_wire_frame(const cslam::RgbdFrame& frame, const CodecOptions& options, RgbdFrame* out);
+// Encodes a full frame's images with the stream's encoder into `out` (reused to avoid
+// reallocations).
+void to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out);
 // A light frame: `colour_packet` is the next packet of the robot's colour stream
 // (video::H264Encoder), sent as RGB_H264; with depth_subsample >= 2 the frame's depth goes
 // along at every S-th pixel of every S-th row (options.depth, lossless), else no depth.

@@ -22,6 +22,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "codec/image_encoder.h"
 #include "codec/image_codec.h"
 #include "codec/png_rgb8_decode.h"
 #include "codec/video_codec.h"
@@ -319,9 +320,10 @@ int run(int argc, char** argv) {
   }
   int n = cli.get_int("frames");
   if (n <= 0 || n > int(ds.pairs.size())) n = int(ds.pairs.size());
-  struct RgbVariant {
+  struct RgbVariant {  // one encoder per variant: the frames form one stream
     std::string name;
     cslam::CodecOptions opt;
+    cslam::ImageEncoder encoder{opt};
   };
   std::vector<RgbVariant> rgb_variants;
   cslam::CodecOptions o;
@@ -334,6 +336,8 @@ int run(int argc, char** argv) {
   }
   o.rgb = cslam::RgbCodec::kPng;
   rgb_variants.push_back({"png", o});
+  o.rgb = cslam::RgbCodec::kH264Intra;
+  rgb_variants.push_back({"h264-intra" + std::to_string(o.h264_intra_crf), o});
   std::vector<std::pair<std::string, cslam::CodecOptions>> depth_variants;
   for (auto d :
        {cslam::DepthCodec::kRaw, cslam::DepthCodec::kPng, cslam::DepthCodec::kRvl, cslam::DepthCodec::kZstdDelta}) {
@@ -350,10 +354,10 @@ int run(int argc, char** argv) {
   for (int k = 0; k < n; ++k) {
     const auto& pair = ds.pairs[std::size_t(k) * ds.pairs.size() / std::size_t(n)];
     const cslam::RgbdImages im = cslam::load_rgbd(pair);
-    for (const auto& v : rgb_variants) {
+    for (auto& v : rgb_variants) {
       Result& r = rgb_results[v.name];
       CpuStopwatch t;
-      const cslam::Bytes bytes = cslam::encode_rgb(im.bgr, v.opt);
+      const cslam::Bytes bytes = v.encoder.rgb(im.bgr);
       r.encode_ms.push_back(t.ms());
       t.reset();
       const cv::Mat back = cslam::decode_rgb(v.opt.rgb, bytes.data(), bytes.size(), im.bgr.cols, im.bgr.rows, "bench");

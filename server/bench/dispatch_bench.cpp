@@ -39,10 +39,11 @@ int run(int argc, char** argv) {
   codecs.depth = cslam::parse_depth_codec(cli.get("depth-codec"));
   std::vector<std::string> messages;
   std::size_t bytes = 0;
+  cslam::ImageEncoder images(codecs);
   for (int i = 0; i < n; ++i) {
     const cslam::RgbdFrame f = cslam::load_dataset_frame(ds.pairs[std::size_t(i)], 1, std::uint64_t(i + 1));
     cslam::wire::ClientMessage m;
-    cslam::wire::to_wire_frame(f, codecs, m.mutable_frame());
+    cslam::wire::to_wire_frame(f, images, m.mutable_frame());
     messages.push_back(m.SerializeAsString());
     bytes += messages.back().size();
   }

@@ -8,6 +8,7 @@
 #include "codec/depth_codecs.h"
 #include "codec/jpeg_decode.h"
 #include "codec/png_guard.h"
+#include "codec/video_codec.h"
 #include "core/error.h"
 
 namespace cslam {
@@ -129,6 +130,7 @@ void CodecOptions::validate() const {
   if (jpeg_quality < 1 || jpeg_quality > 100) throw ConfigError("JPEG quality must be in 1..100");
   if (png_compression < 0 || png_compression > 9) throw ConfigError("PNG compression must be in 0..9");
   if (zstd_level < 1 || zstd_level > 19) throw ConfigError("zstd level must be in 1..19");
+  if (h264_intra_crf < 0 || h264_intra_crf > 51) throw ConfigError("H.264 intra crf must be in 0..51");
 }
 
 const char* to_string(RgbCodec codec) {
@@ -139,6 +141,8 @@ const char* to_string(RgbCodec codec) {
       return "jpeg";
     case RgbCodec::kPng:
       return "png";
+    case RgbCodec::kH264Intra:
+      return "h264-intra";
   }
   return "unknown";
 }
@@ -157,10 +161,12 @@ const char* to_string(DepthCodec codec) {
   return "unknown";
 }
 
+RgbCodec auto_rgb_codec(bool light_frames) { return light_frames ? RgbCodec::kH264Intra : RgbCodec::kJpeg; }
+
 RgbCodec parse_rgb_codec(const std::string& name) {
-  for (auto c : {RgbCodec::kRaw, RgbCodec::kJpeg, RgbCodec::kPng})
+  for (auto c : {RgbCodec::kRaw, RgbCodec::kJpeg, RgbCodec::kPng, RgbCodec::kH264Intra})
     if (name == to_string(c)) return c;
-  throw ConfigError("unknown RGB codec '" + name + "' (raw, jpeg, png)");
+  throw ConfigError("unknown RGB codec '" + name + "' (raw, jpeg, png, h264-intra)");
 }
 
 DepthCodec parse_depth_codec(const std::string& name) {
@@ -178,6 +184,8 @@ Bytes encode_rgb(const cv::Mat& bgr, const CodecOptions& options) {
       return imencode_checked(".jpg", bgr, {cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality});
     case RgbCodec::kPng:
       return imencode_checked(".png", bgr, {cv::IMWRITE_PNG_COMPRESSION, options.png_compression});
+    case RgbCodec::kH264Intra:
+      throw std::invalid_argument("encode_rgb: h264-intra pictures come from one ImageEncoder per stream");
   }
   throw std::invalid_argument("encode_rgb: unknown codec");
 }
@@ -217,6 +225,13 @@ cv::Mat decode_rgb(RgbCodec codec, const std::uint8_t* data, std::size_t size, i
       check_png_header(data, size, width, height, false, source);
       check_png_stream(data, size, PngLimits{width, height, false}, source);
       return imdecode_checked(data, size, cv::IMREAD_COLOR, CV_8UC3, width, height, source);
+    case RgbCodec::kH264Intra: {
+      if (width % 2 != 0 || height % 2 != 0)
+        throw InputError(source, "H.264 image size " + size_text(width, height) + " is not even");
+      if (!video::is_h264_key_packet(data, size)) throw InputError(source, "not a standalone H.264 key picture");
+      video::H264Decoder decoder(width, height);
+      return decoder.decode(data, size, source);
+    }
   }
   throw InputError(source, "unknown RGB encoding");
 }

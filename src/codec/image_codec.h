@@ -1,8 +1,8 @@
 #pragma once
 // Image codecs for sending RGB-D frames over the network (no network code here).
-// RGB: raw BGR8 / JPEG (quality option) / PNG. Depth (16-bit): raw / PNG / RVL / zstd of a
-// delta-coded image. Every depth codec is lossless. Decoders check everything they read and
-// throw InputError naming the source on bad bytes; they never trust sizes found in the data.
+// RGB: raw BGR8 / JPEG (quality option) / PNG / standalone H.264 intra image. Depth (16-bit): raw / PNG / RVL / zstd of
+// a delta-coded image. Every depth codec is lossless. Decoders check everything they read and throw InputError naming
+// the source on bad bytes; they never trust sizes found in the data.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -12,7 +12,9 @@
 
 namespace cslam {
 
-enum class RgbCodec { kRaw, kJpeg, kPng };
+// kH264Intra: one H.264 key picture per image (ImageEncoder, video::intra_image()): it decodes on
+// its own, so keyframes can be stored as sent; smaller than JPEG q75 at equal quality.
+enum class RgbCodec { kRaw, kJpeg, kPng, kH264Intra };
 enum class DepthCodec { kRaw, kPng, kRvl, kZstdDelta };
 
 struct CodecOptions {
@@ -21,6 +23,7 @@ struct CodecOptions {
   // Default pair JPEG q75 + zstd: 94.3 KB/frame on tum_fr1_rpy (q80: 99.9, q90: 125.9), see docs/network.md.
   int jpeg_quality = 75;    // 1..100
   int png_compression = 1;  // 0..9 (OpenCV/zlib level); 1 is fast and close to the best size
+  int h264_intra_crf = 15;  // 0..51: kH264Intra's x264 constant rate factor (video::intra_image)
   int zstd_level = 1;       // zstd level for kZstdDelta
   // Throws ConfigError on an out-of-range value.
   void validate() const;
@@ -28,14 +31,21 @@ struct CodecOptions {
 
 const char* to_string(RgbCodec codec);
 const char* to_string(DepthCodec codec);
-// "raw" | "jpeg" | "png"; throws ConfigError otherwise. "jpeg90" sets quality too (see parse_codecs).
+// A stream's full frames' colour codec unless one is chosen ("auto" in the programs): in a stream
+// with light frames (a lean or adaptive one), standalone H.264 pictures, smaller than JPEG q75
+// with more ORB features kept (JPEG q75 full frames cost the lean stream 1.17x the default pair's
+// ATE over six demo scenes, these 0.97x: docs/results/bandwidth.md); JPEG when every frame is full
+// (a picture costs the server 4x a JPEG's decoding, and the robot 4x its encoding, on every frame).
+RgbCodec auto_rgb_codec(bool light_frames);
+// "raw" | "jpeg" | "png" | "h264-intra"; throws ConfigError otherwise. "jpeg90" sets quality too (see parse_codecs).
 RgbCodec parse_rgb_codec(const std::string& name);
 // "raw" | "png" | "rvl" | "zstd"; throws ConfigError otherwise.
 DepthCodec parse_depth_codec(const std::string& name);
 
 using Bytes = std::vector<std::uint8_t>;
 
-// bgr: CV_8UC3. Throws std::invalid_argument on a wrong image type.
+// bgr: CV_8UC3. Throws std::invalid_argument on a wrong image type, and for kH264Intra, whose
+// pictures come from a stream's ImageEncoder (codec/image_encoder.h).
 Bytes encode_rgb(const cv::Mat& bgr, const CodecOptions& options);
 // depth: CV_16UC1. Throws std::invalid_argument on a wrong image type.
 Bytes encode_depth(const cv::Mat& depth, const CodecOptions& options);

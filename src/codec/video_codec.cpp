@@ -110,6 +110,15 @@ H264Options light_colour_stream() {
   return o;
 }
 
+H264Options intra_image(int crf) {
+  H264Options o;
+  o.crf = crf;
+  o.preset = "superfast";
+  o.key_interval = 1;
+  o.validate();
+  return o;
+}
+
 void H264Options::validate() const {
   static const char* const kPresets[] = {"ultrafast", "superfast", "veryfast", "faster",   "fast",
                                          "medium",    "slow",      "slower",   "veryslow", "placebo"};

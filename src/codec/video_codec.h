@@ -58,6 +58,13 @@ struct H264Options {
 // ~1 KB more per frame. The client sends with these; cslam-slam --coded-colour simulates them.
 H264Options light_colour_stream();
 
+// Full frames' colour as standalone pictures (RgbCodec::kH264Intra): one encoder per stream with
+// these options (ImageEncoder), key interval 1, so every picture is a key packet that decodes on
+// its own. superfast as the light frames' stream; the CRF is
+// CodecOptions::h264_intra_crf (default 15: smaller than JPEG q75 with more ORB features kept,
+// docs/results/bandwidth.md). Throws ConfigError if crf is out of 0..51.
+H264Options intra_image(int crf);
+
 constexpr std::size_t kH264HeaderBytes = 16;
 
 // True if the packet has our header (magic, version) with the key flag set. Reads only the

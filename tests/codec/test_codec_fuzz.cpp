@@ -4,7 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <zlib.h>
+
 #include "codec/image_codec.h"
+#include "codec/image_encoder.h"
+#include "codec/video_codec.h"
 #include "core/error.h"
 
 namespace cslam {
@@ -89,6 +93,42 @@ TEST(CodecFuzz, MutatedAndRandomBytesNeverCrashAnyDecoder) {
   // Most mutations must be caught (random bytes always are, except by the raw codecs of the right size).
   EXPECT_GT(rgb_rejected, 600);
   EXPECT_GT(depth_rejected, 1500);
+}
+
+// Standalone H.264 pictures: mutated packets (the header's CRC catches them), and mutated
+// bitstreams behind a recomputed, valid header (libavcodec's own checks must catch them or
+// return a picture of the right size).
+TEST(CodecFuzz, MutatedH264PicturesNeverCrashTheDecoder) {
+  std::mt19937 rng(99);
+  cv::Mat bgr(kH + 2, kW, CV_8UC3);  // 40 x 32: even sides
+  cv::RNG(8).fill(bgr, cv::RNG::UNIFORM, 0, 256);
+  CodecOptions o;
+  o.rgb = RgbCodec::kH264Intra;
+  const Bytes valid = ImageEncoder(o).rgb(bgr);
+  ASSERT_GT(valid.size(), video::kH264HeaderBytes + 16);
+  int rejected = 0, decoded = 0;
+  for (int i = 0; i < 600; ++i) {
+    Bytes b = mutate(valid, rng);
+    if (i % 2 == 1 && b.size() > video::kH264HeaderBytes) {  // a valid header over a damaged bitstream
+      std::copy(valid.begin(), valid.begin() + 8, b.begin());
+      const auto length = std::uint32_t(b.size() - video::kH264HeaderBytes);
+      for (int k = 0; k < 4; ++k) b[8 + k] = std::uint8_t(length >> (8 * k));
+      uLong crc = crc32(0L, b.data(), 12);
+      crc = crc32(crc, b.data() + video::kH264HeaderBytes, uInt(length));
+      for (int k = 0; k < 4; ++k) b[12 + k] = std::uint8_t(crc >> (8 * k));
+    }
+    try {
+      const cv::Mat m = decode_rgb(o.rgb, b.data(), b.size(), kW, kH + 2, "fuzz");
+      EXPECT_EQ(m.cols, kW);
+      EXPECT_EQ(m.rows, kH + 2);
+      EXPECT_EQ(m.type(), CV_8UC3);
+      ++decoded;
+    } catch (const InputError&) {
+      ++rejected;
+    }
+  }
+  EXPECT_EQ(rejected + decoded, 600);
+  EXPECT_GT(rejected, 250);  // every packet with a damaged header or CRC at least
 }
 
 TEST(CodecFuzz, RandomBytesOfTheRightRawSizeDecode) {

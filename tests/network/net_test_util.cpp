@@ -127,7 +127,8 @@ wire::ClientMessage make_frame(ClientId id, std::uint64_t seq, double timestamp,
   f.bgr = cv::Mat(camera.height, camera.width, CV_8UC3, cv::Scalar(10, 20, 30));
   f.depth = cv::Mat(camera.height, camera.width, CV_16UC1, cv::Scalar(4000));
   wire::ClientMessage m;
-  wire::to_wire_frame(f, codecs, m.mutable_frame());
+  ImageEncoder images(codecs);
+  wire::to_wire_frame(f, images, m.mutable_frame());
   return m;
 }
 

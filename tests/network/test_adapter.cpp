@@ -127,7 +127,8 @@ TEST(Adapter, DepthTimeOffsetRoundTripsAndImplausibleOffsetsAreMalformed) {
   RgbdFrame f = wire::from_wire_frame(m.frame(), cam, "t");
   f.depth_time_offset = 0.016;
   wire::RgbdFrame out;
-  wire::to_wire_frame(f, CodecOptions(), &out);
+  ImageEncoder images{CodecOptions()};
+  wire::to_wire_frame(f, images, &out);
   EXPECT_EQ(out.depth_time_offset(), 0.016);
   for (double bad : {0.5, -0.11, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     m.mutable_frame()->set_depth_time_offset(bad);

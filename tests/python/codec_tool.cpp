@@ -1,6 +1,6 @@
 // cslam-test-codec-tool: the C++ codecs (src/codec) on files, so the Python client's codecs can be
 // checked byte for byte against them (test_python_codecs.py).
-//   encode-rgb  jpeg|png|raw QUALITY IN.png OUT.bin
+//   encode-rgb  jpeg|png|raw|h264-intra QUALITY IN.png OUT.bin   (QUALITY: the CRF for h264-intra)
 //   encode-depth zstd|png|raw LEVEL IN.png OUT.bin
 //   decode-depth zstd|png|raw WIDTH HEIGHT IN.bin OUT.png     (16-bit PNG)
 //   subsample-depth S IN.png OUT.png                          (16-bit PNG, codec/depth_subsample.h)
@@ -22,6 +22,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "codec/image_encoder.h"
 #include "codec/depth_subsample.h"
 #include "codec/image_codec.h"
 #include "codec/video_codec.h"
@@ -101,8 +102,8 @@ int main(int argc, char** argv) {
     cslam::CodecOptions o;
     if (cmd == "encode-rgb" && argc == 6) {
       o.rgb = cslam::parse_rgb_codec(argv[2]);
-      o.jpeg_quality = std::stoi(argv[3]);
-      write_file(argv[5], cslam::encode_rgb(cv::imread(argv[4], cv::IMREAD_COLOR), o));
+      (o.rgb == cslam::RgbCodec::kH264Intra ? o.h264_intra_crf : o.jpeg_quality) = std::stoi(argv[3]);
+      write_file(argv[5], cslam::ImageEncoder(o).rgb(cv::imread(argv[4], cv::IMREAD_COLOR)));
       return 0;
     }
     if (cmd == "encode-depth" && argc == 6) {

@@ -410,7 +410,8 @@ class PythonClientProtocol(unittest.TestCase):
             sender.send(self.bgr + k, self.depth, 100.0 + k)
         self.assertEqual((sender.stats.frames_sent, sender.stats.dropped_no_credit), (1, 2))
         first = server.recv_kind("frame").frame
-        self.assertEqual((first.rgb.encoding, first.depth.width), (pb.RGB_JPEG, 32))  # full: the first frame
+        # Full: the first frame, its colour a standalone H.264 picture (a lean stream's default).
+        self.assertEqual((first.rgb.encoding, first.depth.width), (pb.RGB_H264_INTRA, 32))
         self.assertEqual(sender.lean.encoder.next_index, 0)  # the dropped frames never entered the stream
         server.reply(ack=pb.Ack(client_id=7, seq=1, credits=1))
         while sender.stats.frames_sent < 2:

@@ -114,15 +114,18 @@ class CodecsMatchCpp(unittest.TestCase):
                 self.tool("decode-depth", codec, depth.shape[1], depth.shape[0], path, out)
                 np.testing.assert_array_equal(cv2.imread(out, cv2.IMREAD_ANYDEPTH), depth)
 
-    def test_jpeg_and_png_rgb_are_the_cpp_bytes(self):
+    def test_rgb_codecs_are_the_cpp_bytes(self):
         rng = np.random.default_rng(3)
         y, x = np.mgrid[0:96, 0:128]
         bgr = np.dstack([x * 2, y * 2, (x + y)]).astype(np.uint8) + rng.integers(0, 20, (96, 128, 3)).astype(np.uint8)
         png = os.path.join(self.dir, "rgb.png")
         cv2.imwrite(png, bgr)
-        for codec, quality in (("jpeg", 75), ("jpeg", 90), ("png", 75), ("raw", 75)):
+        for codec, quality in (("jpeg", 75), ("jpeg", 90), ("png", 75), ("raw", 75), ("h264-intra", 15),
+                               ("h264-intra", 30)):
             with self.subTest(codec=codec, quality=quality):
-                ours = codecs.encode_rgb(bgr, codecs.Codecs(rgb=codec, jpeg_quality=quality))[1]
+                options = codecs.Codecs(rgb=codec, jpeg_quality=quality if codec == "jpeg" else 75,
+                                        h264_intra_crf=quality if codec == "h264-intra" else 15)
+                ours = codecs.ImageEncoder(options).rgb(bgr)[1]
                 self.tool("encode-rgb", codec, quality, png, os.path.join(self.dir, "rgb.cpp"))
                 self.assertEqual(ours, self.read("rgb.cpp"))
 
@@ -159,6 +162,8 @@ class LeanStreamCodecsMatchCpp(unittest.TestCase):
         cases = {
             "defaults": (160, 120, video.H264Options(), {9, 23}),
             "light frames' default": (160, 120, video.light_colour_stream(), {9}),
+            # Full frames' h264-intra pictures (codecs.ImageEncoder): every packet a key packet.
+            "intra pictures": (160, 120, video.intra_image(15), set()),
             # Odd settings: another size (not a multiple of 16), CRF, preset, tune, frame rate, and
             # a key interval short enough for automatic IDR frames between the forced ones.
             "odd": (98, 62, video.H264Options(crf=30, preset="ultrafast", tune="zerolatency", key_interval=10,

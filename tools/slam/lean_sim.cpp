@@ -7,13 +7,11 @@
 
 namespace cslam {
 
-LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config) {
+LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config), full_images_(config_.full_colour) {
   if (config_.depth_every < 1 || config_.request_delay < 0)
     throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
   if (config_.light_depth < 0 || config_.light_depth > kMaxDepthSubsample)
     throw ConfigError("--light-depth must be 0.." + std::to_string(kMaxDepthSubsample));
-  full_colour_.jpeg_quality = config_.jpeg_quality;
-  full_colour_.validate();
 }
 
 void LeanStreamSim::apply(RgbdFrame& frame, int n) {
@@ -40,8 +38,8 @@ void LeanStreamSim::code_colour(RgbdFrame& frame, bool full) {
   const int w = frame.bgr.cols, h = frame.bgr.rows;
   const std::string source = "coded colour, frame " + std::to_string(frame.seq);
   if (full) {
-    const Bytes bytes = encode_rgb(frame.bgr, full_colour_);
-    frame.bgr = decode_rgb(full_colour_.rgb, bytes.data(), bytes.size(), w, h, source);
+    const Bytes bytes = full_images_.rgb(frame.bgr);
+    frame.bgr = decode_rgb(config_.full_colour.rgb, bytes.data(), bytes.size(), w, h, source);
     return;
   }
   if (!encoder_) {

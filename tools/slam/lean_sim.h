@@ -4,7 +4,8 @@
 // (the acks in flight), keeps its full depth; the others become light frames with the depth the
 // server expands from every S-th pixel of every S-th row (S = light_depth; 0 or 1: none). With
 // coded_colour the colour goes through the client's codecs and back as the server decodes it:
-// full frames JPEG at jpeg_quality, light frames one H.264 stream per client
+// full frames with full_colour (the client's --rgb-codec: JPEG q75 by default, or standalone
+// H.264 pictures), light frames one H.264 stream per client
 // (video::light_colour_stream(), only the light frames in it, as the client sends them); without
 // it the colour is the dataset's, undegraded. Stepped (--sync) runs answer
 // a request exactly `request_delay` frames late; threaded multi-client runs queue frames ahead of
@@ -12,6 +13,7 @@
 #include <memory>
 #include <mutex>
 
+#include "codec/image_encoder.h"
 #include "codec/video_codec.h"
 #include "frame/rgbd_frame.h"
 
@@ -22,13 +24,13 @@ struct LeanStreamConfig {
   int request_delay = 3;
   int light_depth = 4;
   bool coded_colour = false;
-  int jpeg_quality = CodecOptions().jpeg_quality;  // full frames' colour with coded_colour
+  CodecOptions full_colour;  // full frames' colour with coded_colour (only the RGB fields are used)
 };
 
 class LeanStreamSim {
  public:
   // ConfigError on depth_every < 1, request_delay < 0, light_depth outside 0..kMaxDepthSubsample
-  // or a JPEG quality outside 1..100.
+  // or invalid full_colour options.
   explicit LeanStreamSim(LeanStreamConfig config);
   // Frame n of the client (0-based): made light unless it is due to carry full depth.
   // With coded_colour, the codecs' errors pass through (InputError from a decoder).
@@ -41,7 +43,7 @@ class LeanStreamSim {
   void code_colour(RgbdFrame& frame, bool full);
 
   const LeanStreamConfig config_;
-  CodecOptions full_colour_;  // the full frames' JPEG, checked once in the constructor
+  ImageEncoder full_images_;  // the full frames' colour (one encoder per client, as the client's)
   std::unique_ptr<video::H264Encoder> encoder_;
   std::unique_ptr<video::H264Decoder> decoder_;
   mutable std::mutex mutex_;

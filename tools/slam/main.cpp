@@ -101,10 +101,16 @@ int run(int argc, char** argv) {
               "flight)",
               "3")
       .flag("coded-colour",
-            "colour through the client's codecs and back: JPEG on full frames, the lean stream's H.264 on light "
-            "frames (--depth-every)")
+            "colour through the client's codecs and back: --rgb-codec on full frames, the lean stream's H.264 on "
+            "light frames (--depth-every)")
+      .option("rgb-codec",
+              "with --coded-colour: the full frames' colour codec, raw | jpeg | png | h264-intra | auto (cslam-client "
+              "--rgb-codec: h264-intra with --depth-every > 1, else jpeg)",
+              "auto")
       .option("jpeg-quality", "with --coded-colour: the full frames' JPEG quality (cslam-client --jpeg-quality)",
               std::to_string(CodecOptions().jpeg_quality))
+      .option("h264-intra-crf", "with --coded-colour and --rgb-codec h264-intra: the pictures' CRF (cslam-client)",
+              std::to_string(CodecOptions().h264_intra_crf))
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;

@@ -46,8 +46,16 @@ PinholeCamera camera_for(const CliArgs& args, const std::string& dir) {
 }
 
 LeanStreamConfig lean_stream_config(const CliArgs& args) {
-  return {args.get_int("depth-every"), args.get_int("depth-request-delay"), args.get_int("light-depth"),
-          args.flag_set("coded-colour"), args.get_int("jpeg-quality")};
+  LeanStreamConfig c{args.get_int("depth-every"),
+                     args.get_int("depth-request-delay"),
+                     args.get_int("light-depth"),
+                     args.flag_set("coded-colour"),
+                     {}};
+  const std::string rgb_codec = args.get("rgb-codec");
+  c.full_colour.rgb = rgb_codec == "auto" ? auto_rgb_codec(c.depth_every > 1) : parse_rgb_codec(rgb_codec);
+  c.full_colour.jpeg_quality = args.get_int("jpeg-quality");
+  c.full_colour.h264_intra_crf = args.get_int("h264-intra-crf");
+  return c;
 }
 
 int run_multi_client(const CliArgs& args) {

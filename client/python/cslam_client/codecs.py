@@ -1,7 +1,9 @@
 """Image codecs of the cslam wire protocol, bit-compatible with src/codec.
 
 RGB: raw BGR8, JPEG and PNG through OpenCV (python3-opencv links the same libjpeg/libpng as the
-C++ programs, so the same quality gives the same bytes). Depth (16-bit, lossless): raw
+C++ programs, so the same quality gives the same bytes), and "h264-intra": every image one H.264
+key picture that decodes on its own, from one encoder per stream (ImageEncoder below, as the C++
+codec/image_encoder.h: the same pictures in the same order give the same bytes). Depth (16-bit, lossless): raw
 little-endian, 16-bit PNG, and zstd-delta, the default: the layout of
 ``depth_codec::zstd_delta_encode`` in src/codec/depth_codecs.cpp, vectorised with numpy:
 
@@ -19,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-RGB_CODECS = ("raw", "jpeg", "png")
+RGB_CODECS = ("raw", "jpeg", "png", "h264-intra")
 DEPTH_CODECS = ("raw", "png", "zstd")
 # Wire encoding of a light frame's colour: a packet of the robot's H.264 stream (video.py). Never
 # a full frame's: a full frame's colour must decode on its own.
@@ -33,6 +35,7 @@ class Codecs:
     jpeg_quality: int = 75     # as CodecOptions in src/codec/image_codec.h
     png_compression: int = 1
     zstd_level: int = 1
+    h264_intra_crf: int = 15   # 0..51, as CodecOptions::h264_intra_crf
 
     def validate(self):
         if self.rgb not in RGB_CODECS:
@@ -45,6 +48,8 @@ class Codecs:
             raise ValueError("PNG compression must be in 0..9")
         if not 1 <= self.zstd_level <= 19:
             raise ValueError("zstd level must be in 1..19")
+        if not 0 <= self.h264_intra_crf <= 51:
+            raise ValueError("H.264 intra crf must be in 0..51")
 
 
 def _imencode(ext, image, params):
@@ -64,7 +69,35 @@ def encode_rgb(bgr, codecs):
         return "RGB_RAW_BGR8", np.ascontiguousarray(bgr).tobytes()
     if codecs.rgb == "jpeg":
         return "RGB_JPEG", _imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, codecs.jpeg_quality])
+    if codecs.rgb == "h264-intra":
+        raise ValueError("encode_rgb: h264-intra pictures come from one ImageEncoder per stream")
     return "RGB_PNG", _imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, codecs.png_compression])
+
+
+class ImageEncoder:
+    """One stream's encoder for full frames' images, as ImageEncoder in src/codec/image_encoder.h:
+    stateless codecs through encode_rgb / encode_depth; h264-intra through one H.264 encoder with
+    video.intra_image() (key interval 1), made at the first picture, whose rate control carries
+    over between pictures. Encode the frames in sending order."""
+
+    def __init__(self, codecs):
+        codecs.validate()
+        self.codecs = codecs
+        self._intra = None
+
+    def rgb(self, bgr):
+        """Returns (wire encoding name, bytes)."""
+        if self.codecs.rgb != "h264-intra":
+            return encode_rgb(bgr, self.codecs)
+        from . import video
+        if self._intra is None:
+            if not isinstance(bgr, np.ndarray) or bgr.ndim != 3:
+                raise TypeError("ImageEncoder.rgb: expected an HxWx3 uint8 BGR image")
+            self._intra = video.H264Encoder(bgr.shape[1], bgr.shape[0], video.intra_image(self.codecs.h264_intra_crf))
+        return "RGB_H264_INTRA", self._intra.encode(bgr)
+
+    def depth(self, depth):
+        return encode_depth(depth, self.codecs)
 
 
 def encode_depth(depth, codecs):

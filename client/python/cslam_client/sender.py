@@ -37,7 +37,7 @@ from typing import Callable, Optional
 import zmq
 
 from . import errors, video
-from .codecs import RGB_H264, Codecs, encode_depth, encode_rgb
+from .codecs import RGB_H264, Codecs, ImageEncoder, encode_depth
 from .feedback import AckInfo, SenderStats, ack_info
 from .keys import CurveKeys
 from .wire import pb
@@ -60,11 +60,13 @@ class FrameSender:
         self.client_id = int(client_id)
         self.camera = camera
         self.name = name or f"client{client_id}"
-        self.codecs = codecs or Codecs()
-        self.codecs.validate()
-        camera.validate()
         if not isinstance(depth_every, int) or depth_every < 1:
             raise ValueError(f"depth_every {depth_every} must be >= 1 (1: every frame full)")
+        # Unless chosen, a stream with light frames sends its full frames' colour as standalone
+        # H.264 pictures, as auto_rgb_codec() in src/codec/image_codec.h.
+        self.codecs = codecs or Codecs(rgb="h264-intra" if depth_every > 1 else "jpeg")
+        self._images = ImageEncoder(self.codecs)  # full frames' images (validates the codecs)
+        camera.validate()
         # Lean stream: light frames between full ones. The default colour stream is coarser than
         # H264Options' (light frames are only tracked): video.light_colour_stream().
         self.lean = None
@@ -173,11 +175,12 @@ class FrameSender:
     def encode(self, bgr, depth, timestamp, depth_time_offset=0.0):
         """An encoded cslam.wire.RgbdFrame (id and seq are stamped when it is sent). `timestamp` is
         the colour image's capture time; `depth_time_offset` the depth image's, relative to it (s).
-        Always a full frame (with depth), also in a lean stream."""
+        Always a full frame (with depth), also in a lean stream. With h264-intra colour the pictures
+        come from one encoder: encode the frames in sending order."""
         self._check_images(bgr, depth, depth_time_offset)
         h, w = depth.shape[:2]
         frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
-        enc, data = encode_rgb(bgr, self.codecs)
+        enc, data = self._images.rgb(bgr)
         frame.rgb.width, frame.rgb.height, frame.rgb.encoding, frame.rgb.data = w, h, pb.Encoding.Value(enc), data
         enc, data = encode_depth(depth, self.codecs)
         frame.depth.width, frame.depth.height, frame.depth.encoding, frame.depth.data = w, h, pb.Encoding.Value(enc), data

@@ -62,6 +62,14 @@ def light_colour_stream() -> H264Options:
     return H264Options(crf=26, preset="superfast")
 
 
+def intra_image(crf) -> H264Options:
+    """Full frames' colour as standalone key pictures, as video::intra_image() (src/codec/video_codec.h):
+    a fresh encoder per image, preset superfast, key interval 1."""
+    o = H264Options(crf=crf, preset="superfast", key_interval=1)
+    o.validate()
+    return o
+
+
 @dataclass
 class PacketHeader:
     key: bool

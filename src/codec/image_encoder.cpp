@@ -1,0 +1,23 @@
+#include "codec/image_encoder.h"
+
+#include <stdexcept>
+
+#include "codec/video_codec.h"
+
+namespace cslam {
+
+ImageEncoder::ImageEncoder(const CodecOptions& options) : options_(options) { options_.validate(); }
+
+ImageEncoder::~ImageEncoder() = default;
+ImageEncoder::ImageEncoder(ImageEncoder&&) noexcept = default;
+ImageEncoder& ImageEncoder::operator=(ImageEncoder&&) noexcept = default;
+
+Bytes ImageEncoder::rgb(const cv::Mat& bgr) {
+  if (options_.rgb != RgbCodec::kH264Intra) return encode_rgb(bgr, options_);
+  if (bgr.type() != CV_8UC3 || bgr.empty()) throw std::invalid_argument("ImageEncoder: expected a CV_8UC3 image");
+  if (!intra_)
+    intra_ = std::make_unique<video::H264Encoder>(bgr.cols, bgr.rows, video::intra_image(options_.h264_intra_crf));
+  return intra_->encode(bgr);
+}
+
+}  // namespace cslam
