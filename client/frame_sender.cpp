@@ -12,7 +12,7 @@ using detail::to_ms;
 FrameSender::FrameSender(SenderConfig config)
     : config_(std::move(config)),
       context_(1),
-      full_images_(config_.codecs),
+      full_images_(config_.codecs, cv::Size(config_.info.camera.width, config_.info.camera.height)),
       rate_(config_.adapt, std::max(config_.depth_every, 1)) {
   config_.info.camera.validate();  // the camera model alone (cslam_camera): no calib3d
   if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");

@@ -1,8 +1,9 @@
 #pragma once
 // Image codecs for sending RGB-D frames over the network (no network code here).
-// RGB: raw BGR8 / JPEG (quality option) / PNG / standalone H.264 intra image. Depth (16-bit): raw / PNG / RVL / zstd of
-// a delta-coded image. Every depth codec is lossless. Decoders check everything they read and throw InputError naming
-// the source on bad bytes; they never trust sizes found in the data.
+// RGB: raw BGR8 / JPEG (quality option) / PNG / standalone H.264 pictures. Depth (16-bit): raw /
+// PNG / RVL / zstd of a delta-coded image. Every depth codec is lossless. Decoders check
+// everything they read and throw InputError naming the source on bad bytes; they never trust
+// sizes found in the data.
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -6,7 +6,11 @@
 
 namespace cslam {
 
-ImageEncoder::ImageEncoder(const CodecOptions& options) : options_(options) { options_.validate(); }
+ImageEncoder::ImageEncoder(const CodecOptions& options, cv::Size size) : options_(options) {
+  options_.validate();
+  if (options_.rgb == RgbCodec::kH264Intra && !size.empty())
+    intra_ = std::make_unique<video::H264Encoder>(size.width, size.height, video::intra_image(options_.h264_intra_crf));
+}
 
 ImageEncoder::~ImageEncoder() = default;
 ImageEncoder::ImageEncoder(ImageEncoder&&) noexcept = default;

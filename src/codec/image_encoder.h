@@ -21,8 +21,10 @@ class H264Encoder;
 
 class ImageEncoder {
  public:
-  // Throws ConfigError on invalid options (CodecOptions::validate).
-  explicit ImageEncoder(const CodecOptions& options);
+  // Throws ConfigError on invalid options (CodecOptions::validate). With a size (the camera's),
+  // kH264Intra's encoder is made at once, so odd or out-of-range sides fail here (ConfigError);
+  // without one, at the first picture.
+  explicit ImageEncoder(const CodecOptions& options, cv::Size size = {});
   ~ImageEncoder();
   ImageEncoder(ImageEncoder&&) noexcept;
   ImageEncoder& operator=(ImageEncoder&&) noexcept;

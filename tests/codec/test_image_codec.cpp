@@ -141,6 +141,8 @@ TEST(RgbH264Intra, EachPictureStandsAloneAndStreamPacketsAreRefused) {
   fine.h264_intra_crf = 5;
   EXPECT_GT(ImageEncoder(fine).rgb(a).size(), a1.size());
   EXPECT_THROW(first.rgb(random_bgr(32, 48, 7)), std::invalid_argument);  // the stream's size only
+  EXPECT_THROW(ImageEncoder(o, cv::Size(63, 48)), ConfigError);           // a camera H.264 cannot code, at once
+  EXPECT_NO_THROW(ImageEncoder(o, cv::Size(64, 48)));
   // An inter-coded packet of a stream is not a standalone picture.
   video::H264Encoder stream(64, 48);
   stream.encode(a);
