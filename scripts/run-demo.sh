@@ -84,7 +84,7 @@ fi
 grep -E "fused client|final client" "$RUN/server.log" || true
 
 if [ "$DEPTH_EVERY" -gt 1 ] || [ ${#ADAPT[@]} -gt 0 ]; then
-  echo "== bandwidth (lean stream: full frames every $DEPTH_EVERY and on request, light frames between; the default pair sends ~87 KB per frame here)"
+  echo "== bandwidth (lean stream: full frames (H.264 pictures + lossless depth) every $DEPTH_EVERY and on request, light frames between; the default pair sends ~87 KB per frame here)"
 else
   echo "== bandwidth (every frame full: JPEG q75 + lossless depth)"
 fi
