@@ -63,8 +63,6 @@ struct SenderConfig {
   RateControlConfig adapt;
   // Whether frames may be light (a colour stream exists): a lean stream or an adaptive one.
   bool colour_stream_on() const { return depth_every > 1 || adapt.enabled; }
-  // The full frames' colour codec unless one is chosen (cslam-client --rgb-codec auto).
-  RgbCodec auto_rgb_codec() const { return cslam::auto_rgb_codec(colour_stream_on()); }
 };
 
 struct SenderStats {

@@ -104,8 +104,7 @@ int run(int argc, char** argv) {
   config.colour_stream.preset = cli.get("colour-preset");
   config.light_depth_subsample = cli.get_int("light-depth");
   config.adapt.enabled = cli.flag_set("adapt");
-  const std::string rgb_codec = cli.get("rgb-codec");
-  config.codecs.rgb = rgb_codec == "auto" ? config.auto_rgb_codec() : cslam::parse_rgb_codec(rgb_codec);
+  config.codecs.rgb = cslam::parse_rgb_codec(cli.get("rgb-codec"), config.colour_stream_on());
   config.reply_timeout_s = cli.get_double("reply-timeout");
   {
     const double mb = cli.get_double("resend-buffer");

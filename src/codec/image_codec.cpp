@@ -169,6 +169,10 @@ RgbCodec parse_rgb_codec(const std::string& name) {
   throw ConfigError("unknown RGB codec '" + name + "' (raw, jpeg, png, h264-intra)");
 }
 
+RgbCodec parse_rgb_codec(const std::string& name, bool light_frames) {
+  return name == "auto" ? auto_rgb_codec(light_frames) : parse_rgb_codec(name);
+}
+
 DepthCodec parse_depth_codec(const std::string& name) {
   for (auto c : {DepthCodec::kRaw, DepthCodec::kPng, DepthCodec::kRvl, DepthCodec::kZstdDelta})
     if (name == to_string(c)) return c;

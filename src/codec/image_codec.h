@@ -40,6 +40,8 @@ const char* to_string(DepthCodec codec);
 RgbCodec auto_rgb_codec(bool light_frames);
 // "raw" | "jpeg" | "png" | "h264-intra"; throws ConfigError otherwise. "jpeg90" sets quality too (see parse_codecs).
 RgbCodec parse_rgb_codec(const std::string& name);
+// As parse_rgb_codec, and "auto": auto_rgb_codec(light_frames) (the programs' --rgb-codec).
+RgbCodec parse_rgb_codec(const std::string& name, bool light_frames);
 // "raw" | "png" | "rvl" | "zstd"; throws ConfigError otherwise.
 DepthCodec parse_depth_codec(const std::string& name);
 

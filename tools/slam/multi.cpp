@@ -51,8 +51,7 @@ LeanStreamConfig lean_stream_config(const CliArgs& args) {
                      args.get_int("light-depth"),
                      args.flag_set("coded-colour"),
                      {}};
-  const std::string rgb_codec = args.get("rgb-codec");
-  c.full_colour.rgb = rgb_codec == "auto" ? auto_rgb_codec(c.depth_every > 1) : parse_rgb_codec(rgb_codec);
+  c.full_colour.rgb = parse_rgb_codec(args.get("rgb-codec"), c.depth_every > 1);
   c.full_colour.jpeg_quality = args.get_int("jpeg-quality");
   c.full_colour.h264_intra_crf = args.get_int("h264-intra-crf");
   return c;

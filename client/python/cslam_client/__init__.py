@@ -7,7 +7,7 @@ See README.md ("Python client") for an example robot loop.
 """
 from . import camera, dataset, video
 from .camera import Camera
-from .codecs import Codecs
+from .codecs import Codecs, auto_rgb_codec
 from .errors import (ConnectionFailed, CslamError, FrameRejected, HelloRejected, NotAuthorized, ProtocolVersionError,
                      ServerError, ServerShuttingDown, SessionBusy, TooManyClients)
 from .progress import Progress
@@ -17,4 +17,4 @@ from .video import H264Encoder, H264Options
 __all__ = ["AckInfo", "Camera", "Codecs", "ConnectionFailed", "CslamError", "CurveKeys", "FrameRejected", "FrameSender",
            "H264Encoder", "H264Options", "HelloRejected", "NotAuthorized", "Progress", "ProtocolVersionError",
            "SenderStats", "ServerError", "ServerShuttingDown", "SessionBusy", "TooManyClients", "camera", "dataset",
-           "video"]
+           "video", "auto_rgb_codec"]

@@ -1,10 +1,10 @@
 """Image codecs of the cslam wire protocol, bit-compatible with src/codec.
 
 RGB: raw BGR8, JPEG and PNG through OpenCV (python3-opencv links the same libjpeg/libpng as the
-C++ programs, so the same quality gives the same bytes), and "h264-intra": every image one H.264
-key picture that decodes on its own, from one encoder per stream (ImageEncoder below, as the C++
-codec/image_encoder.h: the same pictures in the same order give the same bytes). Depth (16-bit, lossless): raw
-little-endian, 16-bit PNG, and zstd-delta, the default: the layout of
+C++ programs, so the same quality gives the same bytes), and "h264-intra": every image one
+H.264 key picture that decodes on its own, from one encoder per stream (ImageEncoder below, as
+the C++ codec/image_encoder.h: the same pictures in the same order give the same bytes).
+Depth (16-bit, lossless): raw little-endian, 16-bit PNG, and zstd-delta, the default: the layout of
 ``depth_codec::zstd_delta_encode`` in src/codec/depth_codecs.cpp, vectorised with numpy:
 
   u32 T; T sorted distinct non-zero depth values (u16 LE, delta-coded); W*H bytes hole mask
@@ -26,6 +26,12 @@ DEPTH_CODECS = ("raw", "png", "zstd")
 # Wire encoding of a light frame's colour: a packet of the robot's H.264 stream (video.py). Never
 # a full frame's: a full frame's colour must decode on its own.
 RGB_H264 = "RGB_H264"
+
+
+def auto_rgb_codec(light_frames):
+    """The full frames' colour codec unless one is chosen, as auto_rgb_codec() in
+    src/codec/image_codec.h: standalone H.264 pictures in a stream with light frames, else JPEG."""
+    return "h264-intra" if light_frames else "jpeg"
 
 
 @dataclass

@@ -37,7 +37,7 @@ from typing import Callable, Optional
 import zmq
 
 from . import errors, video
-from .codecs import RGB_H264, Codecs, ImageEncoder, encode_depth
+from .codecs import RGB_H264, Codecs, ImageEncoder, auto_rgb_codec, encode_depth
 from .feedback import AckInfo, SenderStats, ack_info
 from .keys import CurveKeys
 from .wire import pb
@@ -62,9 +62,7 @@ class FrameSender:
         self.name = name or f"client{client_id}"
         if not isinstance(depth_every, int) or depth_every < 1:
             raise ValueError(f"depth_every {depth_every} must be >= 1 (1: every frame full)")
-        # Unless chosen, a stream with light frames sends its full frames' colour as standalone
-        # H.264 pictures, as auto_rgb_codec() in src/codec/image_codec.h.
-        self.codecs = codecs or Codecs(rgb="h264-intra" if depth_every > 1 else "jpeg")
+        self.codecs = codecs or Codecs(rgb=auto_rgb_codec(depth_every > 1))
         self._images = ImageEncoder(self.codecs)  # full frames' images (validates the codecs)
         camera.validate()
         # Lean stream: light frames between full ones. The default colour stream is coarser than
@@ -182,7 +180,7 @@ class FrameSender:
         frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
         enc, data = self._images.rgb(bgr)
         frame.rgb.width, frame.rgb.height, frame.rgb.encoding, frame.rgb.data = w, h, pb.Encoding.Value(enc), data
-        enc, data = encode_depth(depth, self.codecs)
+        enc, data = self._images.depth(depth)
         frame.depth.width, frame.depth.height, frame.depth.encoding, frame.depth.data = w, h, pb.Encoding.Value(enc), data
         return frame
 

@@ -64,7 +64,7 @@ def light_colour_stream() -> H264Options:
 
 def intra_image(crf) -> H264Options:
     """Full frames' colour as standalone key pictures, as video::intra_image() (src/codec/video_codec.h):
-    a fresh encoder per image, preset superfast, key interval 1."""
+    one encoder per stream (codecs.ImageEncoder), preset superfast, key interval 1."""
     o = H264Options(crf=crf, preset="superfast", key_interval=1)
     o.validate()
     return o
