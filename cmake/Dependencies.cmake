@@ -3,6 +3,13 @@ find_package(Threads REQUIRED)
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs features2d calib3d)
 find_package(Ceres REQUIRED)
+# CHOLMOD's supernodal Cholesky (SuiteSparse, which Debian's Ceres is built on) factorises the
+# block-sparse reduced camera system of large BAs (src/optimize/block_sparse_system.cpp).
+find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse REQUIRED)
+find_library(CHOLMOD_LIBRARY cholmod REQUIRED)
+add_library(cslam_cholmod INTERFACE)
+target_include_directories(cslam_cholmod SYSTEM INTERFACE ${CHOLMOD_INCLUDE_DIR})
+target_link_libraries(cslam_cholmod INTERFACE ${CHOLMOD_LIBRARY})
 # Only the PCL components we use: 'io' would drag VTK and MPI in on Debian.
 find_package(PCL REQUIRED COMPONENTS common filters kdtree search)
 find_package(spdlog REQUIRED)

@@ -8,7 +8,7 @@ BUILD_ONLY=0
 
 PKGS=(
   build-essential cmake pkg-config git ca-certificates ccache
-  libopencv-dev libeigen3-dev libceres-dev libpcl-dev libboost-dev
+  libopencv-dev libeigen3-dev libceres-dev libsuitesparse-dev libpcl-dev libboost-dev
   libzmq3-dev cppzmq-dev libprotobuf-dev protobuf-compiler
   libcpp-httplib-dev libgtest-dev libspdlog-dev nlohmann-json3-dev libzstd-dev libsqlite3-dev liboctomap-dev zlib1g-dev libturbojpeg0-dev libdeflate-dev libgoogle-perftools-dev libavcodec-dev
   nodejs chromium curl

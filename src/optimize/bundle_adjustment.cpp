@@ -1,7 +1,7 @@
 // Bundle adjustment in two stages (Huber kernel, then the inliers without kernel), each one a
 // Levenberg-Marquardt solve over the current inliers followed by a re-classification of every
-// observation. Local-BA-sized problems use the Schur-complement solver of schur_ba.h; problems
-// with more free cameras than its dense reduced system suits go to sparse_ba.h (Ceres).
+// observation, all on the Schur-complement solver of schur_ba.h (a dense reduced camera system
+// for local-BA sizes, a block-sparse one beyond).
 #include "optimize/bundle_adjustment.h"
 
 #include <cmath>
@@ -10,7 +10,6 @@
 #include "optimize/pose_param.h"
 #include "optimize/reprojection_chi2.h"
 #include "optimize/schur_ba.h"
-#include "optimize/sparse_ba.h"
 
 namespace cslam {
 
@@ -19,7 +18,6 @@ double ba_observation_chi2(const BaCamera& cam, const Eigen::Vector3d& pw, const
 }
 
 BaResult bundle_adjust(const BaProblem& prob, const BaConfig& cfg, const std::atomic<bool>* abort) {
-  if (count_free_observing_cameras(prob) > kMaxDenseSchurCameras) return bundle_adjust_sparse(prob, cfg, abort);
   BaResult res;
   std::vector<std::array<double, 6>> poses;
   poses.reserve(prob.cameras.size());

@@ -1,9 +1,10 @@
 #pragma once
 // Bundle adjustment of keyframe poses and points over reprojection (RGB-D "stereo") residuals,
 // used for local BA (covisible keyframes free, the second ring fixed) and global BA.
-// Up to 96 free keyframes: an own Schur-complement Levenberg-Marquardt (schur_ba.h); beyond:
-// Ceres SPARSE_SCHUR (sparse_ba.h). Both take the steps of the Ceres reference
-// (bundle_adjust_ceres in ceres_reference.h); see docs/performance.md.
+// An own Schur-complement Levenberg-Marquardt (schur_ba.h) with a dense reduced camera system up
+// to 96 free keyframes and a block-sparse one beyond; it takes the steps of the Ceres reference
+// (bundle_adjust_ceres in ceres_reference.h). sparse_ba.h keeps the same problem on Ceres'
+// SPARSE_SCHUR as a second reference for large problems; see docs/performance.md.
 #include <atomic>
 #include <vector>
 
@@ -36,9 +37,9 @@ struct BaConfig {
   int second_iterations = 10;  // after dropping outliers, no kernel (0: single stage)
   double chi2_mono = 5.991, chi2_stereo = 7.815;
   // A stage ends after an accepted step that lowered its cost by at most this fraction (lm_driver.h;
-  // 0: Ceres' termination rules alone). Schur path only.
+  // 0: Ceres' termination rules alone). Not in the Ceres paths.
   double min_step_decrease = 1e-4;
-  int threads = 1;  // Ceres threads (sparse path only; the Schur solver is single-threaded)
+  int threads = 1;  // Ceres threads of bundle_adjust_sparse (bundle_adjust is single-threaded)
   // An aborted solve returns its last accepted iterate (BaResult::partial) instead of the values
   // it started from: every accepted step lowered the cost, so a cut-short solve is still progress.
   bool keep_progress_on_abort = false;

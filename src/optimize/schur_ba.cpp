@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <type_traits>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
+#include "optimize/block_sparse_system.h"
 #include "optimize/schur_kernels.h"
 #include "optimize/se3_projection.h"
 
@@ -89,7 +92,10 @@ class SchurBaProblem {
     cur_.resize(F, P, entries_.size());
     next_.resize(F, P, entries_.size());
     lp_.resize(num_cams);
-    S_.resize(6 * F, 6 * F);
+    if (F > size_t(kMaxDenseSchurCameras))
+      make_sparse_system();
+    else
+      S_.resize(6 * F, 6 * F);
     rhs_.resize(6 * F);
     dc_.resize(6 * F);
     Vinv_.resize(P);
@@ -112,6 +118,13 @@ class SchurBaProblem {
   }
 
   bool solve(double radius, double& step_norm, double& model_cost_change) {
+    if (!(sparse_ ? reduce_sparse(radius) : reduce_dense(radius))) return false;
+    back_substitute(step_norm, model_cost_change);
+    return std::isfinite(model_cost_change);
+  }
+
+  // The reduced camera system at this radius, factorised and solved for the cameras' step dc_.
+  bool reduce_dense(double radius) {
     const Linearization& L = cur_;
     const int F = int(cam_vars_.size());
     S_.setZero();
@@ -144,6 +157,48 @@ class SchurBaProblem {
     llt_.compute(S_);
     if (llt_.info() != Eigen::Success) return false;
     dc_ = llt_.solve(rhs_);
+    return true;
+  }
+
+  // The same system in blocks of the camera pairs that share a point (more free cameras than a
+  // dense system suits): the same sums, in the same order per block.
+  bool reduce_sparse(double radius) {
+    const Linearization& L = cur_;
+    const int F = int(cam_vars_.size());
+    sparse_->set_zero();
+    for (int v = 0; v < F; ++v) {
+      Matrix6d& Ud = sparse_->block(sparse_->diagonal_index(v));
+      Ud = L.U[v];
+      for (int d = 0; d < 6; ++d) Ud(d, d) += lm_damping(L.U[v](d, d), radius);
+      rhs_.segment<6>(6 * v) = -L.gc[v];
+    }
+    const int* pair_block = pair_blocks_.data();
+    for (size_t p = 0; p < point_vars_.size(); ++p) {
+      Eigen::Matrix3d Vd = L.V[p];
+      for (int d = 0; d < 3; ++d) Vd(d, d) += lm_damping(L.V[p](d, d), radius);
+      Vinv_[p] = Vd.inverse();
+      const int begin = free_start_[p], end = free_start_[p + 1];
+      for (int i = begin; i < end; ++i) {
+        const int e = free_entries_[i];
+        Matrix63d& T = T_[size_t(i - begin)];
+        T.noalias() = L.W[e] * Vinv_[p];
+        rhs_.segment<6>(6 * entries_[e].cam_var).noalias() += T * L.gp[p];
+      }
+      for (int i = begin; i < end; ++i) {
+        const int a = entries_[free_entries_[i]].cam_var;
+        for (int j = begin; j < end; ++j)
+          if (entries_[free_entries_[j]].cam_var <= a)
+            sparse_->block(*pair_block++).noalias() -= T_[size_t(i - begin)] * L.W[free_entries_[j]].transpose();
+      }
+    }
+    return sparse_->solve(rhs_, dc_);
+  }
+
+  // The points' step from the cameras' (dp = V^-1 (-gp - W^T dc)), the step's norm and the cost
+  // change the linear model predicts.
+  void back_substitute(double& step_norm, double& model_cost_change) {
+    const Linearization& L = cur_;
+    const int F = int(cam_vars_.size());
     double g_dot = 0, h_quad = 0, n2 = dc_.squaredNorm();
     for (int v = 0; v < F; ++v) {
       const Vector6d d = dc_.segment<6>(6 * v);
@@ -163,7 +218,6 @@ class SchurBaProblem {
     }
     step_norm = std::sqrt(n2);
     model_cost_change = -(g_dot + 0.5 * h_quad);
-    return std::isfinite(model_cost_change);
   }
 
   double try_step() {
@@ -190,6 +244,38 @@ class SchurBaProblem {
   }
 
  private:
+  // The block pattern of the reduced system: one block per pair of free cameras that share a
+  // point, and the block each pair product of reduce_sparse lands in, in its loop order.
+  void make_sparse_system() {
+    const int F = int(cam_vars_.size());
+    // Each free camera's points, then the cameras below it that share one (marked once per column).
+    std::vector<std::vector<int>> points_of(static_cast<size_t>(F)), below(static_cast<size_t>(F));
+    for (size_t p = 0; p + 1 < free_start_.size(); ++p)
+      for (int i = free_start_[p]; i < free_start_[p + 1]; ++i)
+        points_of[size_t(entries_[free_entries_[i]].cam_var)].push_back(int(p));
+    std::vector<int> marked(static_cast<size_t>(F), -1);
+    size_t pairs = 0;
+    for (int b = 0; b < F; ++b)
+      for (int p : points_of[size_t(b)])
+        for (int i = free_start_[p]; i < free_start_[p + 1]; ++i) {
+          const int a = entries_[free_entries_[i]].cam_var;
+          if (a >= b) ++pairs;
+          if (a > b && marked[size_t(a)] != b) {
+            marked[size_t(a)] = b;
+            below[size_t(b)].push_back(a);
+          }
+        }
+    sparse_ = std::make_unique<BlockSparseCameraSystem>(F, std::move(below));
+    pair_blocks_.reserve(pairs);
+    for (size_t p = 0; p + 1 < free_start_.size(); ++p)
+      for (int i = free_start_[p]; i < free_start_[p + 1]; ++i) {
+        const int a = entries_[free_entries_[i]].cam_var;
+        for (int j = free_start_[p]; j < free_start_[p + 1]; ++j)
+          if (const int b = entries_[free_entries_[j]].cam_var; b <= a)
+            pair_blocks_.push_back(sparse_->block_index(a, b));
+      }
+  }
+
   // The cost linearize_at computes, summed in the same order, without derivatives.
   double cost_at(const std::vector<std::array<double, 6>>& poses, const std::vector<Eigen::Vector3d>& points) {
     for (int c : cams_used_) lp_[c].set_transform(poses[c].data());
@@ -270,7 +356,9 @@ class SchurBaProblem {
   std::vector<Entry> entries_;
   std::vector<PoseLinearizationPoint> lp_;
   Linearization cur_, next_;
-  Eigen::MatrixXd S_;
+  Eigen::MatrixXd S_;                                // dense reduced system (up to kMaxDenseSchurCameras)
+  std::unique_ptr<BlockSparseCameraSystem> sparse_;  // or the block-sparse one
+  std::vector<int> pair_blocks_;                     // sparse_'s block of each pair product
   Eigen::VectorXd rhs_, dc_;
   Eigen::LLT<Eigen::MatrixXd> llt_;
   std::vector<Eigen::Matrix3d> Vinv_;

@@ -1,9 +1,10 @@
 #pragma once
-// Levenberg-Marquardt bundle adjustment with the points eliminated by a Schur complement and a
-// dense Cholesky factorisation of the reduced camera system, for windows of up to a few dozen
-// free keyframes (local BA). Fixed-size Eigen blocks and analytic Jacobians; buffers are sized
-// once per stage and reused by every iteration. Same cost, parameters and step control as the
-// Ceres reference (bundle_adjust_ceres), see lm_driver.h.
+// Levenberg-Marquardt bundle adjustment with the points eliminated by a Schur complement. The
+// reduced camera system is dense (Cholesky) up to kMaxDenseSchurCameras free keyframes (local BA)
+// and block-sparse beyond (block_sparse_system.h: global and group BAs). Fixed-size Eigen blocks
+// and analytic Jacobians; buffers and the sparse pattern are set up once per stage and reused by
+// every iteration. Same cost, parameters and step control as the Ceres reference
+// (bundle_adjust_ceres), see lm_driver.h.
 #include <array>
 #include <atomic>
 #include <vector>
@@ -13,8 +14,8 @@
 
 namespace cslam {
 
-// Free cameras the dense reduced camera system is used for; bundle_adjust hands larger problems
-// to Ceres' sparse Schur solver.
+// Free cameras the dense reduced camera system is used for; larger problems get the block-sparse
+// one.
 constexpr int kMaxDenseSchurCameras = 96;
 
 // One stage: minimises over the observations with active[i] != 0 (Huber kernel if robust),

@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include "geometry/se3.h"
 #include "optimize/reprojection_cost.h"
 
 namespace cslam {

@@ -1,9 +1,9 @@
 #pragma once
-// Bundle adjustment on Ceres for problems too large for the dense reduced camera system of
-// schur_ba.h (global BA): analytic Jacobians, the per-camera rotation and its derivative computed
-// once per evaluation point (an EvaluationCallback), two shared Huber kernels that are switched
-// off for the second stage, the problem built once (the second stage only removes the
-// outliers), and the point/keyframe elimination ordering given explicitly. Same cost,
+// Bundle adjustment on Ceres' sparse Schur solver, a second reference for the block-sparse path
+// of schur_ba.h (global and group BAs): analytic Jacobians, the per-camera rotation and its
+// derivative computed once per evaluation point (an EvaluationCallback), two shared Huber kernels
+// that are switched off for the second stage, the problem built once (the second stage only
+// removes the outliers), and the point/keyframe elimination ordering given explicitly. Same cost,
 // parameters and outlier scheme as bundle_adjust_ceres.
 #include <atomic>
 

@@ -8,6 +8,7 @@
 #include "optimize/bundle_adjustment.h"
 #include "optimize/ceres_reference.h"
 #include "optimize/pose_param.h"
+#include "optimize/schur_ba.h"
 #include "optimize/se3_projection.h"
 #include "optimize/sparse_ba.h"
 
@@ -53,19 +54,20 @@ std::vector<Eigen::Matrix3d> point_information(const BaProblem& p, const BaResul
 
 using Solver = BaResult (*)(const BaProblem&, const BaConfig&, const std::atomic<bool>*);
 
-void compare_with_reference(Solver solver) {
+const std::vector<Case> kLocalBaCases = {{3, 2, 80, 0.0, 1.0},
+                                         {6, 4, 300, 0.05, 0.8},
+                                         {10, 5, 600, 0.1, 0.5},
+                                         {20, 8, 1500, 0.05, 0.9},
+                                         {8, 2, 400, 0.1, 0.3}};
+
+void compare_with_reference(Solver solver, const std::vector<Case>& cases = kLocalBaCases, int reps = 3) {
   BaConfig cfg;
   cfg.min_step_decrease = 0;  // step for step with Ceres: its termination rules alone
-  const Case cases[] = {{3, 2, 80, 0.0, 1.0},
-                        {6, 4, 300, 0.05, 0.8},
-                        {10, 5, 600, 0.1, 0.5},
-                        {20, 8, 1500, 0.05, 0.9},
-                        {8, 2, 400, 0.1, 0.3}};
   std::mt19937 rng(77);
   double worst_pose = 0, worst_point = 0;
   int borderline_count = 0;
   for (const Case& c : cases) {
-    for (int rep = 0; rep < 3; ++rep) {
+    for (int rep = 0; rep < reps; ++rep) {
       const problems::BaSynthetic s =
           problems::random_ba_problem(rng, c.free_cams, c.fixed_cams, c.points, c.outliers, c.stereo);
       const BaProblem& p = s.problem;
@@ -124,7 +126,14 @@ BaResult schur_solver(const BaProblem& p, const BaConfig& c, const std::atomic<b
 
 TEST(BundleAdjustmentVsCeres, SchurSolverMatchesReference) { compare_with_reference(schur_solver); }
 
-// The Ceres path for large problems (analytic Jacobians, explicit ordering, problem built once).
+// Beyond kMaxDenseSchurCameras free keyframes: the block-sparse reduced camera system (global and
+// group BAs) over a trajectory's banded covisibility, with many or one fixed keyframe.
+TEST(BundleAdjustmentVsCeres, BlockSparseSchurSolverMatchesReference) {
+  ASSERT_GT(100, kMaxDenseSchurCameras);
+  compare_with_reference(schur_solver, {{130, 6, 5000, 0.05, 0.85}, {110, 1, 4000, 0.1, 0.5}}, 1);
+}
+
+// Ceres' sparse Schur path (analytic Jacobians, explicit ordering, problem built once).
 TEST(BundleAdjustmentVsCeres, SparseSolverMatchesReference) { compare_with_reference(sparse_solver); }
 
 TEST(BundleAdjustmentVsCeres, RepeatedCallsAreBitIdentical) {

@@ -95,7 +95,8 @@ void bench_ba(int free_cams, int fixed_cams, int points, double visibility, int 
     BaResult r;
     for (int i = 0; i < runs; ++i) t.measure([&] { r = solver->solve(p); });
     std::string label = name;
-    if (name == "bundle_adjust") label += free_cams > kMaxDenseSchurCameras ? " (sparse path)" : " (Schur LM)";
+    if (name == "bundle_adjust")
+      label += free_cams > kMaxDenseSchurCameras ? " (block-sparse Schur LM)" : " (Schur LM)";
     print(label, t);
     timings.emplace_back(name, t);
     results.push_back(std::move(r));
