@@ -8,9 +8,8 @@
 //
 // A dense reduced system grows as F^2 in memory and F^3 in factorisation time; with a group of
 // fused maps (hundreds of keyframes, each seeing a few dozen others) most of its blocks are zero.
-#include <vector>
-
 #include <memory>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>

@@ -123,56 +123,19 @@ class SchurBaProblem {
     return std::isfinite(model_cost_change);
   }
 
-  // The reduced camera system at this radius, factorised and solved for the cameras' step dc_.
-  bool reduce_dense(double radius) {
+  // The reduced camera system at this radius: S = U + damping - sum W V^-1 W^T and
+  // rhs = -gc + sum W V^-1 gp. diagonal(v) is camera v's diagonal block of S; add_pairs(begin,
+  // end) subtracts T_i W_j^T (T_i = W_i V^-1 in T_) for the free entries [begin, end) of one
+  // point, cam_var(j) <= cam_var(i).
+  template <class Diagonal, class AddPairs>
+  void reduce(double radius, Diagonal&& diagonal, AddPairs&& add_pairs) {
     const Linearization& L = cur_;
-    const int F = int(cam_vars_.size());
-    S_.setZero();
-    for (int v = 0; v < F; ++v) {
+    for (int v = 0; v < int(cam_vars_.size()); ++v) {
       Matrix6d Ud = L.U[v];
       for (int d = 0; d < 6; ++d) Ud(d, d) += lm_damping(L.U[v](d, d), radius);
-      S_.block<6, 6>(6 * v, 6 * v) = Ud;
+      diagonal(v) = Ud;
       rhs_.segment<6>(6 * v) = -L.gc[v];
     }
-    // Eliminate the points: S = U - sum W V^-1 W^T, rhs = -gc + sum W V^-1 gp (lower triangle).
-    for (size_t p = 0; p < point_vars_.size(); ++p) {
-      Eigen::Matrix3d Vd = L.V[p];
-      for (int d = 0; d < 3; ++d) Vd(d, d) += lm_damping(L.V[p](d, d), radius);
-      Vinv_[p] = Vd.inverse();
-      const int begin = free_start_[p], end = free_start_[p + 1];
-      pair_T_.clear();
-      pair_W_.clear();
-      pair_cam_.clear();
-      for (int i = begin; i < end; ++i) {
-        const int e = free_entries_[i], a = entries_[e].cam_var;
-        Matrix63d& T = T_[size_t(i - begin)];
-        T.noalias() = L.W[e] * Vinv_[p];
-        rhs_.segment<6>(6 * a).noalias() += T * L.gp[p];
-        pair_T_.push_back(T.data());
-        pair_W_.push_back(L.W[e].data());
-        pair_cam_.push_back(a);
-      }
-      pair_products_(pair_T_.data(), pair_W_.data(), pair_cam_.data(), end - begin, S_.data(), S_.outerStride());
-    }
-    llt_.compute(S_);
-    if (llt_.info() != Eigen::Success) return false;
-    dc_ = llt_.solve(rhs_);
-    return true;
-  }
-
-  // The same system in blocks of the camera pairs that share a point (more free cameras than a
-  // dense system suits): the same sums, in the same order per block.
-  bool reduce_sparse(double radius) {
-    const Linearization& L = cur_;
-    const int F = int(cam_vars_.size());
-    sparse_->set_zero();
-    for (int v = 0; v < F; ++v) {
-      Matrix6d& Ud = sparse_->block(sparse_->diagonal_index(v));
-      Ud = L.U[v];
-      for (int d = 0; d < 6; ++d) Ud(d, d) += lm_damping(L.U[v](d, d), radius);
-      rhs_.segment<6>(6 * v) = -L.gc[v];
-    }
-    const int* pair_block = pair_blocks_.data();
     for (size_t p = 0; p < point_vars_.size(); ++p) {
       Eigen::Matrix3d Vd = L.V[p];
       for (int d = 0; d < 3; ++d) Vd(d, d) += lm_damping(L.V[p](d, d), radius);
@@ -184,13 +147,49 @@ class SchurBaProblem {
         T.noalias() = L.W[e] * Vinv_[p];
         rhs_.segment<6>(6 * entries_[e].cam_var).noalias() += T * L.gp[p];
       }
-      for (int i = begin; i < end; ++i) {
-        const int a = entries_[free_entries_[i]].cam_var;
-        for (int j = begin; j < end; ++j)
-          if (entries_[free_entries_[j]].cam_var <= a)
-            sparse_->block(*pair_block++).noalias() -= T_[size_t(i - begin)] * L.W[free_entries_[j]].transpose();
-      }
+      add_pairs(begin, end);
     }
+  }
+
+  // Dense (up to kMaxDenseSchurCameras free cameras): the pair-product kernel on the lower
+  // triangle, then a dense Cholesky; solved for the cameras' step dc_.
+  bool reduce_dense(double radius) {
+    S_.setZero();
+    reduce(
+        radius, [&](int v) { return S_.block<6, 6>(6 * v, 6 * v); },
+        [&](int begin, int end) {
+          pair_T_.clear();
+          pair_W_.clear();
+          pair_cam_.clear();
+          for (int i = begin; i < end; ++i) {
+            const int e = free_entries_[i];
+            pair_T_.push_back(T_[size_t(i - begin)].data());
+            pair_W_.push_back(cur_.W[e].data());
+            pair_cam_.push_back(entries_[e].cam_var);
+          }
+          pair_products_(pair_T_.data(), pair_W_.data(), pair_cam_.data(), end - begin, S_.data(), S_.outerStride());
+        });
+    llt_.compute(S_);
+    if (llt_.info() != Eigen::Success) return false;
+    dc_ = llt_.solve(rhs_);
+    return true;
+  }
+
+  // Block-sparse (more free cameras): each pair product lands in the block make_sparse_system
+  // found for it, in the same loop order.
+  bool reduce_sparse(double radius) {
+    sparse_->set_zero();
+    const int* pair_block = pair_blocks_.data();
+    reduce(
+        radius, [&](int v) -> Matrix6d& { return sparse_->block(sparse_->diagonal_index(v)); },
+        [&](int begin, int end) {
+          for (int i = begin; i < end; ++i) {
+            const int a = entries_[free_entries_[i]].cam_var;
+            for (int j = begin; j < end; ++j)
+              if (entries_[free_entries_[j]].cam_var <= a)
+                sparse_->block(*pair_block++).noalias() -= T_[size_t(i - begin)] * cur_.W[free_entries_[j]].transpose();
+          }
+        });
     return sparse_->solve(rhs_, dc_);
   }
 
@@ -373,17 +372,6 @@ class SchurBaProblem {
 };
 
 }  // namespace
-
-int count_free_observing_cameras(const BaProblem& problem) {
-  std::vector<char> seen(problem.cameras.size(), 0);
-  int n = 0;
-  for (const auto& o : problem.observations)
-    if (!problem.cameras[o.camera].fixed && !seen[o.camera]) {
-      seen[o.camera] = 1;
-      ++n;
-    }
-  return n;
-}
 
 LmOutcome schur_ba_stage(const BaProblem& problem, const std::vector<char>& active, bool robust, const BaConfig& config,
                          int max_iterations, const std::atomic<bool>* abort, std::vector<std::array<double, 6>>& poses,

@@ -24,7 +24,4 @@ LmOutcome schur_ba_stage(const BaProblem& problem, const std::vector<char>& acti
                          int max_iterations, const std::atomic<bool>* abort, std::vector<std::array<double, 6>>& poses,
                          std::vector<Eigen::Vector3d>& points);
 
-// Free cameras with at least one observation (the size of the reduced camera system / 6).
-int count_free_observing_cameras(const BaProblem& problem);
-
 }  // namespace cslam
