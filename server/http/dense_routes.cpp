@@ -104,6 +104,10 @@ nlohmann::json dense_status_json(const DenseService* dense) {
           {"queue", st.queue},
           {"queue_dropped", st.queue_dropped},
           {"pending", st.pending},
+          {"stale_meshes", view->stale_meshes},
+          {"distorted_submaps", view->distorted_submaps},
+          {"settled",
+           st.queue == 0 && view->keyframes_pending == 0 && view->stale_meshes == 0 && view->distorted_submaps == 0},
           {"reintegrated", st.reintegrated},
           {"submaps_moved", st.moved},
           {"culled", st.culled},
@@ -333,6 +337,8 @@ void add_dense_status(const DenseService* dense, nlohmann::json& status, std::st
   line("cslam_dense_submaps", "gauge", j["submaps"], "TSDF submaps of the live dense map");
   line("cslam_dense_queue", "gauge", j["queue"], "keyframes waiting for the dense worker");
   line("cslam_dense_pending", "gauge", j["pending"], "keyframes waiting to be integrated");
+  line("cslam_dense_stale_meshes", "gauge", j["stale_meshes"], "open submaps whose mesh lags their volume");
+  line("cslam_dense_distorted_submaps", "gauge", j["distorted_submaps"], "submaps waiting to be re-integrated");
   line("cslam_dense_keyframes_integrated_total", "counter", j["keyframes_integrated"], "keyframes fused into submaps");
   line("cslam_dense_queue_dropped_total", "counter", j["queue_dropped"], "keyframes the full dense queue turned away");
   line("cslam_dense_reintegrations_total", "counter", j["reintegrated"], "submaps rebuilt after their keyframes moved");

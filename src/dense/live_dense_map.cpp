@@ -66,10 +66,12 @@ DenseStepResult LiveDenseMap::run_step(const std::vector<KeyframePose>& poses, d
   const int due_left = integrate_pending(index, now_s, all, loader, budget.max_integrations, r);
   // New keyframes first: a submap is rebuilt only when no keyframe waits that is due.
   std::sort(distorted.rbegin(), distorted.rend());  // most distorted first
+  distorted_left_ = distorted.size();
   for (const auto& [deviation, id] : distorted) {
     if (due_left > 0 || r.reintegrated >= budget.max_reintegrations) break;
     const auto it = submaps_.find(id);
     if (it != submaps_.end()) reintegrate(*it->second, index, loader, r);
+    --distorted_left_;  // rebuilt, or gone
   }
   remesh_due(now_s, all, r);
   publish();
@@ -253,7 +255,9 @@ void LiveDenseMap::publish() {
     v->submaps.push_back(submap->view());
     v->mesh_bytes += v->submaps.back().mesh_bytes;
     v->volume_bytes += v->submaps.back().volume_bytes;
+    v->stale_meshes += submap->open() && submap->mesh_stale();
   }
+  v->distorted_submaps = distorted_left_;
   v->keyframes_integrated = integrated_;
   v->keyframes_pending = pending_.size();
   std::lock_guard<std::mutex> lock(view_mutex_);

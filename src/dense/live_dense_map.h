@@ -29,6 +29,10 @@ struct DenseMapView {
   std::uint64_t version = 0;             // increases with every change a reader can see
   std::vector<DenseSubmapView> submaps;  // sorted by id
   std::size_t keyframes_integrated = 0, keyframes_pending = 0;
+  // What the map still owes the current poses: open submaps whose mesh lags their volume (re-meshed
+  // within mesh_interval_s) and submaps distorted beyond the threshold, waiting to be re-integrated.
+  // With no keyframe pending either, the map is settled: it shows everything at the current poses.
+  std::size_t stale_meshes = 0, distorted_submaps = 0;
   std::size_t mesh_bytes = 0, volume_bytes = 0;  // summed over the submaps
 };
 
@@ -104,6 +108,7 @@ class LiveDenseMap {
   std::vector<Pending> pending_;                     // by id
   std::map<ClientId, std::uint32_t> newest_listed_;  // newest keyframe seq seen in the poses per client
   std::size_t integrated_ = 0;
+  std::size_t distorted_left_ = 0;  // distorted submaps the last step did not rebuild
   std::uint64_t version_ = 0;
 
   mutable std::mutex view_mutex_;  // guards view_ only

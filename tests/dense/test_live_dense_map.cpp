@@ -151,10 +151,38 @@ TEST(LiveDenseMap, NewKeyframesGoBeforeReintegration) {
   auto r = f.map.step(poses, 10.0, f.loader, {0, 1});
   EXPECT_EQ(r.integrated, 0);
   EXPECT_EQ(r.reintegrated, 0);
+  EXPECT_EQ(f.map.view()->distorted_submaps, 1u);  // readers see what the map still owes
+  EXPECT_EQ(f.map.view()->keyframes_pending, 1u);
   // With room for it, the keyframe goes in first and the rebuild follows in the same step.
   r = f.map.step(poses, 20.0, f.loader, {1, 1});
   EXPECT_EQ(r.integrated, 1);
   EXPECT_EQ(r.reintegrated, 1);
+  EXPECT_EQ(f.map.view()->distorted_submaps, 0u);
+  EXPECT_EQ(f.map.view()->keyframes_pending, 0u);
+}
+
+TEST(LiveDenseMap, AnOpenSubmapsMeshLagsUntilItsIntervalAndTheViewSaysSo) {
+  LiveDenseConfig config = small_config();
+  config.mesh_interval_s = 3;
+  LiveDenseMap map(config);
+  const PinholeCamera cam = small_camera();
+  map.set_camera(1, cam);
+  const auto poses = sliding_poses(2);
+  map.add_keyframe(kf(1, 1), plane_images(cam, 1.0), 0.0);
+  map.step({poses[0]}, 10.0, {});
+  const std::size_t vertices = map.view()->submaps.at(0).mesh->vertices.size();
+  EXPECT_EQ(map.view()->stale_meshes, 0u);  // the first mesh is due at once
+  // A second keyframe 1 s later: integrated, but its surface is not in the mesh until 3 s after the first.
+  map.add_keyframe(kf(1, 2), plane_images(cam, 1.0), 11.0);
+  map.step(poses, 11.0, {});
+  EXPECT_EQ(map.view()->keyframes_integrated, 2u);
+  EXPECT_EQ(map.view()->stale_meshes, 1u);
+  EXPECT_EQ(map.view()->submaps.at(0).mesh->vertices.size(), vertices);
+  map.step(poses, 12.5, {});
+  EXPECT_EQ(map.view()->stale_meshes, 1u);
+  map.step(poses, 13.0, {});
+  EXPECT_EQ(map.view()->stale_meshes, 0u);
+  EXPECT_GT(map.view()->submaps.at(0).mesh->vertices.size(), vertices);  // the slid view adds surface
 }
 
 TEST(LiveDenseMap, RotationCountsByTheDepthTheKeyframeSaw) {
