@@ -60,8 +60,8 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     const SE3 T_kf_world_measured = v.S_query_candidate.to_se3() * candidate->T_cam_world;
     plan = plan_reencounter(*p.map, *p.kf, T_kf_world_measured, anchors, config_.reencounter);
   }
-  solve_reencounter(plan, config_.reencounter);
-  {
+  if (!plan.summary.skipped) solve_reencounter(plan, config_.reencounter);
+  if (!plan.summary.skipped) {
     std::unique_lock<std::shared_mutex> lock(p.map->mutex);
     locked.reset();
     const bool applied = apply_reencounter(*p.map, plan);
@@ -97,11 +97,12 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
   }
   moving_maps.unlock();
   logger("fusion")->info(
-      "client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg "
-      "corrected ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
+      "client {} re-encountered client {}'s map (group {}): {} inliers, drift {:.1f} cm / {:.2f} deg ({:.2f} px) "
+      "{} ({} keyframes rigid, {} anchored, pose graph {:.1f} ms), {} seam points, maps "
       "locked {:.1f} ms (correction {:.1f}, seam {:.1f}), {:.1f} ms from detection",
       p.client, other_client, group.value(), v.final_inliers, 100 * c.T_correction.translation().norm(),
-      Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.rigid, c.anchors, c.pose_graph_ms,
+      Eigen::AngleAxisd(c.T_correction.rotation()).angle() * 180 / M_PI, c.correction_px,
+      c.skipped ? "below what its features measure, not corrected" : "corrected", c.rigid, c.anchors, c.pose_graph_ms,
       e.seam_points, correction_ms + seam_ms, correction_ms, seam_ms, e.duration_ms);
   start_group_ba(group);
 }

@@ -1,5 +1,6 @@
 #include "fusion/reencounter.h"
 
+#include <limits>
 #include <unordered_set>
 
 #include "core/stopwatch.h"
@@ -15,6 +16,11 @@ ReencounterPlan plan_reencounter(const Map& query_map, const KeyFrame& kf, const
   ReencounterCorrection& out = plan.summary;
   const SE3 T_world_kf_old = kf.T_world_cam();
   out.T_correction = T_kf_world_measured.inverse() * kf.T_cam_world;
+  out.correction_px = correction_px(out.T_correction, kf.data->camera.fx, kf.scene_median_depth());
+  if (out.correction_px < config.min_correction_px) {
+    out.skipped = true;
+    return plan;
+  }
   // Rigid: the query keyframe, its covisible neighbourhood and the newest keyframes local mapping
   // has not connected yet (tracked against the neighbourhood), as in loop closing.
   std::vector<KeyFrame*> rigid = kf.covisibles();
@@ -44,6 +50,12 @@ ReencounterPlan plan_reencounter(const Map& query_map, const KeyFrame& kf, const
   return plan;
 }
 
+double correction_px(const SE3& T_correction, double focal_px, double median_depth_m) {
+  if (!(median_depth_m > 0)) return std::numeric_limits<double>::infinity();  // no scene seen: always correct
+  const double angle = Eigen::AngleAxisd(T_correction.rotation()).angle();
+  return focal_px * (T_correction.translation().norm() / median_depth_m + angle);
+}
+
 void solve_reencounter(ReencounterPlan& plan, const ReencounterConfig& config) {
   Stopwatch sw;
   PoseGraphConfig pgc;
@@ -55,6 +67,7 @@ void solve_reencounter(ReencounterPlan& plan, const ReencounterConfig& config) {
 }
 
 bool apply_reencounter(Map& query_map, ReencounterPlan& plan) {
+  if (plan.summary.skipped) return true;  // below what the features measure: nothing to write
   if (query_map.big_change_index() != plan.change_index) return false;
   // The rigid set; points it sees move with the first keyframe of the set that sees them.
   std::map<KeyFrame*, SE3, ById> before;  // every keyframe this moves: its pose before
@@ -97,6 +110,7 @@ ReencounterCorrection correct_reencounter(Map& query_map, KeyFrame& kf, const SE
                                           const std::vector<MapPointPtr>& anchor_points,
                                           const ReencounterConfig& config) {
   ReencounterPlan plan = plan_reencounter(query_map, kf, T_kf_world_measured, anchor_points, config);
+  if (plan.summary.skipped) return plan.summary;
   solve_reencounter(plan, config);
   apply_reencounter(query_map, plan);
   return plan.summary;

@@ -25,12 +25,19 @@ struct ReencounterConfig {
   int min_keyframe_gap = 10;           // keyframes of the query map between two re-encounters with one map
   int covisibility_edge_weight = 100;  // essential graph: strong covisibility edges
   int pose_graph_iterations = 20;
+  // A drift that moves the query keyframe's image by less than this (pixels at its median depth,
+  // see correction_px) is below what its features measure: the seam is linked and the group BA run,
+  // but no keyframe is moved, so tracking, local mapping and the running BAs keep their work.
+  // 0: correct every drift.
+  double min_correction_px = 1.0;
 };
 
 struct ReencounterCorrection {
-  SE3 T_correction;  // corrected^-1 * old pose of the query keyframe (identity: no drift)
-  int rigid = 0;     // keyframes moved rigidly with the query keyframe
-  int anchors = 0;   // keyframes held where they were (linked to the group before)
+  SE3 T_correction;          // corrected^-1 * old pose of the query keyframe (identity: no drift)
+  double correction_px = 0;  // how far the correction moves the query keyframe's image points
+  bool skipped = false;      // below min_correction_px: nothing moved
+  int rigid = 0;             // keyframes moved rigidly with the query keyframe
+  int anchors = 0;           // keyframes held where they were (linked to the group before)
   int graph_edges = 0;
   bool pose_graph_converged = false;
   double pose_graph_ms = 0;
@@ -42,7 +49,9 @@ struct ReencounterCorrection {
 //      set and its corrected poses, the anchors, the essential graph between them;
 //   2. solve_reencounter [no lock]: the pose graph;
 //   3. apply_reencounter [unique lock on the query map]: false (nothing written) if the map had a
-//      big change (loop correction, global BA) since step 1. Keyframes created meanwhile follow
+//      big change (loop correction, global BA) since step 1.
+// A plan whose correction is below min_correction_px is marked skipped at step 1: nothing to solve
+// or write. Keyframes created meanwhile follow
 //      their anchor, and their points follow them, as after a global BA.
 // T_kf_world_measured: the query keyframe's pose as the verification measured it against the
 // candidate (whose map is in the same frame): S_query_candidate * T_candidate_world.
@@ -57,6 +66,9 @@ struct ReencounterPlan {
 };
 ReencounterPlan plan_reencounter(const Map& query_map, const KeyFrame& kf, const SE3& T_kf_world_measured,
                                  const std::vector<MapPointPtr>& anchor_points, const ReencounterConfig& config);
+// The image displacement of a correction for a camera of focal length focal_px that sees its scene at
+// median_depth_m: focal_px * (|t| / depth + angle), the pixels by which it moves what the camera saw.
+double correction_px(const SE3& T_correction, double focal_px, double median_depth_m);
 void solve_reencounter(ReencounterPlan& plan, const ReencounterConfig& config);
 bool apply_reencounter(Map& query_map, ReencounterPlan& plan);
 

@@ -65,6 +65,36 @@ TEST(Reencounter, DriftSinceTheLastSeamIsCorrectedBetweenTheAnchorsAndTheQuery) 
       EXPECT_LT(kf->T_cam_world.rotation().angularDistance(true_pose[kf.get()].rotation()), 1e-9);
     }
   }
+  {
+    // A drift that moves the query's image by less than a pixel is below what its features
+    // measure: reported, nothing moved. Measured from the same keyframe 1.5 px off, it is corrected.
+    const KeyFrame& q = *kfs.back();
+    const double fx = q.data->camera.fx, depth = q.scene_median_depth();
+    ASSERT_GT(depth, 0.1);
+    auto off_by = [&](double px) {  // the measured pose: the query's camera moved sideways by px pixels
+      return SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(px * depth / fx, 0, 0)) * q.T_cam_world;
+    };
+    const SE3 measured = off_by(0.6);
+    const ReencounterCorrection small = correct_reencounter(*b.map, *kfs.back(), measured, {}, {});
+    EXPECT_TRUE(small.skipped);
+    EXPECT_NEAR(small.correction_px, 0.6, 1e-6);
+    EXPECT_EQ(small.rigid, 0);
+    for (const auto& kf : kfs)
+      EXPECT_LT((kf->T_cam_world.translation() - true_pose[kf.get()].translation()).norm(), 1e-12);
+    ReencounterConfig always;
+    always.min_correction_px = 0;
+    const ReencounterCorrection forced = correct_reencounter(*b.map, *kfs.back(), measured, {}, always);
+    EXPECT_FALSE(forced.skipped);
+    EXPECT_GT(forced.rigid, 0);
+    EXPECT_LT((kfs.back()->T_cam_world.translation() - measured.translation()).norm(), 1e-9);
+    // Back to where it was, then 1.5 px: corrected with the default.
+    correct_reencounter(*b.map, *kfs.back(), true_pose.at(kfs.back().get()), {}, always);
+    const ReencounterCorrection big = correct_reencounter(*b.map, *kfs.back(), off_by(1.5), {}, {});
+    EXPECT_FALSE(big.skipped);
+    EXPECT_NEAR(big.correction_px, 1.5, 1e-6);
+    correct_reencounter(*b.map, *kfs.back(), true_pose.at(kfs.back().get()), {}, always);
+    for (const auto& kf : kfs) true_pose[kf.get()] = kf->T_cam_world;  // what the rest of the test starts from
+  }
 
   // The anchors: points of the first 4 keyframes. The drift starts after them.
   std::vector<MapPointPtr> anchors;
