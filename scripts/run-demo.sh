@@ -68,9 +68,15 @@ else
       || { echo "cannot fetch trajectories from the HTTP API on port $PORT; see $RUN/server.log" >&2; exit 1; }
   done
   curl -sf "http://127.0.0.1:$PORT/api/status" > "$RUN/status.json" || true
-  # The live dense map as the server holds it now (built from the keyframes the robots sent).
+  # The live dense map as the server holds it (built from the keyframes the robots sent), once it
+  # is settled: every keyframe integrated and meshed at the current poses (up to 30 s).
+  for _ in $(seq 150); do
+    curl -sf "http://127.0.0.1:$PORT/api/dense/status" -o "$RUN/dense_status.json" &&
+      python3 -c 'import json,sys; sys.exit(0 if json.load(open(sys.argv[1])).get("settled") else 1)' \
+        "$RUN/dense_status.json" && break
+    sleep 0.2
+  done
   curl -sf "http://127.0.0.1:$PORT/api/dense/cloud.ply" -o "$RUN/dense_cloud_live.ply" || true
-  curl -sf "http://127.0.0.1:$PORT/api/dense/status" -o "$RUN/dense_status.json" || true
   FUSED=$(python3 - "$RUN/status.json" <<'PY' || true
 import json, sys
 s = json.load(open(sys.argv[1]))
@@ -125,7 +131,7 @@ LIVE="$RUN/dense_cloud_live.ply"
 [ "$EXIT" = 1 ] && LIVE=$(ls "$RUN"/dense_cloud_*.ply 2>/dev/null | head -1 || true)
 if [ -n "$FUSED" ] && [ -s "$LIVE" ]; then
   echo "== live dense map (built by the server from the keyframes the robots sent; no image files)"
-  [ -s "$RUN/dense_status.json" ] && python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); print("%d submaps, %d keyframes integrated, %d re-integrations, store %d keyframes %.1f MB, integration %.0f ms per keyframe (median)" % (d["submaps"], d["keyframes_integrated"], d["reintegrated"], d["store"]["keyframes"], d["store"]["payload_bytes"]/1e6, d["integrate_ms"]["p50"]))' "$RUN/dense_status.json" || true
+  [ -s "$RUN/dense_status.json" ] && python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); print("%d submaps, %d keyframes integrated, %d re-integrations, store %d keyframes %.1f MB, integration %.0f ms per keyframe (median), %s" % (d["submaps"], d["keyframes_integrated"], d["reintegrated"], d["store"]["keyframes"], d["store"]["payload_bytes"]/1e6, d["integrate_ms"]["p50"], "settled" if d.get("settled") else "not settled: %d pending, %d meshes stale, %d submaps to re-integrate" % (d["pending"], d["stale_meshes"], d["distorted_submaps"])))' "$RUN/dense_status.json" || true
   printf "live dense cloud vs exact surface:            "; cloud_line "$LIVE"
   "$BIN/cslam-recon" --dataset "$SCENE/robot_1" "$SCENE/robot_2" "$SCENE/robot_3" \
     --poses "$RUN/client_1.txt" "$RUN/client_2.txt" "$RUN/client_3.txt" --voxel 0.02 --out "$RUN/cloud_2cm.ply" > /dev/null 2>&1
