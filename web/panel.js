@@ -33,13 +33,21 @@ export function renderEvents(events, uptime) {
     `${e.time_s.toFixed(1)} s: ${esc(e.kind)} of clients ${e.clients.join(' + ')} → group ${e.group}, ${e.inliers} inliers, ${e.duration_ms.toFixed(0)} ms`).join('<br>') : 'none yet';
 }
 
+// Whether the server's map shows everything it was given at the current poses (older servers: nothing).
+function settledText(status) {
+  if (status.settled === undefined) return '';
+  if (status.settled) return ', settled';
+  return `, catching up (${status.queue + status.pending} keyframes waiting, ${status.stale_meshes} meshes stale, ` +
+    `${status.distorted_submaps} submaps to re-integrate)`;
+}
+
 export function renderDenseInfo(status, st, traffic) {
   if (status && status.enabled === false) { $('dense-info').textContent = 'the server runs without a dense map'; return; }
   if (status === null) { $('dense-info').textContent = 'this server has no dense-map routes'; return; }
   const groups = Object.entries(st.groups).map(([g, v]) =>
     `group ${g}: ${v.submaps.length} submaps, ${(v.triangles / 1e3).toFixed(0)}k triangles${v.missing ? `, <b>${v.missing} missing</b>` : ''}`);
   const srv = status ? `server: ${status.submaps} submaps, ${status.keyframes_integrated} keyframes integrated, queue ${status.queue}` +
-    (status.integrate_ms ? `, ${status.integrate_ms.p50.toFixed(1)} ms/keyframe` : '') : '';
+    (status.integrate_ms ? `, ${status.integrate_ms.p50.toFixed(1)} ms/keyframe` : '') + settledText(status) : '';
   $('dense-info').innerHTML = [srv, ...groups,
     `downloaded ${kb(traffic.total)} (${kb(traffic.perMinute())} in the last minute; meshes ${st.meshLoaded}/${st.meshDownloads}, ` +
     `${st.poseOnlyUpdates} pose-only updates, ${st.inFlight} loading)`,

@@ -88,8 +88,9 @@ try {
   console.log('non-background canvas pixels:', drawn);
   if (drawn < 200) fail(`3D view not drawn (${drawn} coloured pixels; ${await page.textContent('#view-msg')})`);
 
-  // The fusion of the two robots, then the dense map settled on the server and in the page: same
-  // index version, every submap with a surface drawn at its geometry version and the server's pose.
+  // The fusion of the two robots, then the dense map settled on the server (its status says so) and
+  // in the page: same index version, every submap with a surface drawn at its geometry version and
+  // the server's pose, and the panel showing the server's map as settled.
   await waitFor('the fusion of the two robots', async () =>
     (await (await server('/api/fusion/events')).json()).events.some((e) => e.kind === 'fusion'), 60000);
   let last = null;
@@ -99,8 +100,10 @@ try {
     const mine = await page.evaluate(() => window.cslamViewer.denseState());
     const pageSubs = new Map(Object.values(mine.groups).flatMap((g) => g.submaps).map((s) => [s.id, s]));
     let worstMm = 0, worstRad = 0, subs = 0;
-    last = `server version ${index.version} queue ${st.queue} pending ${st.pending}, page version ${mine.version}`;
-    if (!st.enabled || st.queue > 0 || st.pending > 0 || mine.version !== index.version || index.groups.length === 0) return null;
+    const panel = await page.textContent('#dense-info');
+    last = `server version ${index.version} settled ${st.settled} queue ${st.queue} pending ${st.pending}, page version ${mine.version}, panel "${panel}"`;
+    if (!st.enabled || !st.settled || mine.version !== index.version || index.groups.length === 0) return null;
+    if (!panel.includes(', settled')) return null;  // the panel says so once it has read the status
     for (const g of index.groups) {
       for (const s of g.submaps) {
         const m = pageSubs.get(s.id);
