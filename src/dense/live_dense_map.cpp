@@ -255,7 +255,7 @@ void LiveDenseMap::publish() {
     v->submaps.push_back(submap->view());
     v->mesh_bytes += v->submaps.back().mesh_bytes;
     v->volume_bytes += v->submaps.back().volume_bytes;
-    v->stale_meshes += submap->open() && submap->mesh_stale();
+    v->stale_meshes += submap->mesh_stale();  // only an open one's: closing and rebuilding re-mesh
   }
   v->distorted_submaps = distorted_left_;
   v->keyframes_integrated = integrated_;

@@ -33,6 +33,7 @@ struct DenseMapView {
   // within mesh_interval_s) and submaps distorted beyond the threshold, waiting to be re-integrated.
   // With no keyframe pending either, the map is settled: it shows everything at the current poses.
   std::size_t stale_meshes = 0, distorted_submaps = 0;
+  bool settled() const { return keyframes_pending == 0 && stale_meshes == 0 && distorted_submaps == 0; }
   std::size_t mesh_bytes = 0, volume_bytes = 0;  // summed over the submaps
 };
 

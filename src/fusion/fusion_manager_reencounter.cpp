@@ -60,8 +60,8 @@ void FusionManager::reencounter(const Pending& p, const std::shared_ptr<Map>& ot
     const SE3 T_kf_world_measured = v.S_query_candidate.to_se3() * candidate->T_cam_world;
     plan = plan_reencounter(*p.map, *p.kf, T_kf_world_measured, anchors, config_.reencounter);
   }
-  if (!plan.summary.skipped) solve_reencounter(plan, config_.reencounter);
-  if (!plan.summary.skipped) {
+  if (!plan.summary.skipped) {  // below a pixel: no solve, and no exclusive hold of the map
+    solve_reencounter(plan, config_.reencounter);
     std::unique_lock<std::shared_mutex> lock(p.map->mutex);
     locked.reset();
     const bool applied = apply_reencounter(*p.map, plan);

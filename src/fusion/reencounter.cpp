@@ -57,6 +57,7 @@ double correction_px(const SE3& T_correction, double focal_px, double median_dep
 }
 
 void solve_reencounter(ReencounterPlan& plan, const ReencounterConfig& config) {
+  if (plan.summary.skipped) return;  // below what the features measure: nothing to solve
   Stopwatch sw;
   PoseGraphConfig pgc;
   pgc.fix_scale = true;
@@ -110,7 +111,6 @@ ReencounterCorrection correct_reencounter(Map& query_map, KeyFrame& kf, const SE
                                           const std::vector<MapPointPtr>& anchor_points,
                                           const ReencounterConfig& config) {
   ReencounterPlan plan = plan_reencounter(query_map, kf, T_kf_world_measured, anchor_points, config);
-  if (plan.summary.skipped) return plan.summary;
   solve_reencounter(plan, config);
   apply_reencounter(query_map, plan);
   return plan.summary;

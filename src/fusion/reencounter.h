@@ -50,8 +50,8 @@ struct ReencounterCorrection {
 //   2. solve_reencounter [no lock]: the pose graph;
 //   3. apply_reencounter [unique lock on the query map]: false (nothing written) if the map had a
 //      big change (loop correction, global BA) since step 1.
-// A plan whose correction is below min_correction_px is marked skipped at step 1: nothing to solve
-// or write. Keyframes created meanwhile follow
+// A plan whose correction is below min_correction_px is marked skipped at step 1; steps 2 and 3
+// then do nothing (3 returns true). Keyframes created meanwhile follow
 //      their anchor, and their points follow them, as after a global BA.
 // T_kf_world_measured: the query keyframe's pose as the verification measured it against the
 // candidate (whose map is in the same frame): S_query_candidate * T_candidate_world.
