@@ -293,12 +293,15 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
     orb->compute(level, kps, desc);
     // OpenCV may drop keypoints near the border; class_id maps the survivors back.
     const double s = scale_factors_[l];
+    // A level's pixel to level 0: cv::resize aligns pixel centres, and the level's size was
+    // rounded, so x0 + 0.5 = (x + 0.5) * W0 / W (per axis), not x * s.
+    const double rx = double(gray.cols) / level.cols, ry = double(gray.rows) / level.rows;
     for (std::size_t i = 0; i < kps.size() && int(i) < desc.rows; ++i) {
       const int id = kps[i].class_id;
       if (id < 0 || std::size_t(id) >= n_before) continue;
       cv::KeyPoint kp = detected[id];
-      kp.pt.x = float(kp.pt.x * s);
-      kp.pt.y = float(kp.pt.y * s);
+      kp.pt.x = float((kp.pt.x + 0.5) * rx - 0.5);
+      kp.pt.y = float((kp.pt.y + 0.5) * ry - 0.5);
       kp.size = float(kPatchSize * s);
       kp.octave = l;
       kp.class_id = -1;
