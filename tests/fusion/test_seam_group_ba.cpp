@@ -52,16 +52,16 @@ double joint_keyframe_ate(const test::ClientMap& a, const test::ClientMap& b) {
       .stats.rmse;
 }
 
-// Links the seam at the keyframe pair closest in ground truth and runs the group's global BA with
-// the linked pairs estimated as one point (10 iterations), as a fusion does; returns the seam.
-Seam link_seam_and_group_ba(test::TwoMaps& m) {
-  Seam seam;
-  {
-    UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-    const auto [ka, kb] = closest_pair(m.a, m.b);
-    if (!ka || !kb) return seam;
-    seam = connect_seam(*m.a.map, *ka, *m.b.map, *kb);
-  }
+// Links the seam at the keyframe pair closest in ground truth, as a fusion does (empty if none).
+Seam link_closest_seam(test::TwoMaps& m) {
+  UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
+  const auto [ka, kb] = closest_pair(m.a, m.b);
+  return ka && kb ? connect_seam(*m.a.map, *ka, *m.b.map, *kb) : Seam{};
+}
+
+// The group's global BA over both maps, the seam's linked pairs estimated as one point
+// (10 iterations); true if it was applied.
+bool group_ba(test::TwoMaps& m, const Seam& seam) {
   GlobalBa gba;
   std::vector<std::pair<MapPointPtr, MapPointPtr>> links;
   for (const auto& l : seam.points) links.emplace_back(l.kept, l.moved);
@@ -71,8 +71,7 @@ Seam link_seam_and_group_ba(test::TwoMaps& m) {
   }
   const BaResult r = gba.solve(10, nullptr);
   UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-  EXPECT_TRUE(gba.apply(r));
-  return seam;
+  return gba.apply(r);
 }
 
 // Every keyframe's position (camera centre) in both maps, by id [takes the shared locks].
@@ -131,15 +130,12 @@ TEST(Seam, LinksTheSamePointsAcrossMapsAndGroupBaRemovesTheMisalignment) {
   transform_map(*exact.b.map, T_a_b);
   const double apart_before = mean_centre_distance(keyframe_centres(m), keyframe_centres(exact));
 
-  Seam seam;
   std::map<const MapPoint*, Eigen::Vector3d> old_position;
   {
-    UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-    const auto [ka, kb] = closest_pair(m.a, m.b);
-    ASSERT_TRUE(ka && kb);
+    SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
     for (const auto& mp : m.b.map->map_points()) old_position[mp.get()] = mp->position;
-    seam = connect_seam(*m.a.map, *ka, *m.b.map, *kb);
   }
+  const Seam seam = link_closest_seam(m);
   // Linked pairs are the same physical points: close before linking (within what two maps of
   // 320x240 images place a point apart: ~1 cm per pixel at 3 m), identical after.
   ASSERT_GE(seam.points.size(), 40u);
@@ -160,23 +156,15 @@ TEST(Seam, LinksTheSamePointsAcrossMapsAndGroupBaRemovesTheMisalignment) {
   }
 
   // Global BA over both maps, the linked pairs estimated as one point.
-  GlobalBa gba;
-  std::vector<std::pair<MapPointPtr, MapPointPtr>> links;
-  for (const auto& l : seam.points) links.emplace_back(l.kept, l.moved);
+  ASSERT_TRUE(group_ba(m, seam));
   {
     SharedLocks locks = lock_maps<std::shared_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-    gba.snapshot({m.a.map.get(), m.b.map.get()}, links);
-  }
-  const BaResult r = gba.solve(10, nullptr);
-  {
-    UniqueLocks locks = lock_maps<std::unique_lock<std::shared_mutex>>({m.a.map.get(), m.b.map.get()});
-    ASSERT_TRUE(gba.apply(r));
     test::expect_consistent(*m.a.map);
     test::expect_consistent(*m.b.map);
     for (const auto& l : seam.points) EXPECT_LT((l.moved->position - l.kept->position).norm(), 1e-9);
   }
   const double after = joint_keyframe_ate(m.a, m.b);
-  link_seam_and_group_ba(exact);
+  ASSERT_TRUE(group_ba(exact, link_closest_seam(exact)));
   const double after_exact = joint_keyframe_ate(exact.a, exact.b);
   const double apart_after = mean_centre_distance(keyframe_centres(m), keyframe_centres(exact));
   std::printf(
