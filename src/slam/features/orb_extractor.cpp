@@ -51,6 +51,20 @@ void split_node(const QuadNode& n, std::vector<QuadPoint>& pts, std::vector<Quad
     if (c.count() > 0) out.push_back(c);
 }
 
+// Offset of a FAST corner at integer (x, y) inside its pixel: per axis, the vertex of the parabola
+// through the scores of the pixel and its two neighbours (the corner is a local maximum of the
+// score, so the vertex lies within half a pixel). Zero where the score does not curve down.
+cv::Point2f score_peak_offset(const cv::Mat& level, int x, int y, int centre_score) {
+  if (x < 4 || y < 4 || x >= level.cols - 4 || y >= level.rows - 4) return {0.f, 0.f};
+  auto score = [&](int xx, int yy) { return double(std::max(0, fast_corner_score(level, xx, yy))); };
+  const double c = centre_score, l = score(x - 1, y), r = score(x + 1, y), u = score(x, y - 1), d = score(x, y + 1);
+  auto vertex = [c](double before, double after) {
+    const double curvature = before - 2 * c + after;
+    return curvature < 0 ? std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5) : 0.0;
+  };
+  return {float(vertex(l, r)), float(vertex(u, d))};
+}
+
 }  // namespace
 
 std::vector<cv::KeyPoint> distribute_quadtree(const std::vector<cv::KeyPoint>& keypoints, const cv::Rect2f& area,
@@ -300,6 +314,8 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
       const int id = kps[i].class_id;
       if (id < 0 || std::size_t(id) >= n_before) continue;
       cv::KeyPoint kp = detected[id];
+      if (config_.subpixel && kp.response >= config_.ini_fast_threshold)
+        kp.pt += score_peak_offset(level, int(kp.pt.x), int(kp.pt.y), int(kp.response));
       kp.pt.x = float((kp.pt.x + 0.5) * rx - 0.5);
       kp.pt.y = float((kp.pt.y + 0.5) * ry - 0.5);
       kp.size = float(kPatchSize * s);

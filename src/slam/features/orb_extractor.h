@@ -26,6 +26,10 @@ struct OrbConfig {
   int edge_threshold = 19;
   // FAST cell size (pixels) for the fallback threshold.
   int cell_size = 30;
+  // Strong corners (FAST score >= ini_fast_threshold) are placed inside their pixel at the vertex
+  // of the parabola through the FAST scores of the pixel and its neighbours, per axis; weaker
+  // ones, whose scores are dominated by image noise, keep the pixel centre.
+  bool subpixel = true;
 };
 
 struct OrbFeatures {

@@ -99,6 +99,45 @@ TEST(OrbExtractor, EveryLevelMapsToLevelZeroWithPixelCentresAligned) {
   }
 }
 
+TEST(OrbExtractor, StrongCornersAreLocatedInsideTheirPixel) {
+  // The same texture seen half a pixel apart (shifted by -0.25 and +0.25 px, so both images are
+  // blurred alike by the interpolation): a corner on whole pixels is off by half a pixel in one of
+  // the two, whichever way it rounds. Placed at the peak of its FAST scores it follows the shift.
+  const cv::Mat img = procedural_image(29);
+  auto shifted = [&](double dx) {
+    cv::Mat out;
+    const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, dx, 0, 1, 0);
+    cv::warpAffine(img, out, m, img.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+    return out;
+  };
+  const cv::Mat a = shifted(-0.25), b = shifted(0.25);
+  auto shift_error_rms = [&](bool subpixel) {
+    OrbConfig c;
+    c.subpixel = subpixel;
+    const OrbExtractor ex(c);
+    const OrbFeatures fa = ex.extract(a), fb = ex.extract(b);
+    double sum = 0;
+    int n = 0;
+    for (const auto& ka : fa.keypoints) {
+      if (ka.octave != 0 || ka.response < c.ini_fast_threshold) continue;
+      for (const auto& kb : fb.keypoints)
+        if (kb.octave == 0 && std::abs(kb.pt.y - ka.pt.y) < 0.6f && std::abs(kb.pt.x - ka.pt.x - 0.5f) < 0.9f) {
+          const double e = kb.pt.x - ka.pt.x - 0.5;
+          sum += e * e;
+          ++n;
+          break;
+        }
+    }
+    EXPECT_GT(n, 50);
+    return std::sqrt(sum / std::max(1, n));
+  };
+  const double whole = shift_error_rms(false), inside = shift_error_rms(true);
+  std::printf("half-pixel shift, RMS error of strong level-0 corners: %.3f px on whole pixels, %.3f px inside\n", whole,
+              inside);
+  EXPECT_GT(whole, 0.4);
+  EXPECT_LT(inside, 0.6 * whole);
+}
+
 TEST(OrbExtractor, EmptyBlackAndTinyImagesGiveNoFeatures) {
   const OrbExtractor ex;
   EXPECT_EQ(ex.extract(cv::Mat()).size(), 0u);
