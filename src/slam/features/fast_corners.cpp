@@ -1,6 +1,7 @@
 #include "slam/features/fast_corners.h"
 
 #include <algorithm>
+#include <array>
 #include <climits>
 #include <cstdint>
 #include <stdexcept>
@@ -108,13 +109,12 @@ __attribute__((target("avx2"))) void score_block_avx2(const std::uint8_t* row, i
 #endif
 
 #if defined(__SSE2__)
-// As score_block_avx2, 16 pixels.
-void score_block_sse2(const std::uint8_t* row, int x, const Circle& circle, int threshold, std::uint8_t* scores) {
+// As score_block_avx2, 16 pixels: the scores of p[0 .. 15] into out[0 .. 15].
+void score16_sse2(const std::uint8_t* p, const Circle& circle, int threshold, std::uint8_t* out) {
   // Saturating differences: with s the arc maximum over both sides, the score is s - 1 wherever
   // s > threshold, and a side whose differences are not all positive along an arc contributes 0
   // there instead of a negative value, which only matters below the threshold.
   const __m128i t = _mm_set1_epi8(char(threshold)), zero = _mm_setzero_si128();
-  const std::uint8_t* p = row + x;
   const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p));
   auto at = [&](int k) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p + circle.offset[k])); };
   // Any 9 contiguous circle pixels include two neighbouring compass points: a lane with no such
@@ -139,7 +139,7 @@ void score_block_sse2(const std::uint8_t* row, int x, const Circle& circle, int 
   }
   const __m128i s = _mm_max_epu8(max_arc_min9(darker), max_arc_min9(brighter));
   const __m128i corner = _mm_xor_si128(_mm_cmpeq_epi8(_mm_subs_epu8(s, t), zero), _mm_set1_epi8(-1));
-  _mm_storeu_si128(reinterpret_cast<__m128i*>(scores + x), _mm_and_si128(_mm_sub_epi8(s, _mm_set1_epi8(1)), corner));
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(out), _mm_and_si128(_mm_sub_epi8(s, _mm_set1_epi8(1)), corner));
 }
 #endif
 
@@ -160,8 +160,8 @@ void score_row(const cv::Mat& image, int y, const Circle& circle, int threshold,
 #endif
 #if defined(__SSE2__)
   if (path != FastCornersPath::kScalar && end - x >= 16) {
-    for (; x + 16 <= end; x += 16) score_block_sse2(row, x, circle, threshold, scores);
-    if (x < end) score_block_sse2(row, end - 16, circle, threshold, scores);
+    for (; x + 16 <= end; x += 16) score16_sse2(row + x, circle, threshold, scores + x);
+    if (x < end) score16_sse2(row + end - 16, circle, threshold, scores + end - 16);
     return;
   }
 #endif
@@ -211,6 +211,26 @@ int fast_corner_score(const cv::Mat& image, int x, int y) {
   if (x < 3 || y < 3 || x >= image.cols - 3 || y >= image.rows - 3)
     throw std::invalid_argument("fast_corner_score: pixel closer than 3 to the border");
   return score_at(image.ptr<std::uint8_t>(y) + x, Circle(std::ptrdiff_t(image.step[0])));
+}
+
+std::array<int, 4> fast_neighbour_scores(const cv::Mat& image, int x, int y) {
+  if (image.type() != CV_8UC1) throw std::invalid_argument("fast_neighbour_scores: image must be CV_8UC1");
+  if (x < 4 || y < 4 || x >= image.cols - 4 || y >= image.rows - 4)
+    throw std::invalid_argument("fast_neighbour_scores: pixel closer than 4 to the border");
+  const Circle circle(std::ptrdiff_t(image.step[0]));
+#if defined(__SSE2__)
+  // Threshold 0: a block's score is max(0, the plain score), as below. The reads of a block at
+  // x - 1 reach x + 17, so blocks run only that far inside the image.
+  if (x + 18 < image.cols) {
+    alignas(16) std::uint8_t row[16] = {}, up[16] = {}, down[16] = {};
+    score16_sse2(image.ptr<std::uint8_t>(y) + x - 1, circle, 0, row);
+    score16_sse2(image.ptr<std::uint8_t>(y - 1) + x, circle, 0, up);
+    score16_sse2(image.ptr<std::uint8_t>(y + 1) + x, circle, 0, down);
+    return {row[0], row[2], up[0], down[0]};
+  }
+#endif
+  auto score = [&](int xx, int yy) { return std::max(0, score_at(image.ptr<std::uint8_t>(yy) + xx, circle)); };
+  return {score(x - 1, y), score(x + 1, y), score(x, y - 1), score(x, y + 1)};
 }
 
 FastCornersPath fast_corners_best_path() {

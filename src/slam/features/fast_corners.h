@@ -13,6 +13,7 @@
 // the highest threshold at which the pixel is still a corner, so a pixel is a corner exactly
 // when score >= threshold. Non-maximum suppression keeps a corner whose score is above all eight
 // neighbours' (0 for a non-corner).
+#include <array>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -34,5 +35,10 @@ void detect_fast_corners(const cv::Mat& image, int threshold, std::vector<cv::Ke
 // The plain per-pixel score (-1 and below: no corner at any threshold); the vector code's second
 // opinion in tests.
 int fast_corner_score(const cv::Mat& image, int x, int y);
+
+// max(0, fast_corner_score) of the four neighbours of (x, y): left, right, above, below. The
+// pixel must lie at least 4 inside the image (std::invalid_argument otherwise). Vector code where
+// the image is wide enough around it; equal to the plain score in every case (tested).
+std::array<int, 4> fast_neighbour_scores(const cv::Mat& image, int x, int y);
 
 }  // namespace cslam

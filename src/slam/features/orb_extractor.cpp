@@ -1,6 +1,7 @@
 #include "slam/features/orb_extractor.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -56,8 +57,8 @@ void split_node(const QuadNode& n, std::vector<QuadPoint>& pts, std::vector<Quad
 // score, so the vertex lies within half a pixel). Zero where the score does not curve down.
 cv::Point2f score_peak_offset(const cv::Mat& level, int x, int y, int centre_score) {
   if (x < 4 || y < 4 || x >= level.cols - 4 || y >= level.rows - 4) return {0.f, 0.f};
-  auto score = [&](int xx, int yy) { return double(std::max(0, fast_corner_score(level, xx, yy))); };
-  const double c = centre_score, l = score(x - 1, y), r = score(x + 1, y), u = score(x, y - 1), d = score(x, y + 1);
+  const std::array<int, 4> n = fast_neighbour_scores(level, x, y);
+  const double c = centre_score, l = n[0], r = n[1], u = n[2], d = n[3];
   auto vertex = [c](double before, double after) {
     const double curvature = before - 2 * c + after;
     return curvature < 0 ? std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5) : 0.0;

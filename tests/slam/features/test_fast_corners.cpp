@@ -5,6 +5,8 @@
 // into larger images and every threshold ORB uses and more; the per-pixel score against the
 // definition (the highest threshold at which cv::FAST still reports the pixel without
 // suppression).
+#include <algorithm>
+#include <array>
 #include <random>
 #include <vector>
 
@@ -117,6 +119,30 @@ TEST(FastCorners, ScoreIsTheHighestThresholdStillDetected) {
       }
     }
   EXPECT_GT(corners, 100);
+}
+
+TEST(FastCorners, NeighbourScoresAreThePlainScoresOfTheFourNeighbours) {
+  // Every pixel at least 4 inside: near the right edge the plain score answers, elsewhere the
+  // vector blocks; both must give max(0, fast_corner_score) of each neighbour. Images with dense
+  // and sparse corners, and a view into a larger image (its step is not its width).
+  const cv::Mat big = noise(120, 60, 40, 0.0, 9);
+  const std::vector<cv::Mat> images{noise(64, 40, 30, 0.8, 4), noise(48, 24, 8, 1.5, 5), big(cv::Rect(17, 9, 70, 30)),
+                                    cslam::procedural_image(3)(cv::Rect(0, 0, 90, 50))};
+  int positive = 0;
+  for (const cv::Mat& img : images)
+    for (int y = 4; y < img.rows - 4; ++y)
+      for (int x = 4; x < img.cols - 4; ++x) {
+        const std::array<int, 4> got = cslam::fast_neighbour_scores(img, x, y);
+        const int expected[4] = {cslam::fast_corner_score(img, x - 1, y), cslam::fast_corner_score(img, x + 1, y),
+                                 cslam::fast_corner_score(img, x, y - 1), cslam::fast_corner_score(img, x, y + 1)};
+        for (int k = 0; k < 4; ++k) {
+          ASSERT_EQ(got[k], std::max(0, expected[k])) << "neighbour " << k << " of " << x << "," << y;
+          positive += got[k] > 0;
+        }
+      }
+  EXPECT_GT(positive, 1000);
+  EXPECT_THROW(cslam::fast_neighbour_scores(images[0], 3, 10), std::invalid_argument);
+  EXPECT_THROW(cslam::fast_neighbour_scores(images[0], 10, images[0].rows - 4), std::invalid_argument);
 }
 
 TEST(FastCorners, DefaultIsTheFastestPath) {
