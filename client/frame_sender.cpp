@@ -1,6 +1,8 @@
 #include "client/frame_sender.h"
 #include "client/frame_sender_util.h"
 
+#include <algorithm>
+
 #include "codec/depth_subsample.h"
 #include "core/log.h"
 
@@ -87,6 +89,13 @@ wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) {
 wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
   const bool with_depth = !colour_encoder_ || depth_wanted_ || ++frames_since_depth_ >= rate_.depth_every();
   if (with_depth) {
+    if (depth_wanted_ && depth_request_seq_ > 0) {  // answers a request: how many frames after the asking one
+      const std::uint64_t lag = seq_ + 1 - depth_request_seq_;
+      stats_.depth_request_lag_sum += lag;
+      stats_.depth_request_lag_max = std::max(stats_.depth_request_lag_max, lag);
+      ++stats_.depth_requests_met;
+    }
+    depth_request_seq_ = 0;
     frames_since_depth_ = 0;
     depth_wanted_ = false;
     last_full_seq_ = seq_ + 1;  // encode_next runs right before the frame is sent with the next seq
@@ -237,6 +246,7 @@ void FrameSender::on_ack(const wire::Ack& ack) {
   // A request about a frame sent before the last full frame is already met by it (the acks of
   // the frames in flight may all ask).
   if (f.want_depth && colour_encoder_ && ack.seq() > last_full_seq_) {
+    if (!depth_wanted_) depth_request_seq_ = ack.seq();
     depth_wanted_ = true;
     ++stats_.depth_requests;
   }

@@ -77,6 +77,9 @@ struct SenderStats {
   // Lean stream: light frames sent, key packets of the colour stream, acks asking for full
   // depth, and stream gaps the server reported (each answered with a key packet).
   std::uint64_t frames_light = 0, colour_key_packets = 0, depth_requests = 0, stream_gaps = 0;
+  // Requests answered by a full frame, and frames from the asking frame to that answer (1: the
+  // next frame; it bounds how late a keyframe the server deferred comes).
+  std::uint64_t depth_requests_met = 0, depth_request_lag_sum = 0, depth_request_lag_max = 0;
   std::uint64_t bytes_light = 0;  // wire bytes of the light frames
   // Adaptive rate: steps down (full frames less often) and back up; the current depth_every.
   std::uint64_t rate_steps_down = 0, rate_steps_up = 0;
@@ -184,10 +187,11 @@ class FrameSender {
   std::unique_ptr<video::H264Encoder> colour_encoder_;
   RateController rate_;
   int frames_since_depth_ = 0;
-  bool depth_wanted_ = true;         // the first frame carries depth
-  bool key_wanted_ = true;           // the first colour packet, and the first after a gap or reconnect, is a key
-  std::uint64_t last_key_seq_ = 0;   // seq of the last key packet sent (a gap before it is healed)
-  std::uint64_t last_full_seq_ = 0;  // seq of the last full frame sent (a request before it is met)
+  bool depth_wanted_ = true;             // the first frame carries depth
+  bool key_wanted_ = true;               // the first colour packet, and the first after a gap or reconnect, is a key
+  std::uint64_t last_key_seq_ = 0;       // seq of the last key packet sent (a gap before it is healed)
+  std::uint64_t depth_request_seq_ = 0;  // the frame whose ack asked for the pending full depth (0: none)
+  std::uint64_t last_full_seq_ = 0;      // seq of the last full frame sent (a request before it is met)
   Clock::time_point waiting_captured_;
   std::map<std::uint64_t, Clock::time_point> captured_at_;  // seq -> capture time, until acked
   std::function<void(const wire::PoseFeedback&)> pose_callback_;

@@ -5,7 +5,7 @@
 # depth with standalone colour, on every K-th frame and whenever the server asks for one; light
 # frames between: H.264 colour and depth at every 4th pixel of every 4th row), alternated run by
 # run. Reports per robot: mean bytes/s on the wire, KB per frame, the share of light frames,
-# depth requests, and the ATE of its trajectory
+# depth requests, how many frames after the asking frame they were answered (mean), and the ATE of its trajectory
 # (cslam-eval, SE3 alignment); medians and min-max over the runs.
 # Sequences: desk (tum_fr1_desk, 1 robot), rpy (tum_fr1_rpy, 1 robot), demo (the demo scene:
 # 3 robots streaming together, cslam-synth --preset demo), demo:SEED (the same preset with another
@@ -87,16 +87,16 @@ import json, os, statistics, sys
 out, runs, seqs = sys.argv[1], int(sys.argv[2]), sys.argv[3].split()
 def med(v):
     return f"{statistics.median(v):.4g} ({min(v):.4g}-{max(v):.4g})" if v else "n/a"
-print("\n| sequence | stream | MB/s per robot | KB/frame | light frames | depth requests | ATE m (mean over robots) | server CPU s |")
-print("|---|---|---|---|---|---|---|---|")
+print("\n| sequence | stream | MB/s per robot | KB/frame | light frames | depth requests | request lag frames | ATE m (mean over robots) | server CPU s |")
+print("|---|---|---|---|---|---|---|---|---|")
 demo_ates = {"default": [], "lean": []}
 for seq in seqs:
     for mode in ("default", "lean"):
-        mbs, kbf, share, req, ate, cpu = [], [], [], [], [], []
+        mbs, kbf, share, req, lag, ate, cpu = [], [], [], [], [], [], []
         for r in range(1, runs + 1):
             d = f"{out}/{seq.replace(':', '_')}/{mode}_r{r}"
             if not os.path.isdir(d): continue
-            rates, kbs, shares, reqs, ates = [], [], [], [], []
+            rates, kbs, shares, reqs, lags, ates = [], [], [], [], [], []
             k = 1
             while os.path.exists(f"{d}/client_{k}.json"):
                 s = json.load(open(f"{d}/client_{k}.json"))
@@ -104,16 +104,18 @@ for seq in seqs:
                 kbs.append(s["bytes_sent"] / max(1, s["frames_sent"]) / 1e3)
                 shares.append(100.0 * s.get("frames_light", 0) / max(1, s["frames_sent"]))
                 reqs.append(s.get("depth_requests", 0))
+                if s.get("depth_requests", 0): lags.append(s.get("depth_request_lag_frames", {}).get("mean", 0))
                 a = json.load(open(f"{d}/ate_{k}.json")) if os.path.exists(f"{d}/ate_{k}.json") else {}
                 if "rmse" in a: ates.append(a["rmse"])
                 k += 1
             if not rates: continue
             mbs.append(statistics.mean(rates)); kbf.append(statistics.mean(kbs)); share.append(statistics.mean(shares))
             req.append(sum(reqs))
+            if lags: lag.append(statistics.mean(lags))
             if len(ates) == len(rates): ate.append(statistics.mean(ates))
             t = open(f"{d}/server_time.txt").read().split()
             cpu.append(float(t[0]) + float(t[1]))
-        print(f"| {seq} | {mode} | {med(mbs)} | {med(kbf)} | {med(share)} % | {med(req)} | {med(ate)} | {med(cpu)} |")
+        print(f"| {seq} | {mode} | {med(mbs)} | {med(kbf)} | {med(share)} % | {med(req)} | {med(lag)} | {med(ate)} | {med(cpu)} |")
         if seq.startswith("demo"): demo_ates[mode] += ate
 if len([s for s in seqs if s.startswith("demo")]) > 1 and demo_ates["default"] and demo_ates["lean"]:
     d, l = statistics.mean(demo_ates["default"]), statistics.mean(demo_ates["lean"])

@@ -6,12 +6,16 @@
 // when it keeps up.
 #include <atomic>
 #include <chrono>
+#include <map>
 #include <mutex>
 #include <thread>
 
 #include <gtest/gtest.h>
 
 #include "client/frame_sender.h"
+#include "common/run_program.h"
+#include "geometry/camera_io.h"
+#include "io/tum_dataset.h"
 #include "net_test_util.h"
 
 namespace cslam {
@@ -71,6 +75,56 @@ TEST(LeanStream, LightFramesBetweenFullFramesAreAllTaken) {
   EXPECT_EQ(srv.stats().clients().at(4).frames_light, 15u);
   std::lock_guard<std::mutex> lock(mutex);
   EXPECT_EQ(done.size(), 20u);
+}
+
+TEST(LeanStream, ARobotAnswersTheServersDepthRequestWithItsNextFrame) {
+  // SLAM on a synthetic scene: tracking defers a keyframe that falls due on a light frame and
+  // asks for full depth in that frame's ack. The robot sends each frame once the previous one is
+  // acknowledged, so every request is answered by the very next frame (lag 1).
+  test::TempDir dir("cslam_lean_request");
+  const auto synth = test::run_program(
+      "cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
+  ASSERT_EQ(synth.status, 0) << synth.output;
+  const std::string data = dir / "scene/robot_1";
+  const TumDataset dataset = open_tum_dataset(data);
+  ASSERT_GE(dataset.pairs.size(), 50u);
+  SystemConfig sc;
+  sc.slam.threaded = false;
+  std::mutex mutex;
+  std::map<std::uint64_t, FrameDone> done;
+  sc.on_frame_done = [&](const FrameDone& d) {
+    std::lock_guard<std::mutex> lock(mutex);
+    done[d.seq] = d;
+  };
+  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  client::SenderConfig cc = lean_config(srv.endpoint(), 1, 5);
+  cc.info.camera = load_camera_file(data + "/camera.yaml");
+  client::FrameSender sender(cc);
+  sender.connect();
+  for (const auto& pair : dataset.pairs) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (sender.in_flight() > 0 && std::chrono::steady_clock::now() < deadline)
+      sender.service_until(std::chrono::steady_clock::now() + std::chrono::milliseconds(2));
+    const RgbdImages images = load_rgbd(pair);
+    RgbdFrame f;
+    f.timestamp = pair.rgb_time;
+    f.bgr = images.bgr;
+    f.depth = images.depth;
+    sender.send_frame(f);
+  }
+  ASSERT_TRUE(sender.goodbye(120));
+  srv.stop();
+  const auto& s = sender.stats();
+  EXPECT_EQ(s.frames_refused, 0u);
+  ASSERT_GE(s.depth_requests, 1u) << "tracking never deferred a keyframe";
+  EXPECT_GE(s.depth_requests_met + 1, s.depth_requests);  // the last frame's request may stay open
+  EXPECT_EQ(s.depth_request_lag_max, 1u);
+  EXPECT_EQ(s.depth_request_lag_sum, s.depth_requests_met);
+  std::lock_guard<std::mutex> lock(mutex);
+  int asked = 0;
+  for (const auto& [seq, d] : done)
+    if (d.wants_depth && done.count(seq + 1)) ++asked;
+  EXPECT_EQ(std::uint64_t(asked), s.depth_requests_met);
 }
 
 TEST(LeanStream, AnAdaptiveRobotGoesLeanWhileTheServerQueuesAndBackWhenCalm) {

@@ -12,6 +12,7 @@ LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config), full_im
     throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
   if (config_.light_depth < 0 || config_.light_depth > kMaxDepthSubsample)
     throw ConfigError("--light-depth must be 0.." + std::to_string(kMaxDepthSubsample));
+  config_.light_colour.validate();
 }
 
 void LeanStreamSim::apply(RgbdFrame& frame, int n) {
@@ -43,7 +44,7 @@ void LeanStreamSim::code_colour(RgbdFrame& frame, bool full) {
     return;
   }
   if (!encoder_) {
-    encoder_ = std::make_unique<video::H264Encoder>(w, h, video::light_colour_stream());
+    encoder_ = std::make_unique<video::H264Encoder>(w, h, config_.light_colour);
     decoder_ = std::make_unique<video::H264Decoder>(w, h);
   }
   const Bytes packet = encoder_->encode(frame.bgr);

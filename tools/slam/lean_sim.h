@@ -25,6 +25,7 @@ struct LeanStreamConfig {
   int light_depth = 4;
   bool coded_colour = false;
   CodecOptions full_colour;  // full frames' colour with coded_colour (only the RGB fields are used)
+  video::H264Options light_colour = video::light_colour_stream();  // light frames' stream, as the client's
 };
 
 class LeanStreamSim {

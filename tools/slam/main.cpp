@@ -111,6 +111,9 @@ int run(int argc, char** argv) {
               std::to_string(CodecOptions().jpeg_quality))
       .option("h264-intra-crf", "with --coded-colour and --rgb-codec h264-intra: the pictures' CRF (cslam-client)",
               std::to_string(CodecOptions().h264_intra_crf))
+      .option("colour-crf",
+              "with --coded-colour and --depth-every: the light frames' H.264 CRF (cslam-client --colour-crf)",
+              std::to_string(video::light_colour_stream().crf))
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;

@@ -54,6 +54,7 @@ LeanStreamConfig lean_stream_config(const CliArgs& args) {
   c.full_colour.rgb = parse_rgb_codec(args.get("rgb-codec"), c.depth_every > 1);
   c.full_colour.jpeg_quality = args.get_int("jpeg-quality");
   c.full_colour.h264_intra_crf = args.get_int("h264-intra-crf");
+  c.light_colour.crf = args.get_int("colour-crf");
   return c;
 }
 
