@@ -20,8 +20,8 @@
 namespace cslam {
 
 struct LeanStreamConfig {
-  int depth_every = 1;  // 1: every frame full
-  int request_delay = 3;
+  int depth_every = 1;    // 1: every frame full
+  int request_delay = 0;  // the next frame: what a robot at 30 Hz measures (depth_request_lag_frames 1.0-1.07)
   int light_depth = 4;
   bool coded_colour = false;
   CodecOptions full_colour;  // full frames' colour with coded_colour (only the RGB fields are used)

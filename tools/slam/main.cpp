@@ -97,9 +97,10 @@ int run(int argc, char** argv) {
       .option("light-depth",
               "with --depth-every: the light frames carry depth at every S-th pixel of every S-th row (0: none)", "4")
       .option("depth-request-delay",
-              "with --depth-every: frames between tracking asking for full depth and the robot sending it (the acks in "
-              "flight)",
-              "3")
+              "with --depth-every: frames between the frame whose tracking asked for full depth and the full frame "
+              "that answers, minus one (0: the next frame, as cslam-client at 30 Hz measures it: "
+              "depth_request_lag_frames 1.0-1.07; more: acks in flight)",
+              "0")
       .flag("coded-colour",
             "colour through the client's codecs and back: --rgb-codec on full frames, the lean stream's H.264 on "
             "light frames (--depth-every)")
