@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/run_program.h"
 #include "geometry/camera_io.h"
 
 namespace cslam::test {
@@ -59,6 +60,13 @@ PinholeCamera write_tiny_dataset(const std::string& dir, int frames, int width, 
   cam.cy = (height - 1) / 2.0;
   save_camera_file(cam, dir + "/camera.yaml");
   return cam;
+}
+
+std::string render_small_scene(const std::string& out) {
+  const auto synth =
+      run_program("cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + out + " --log-level warn");
+  if (synth.status != 0) throw std::runtime_error("cslam-synth failed: " + synth.output);
+  return out + "/robot_1";
 }
 
 std::string scratch_dir(const std::string& name) {

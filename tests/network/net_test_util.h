@@ -25,6 +25,11 @@ PinholeCamera small_camera();
 PinholeCamera write_tiny_dataset(const std::string& dir, int frames, int width = 64, int height = 48,
                                  unsigned seed = 1);
 
+// Renders the small synthetic scene that the network tests running SLAM stream (cslam-synth
+// --preset test-small --seed 7, one robot) into `out` and returns its robot's TUM folder. Throws
+// std::runtime_error with cslam-synth's output if it fails.
+std::string render_small_scene(const std::string& out);
+
 // A unique scratch folder under the system temp dir (removed by the caller if wanted).
 std::string scratch_dir(const std::string& name);
 

@@ -320,10 +320,7 @@ RobotRun stream_robot(const std::string& data, bool hostile) {
 
 TEST(HardeningRound2, RobotBesideAHostilePeerGetsAllItsPosesAtUnchangedAccuracy) {
   test::TempDir dir("cslam_round2_beside");
-  const auto synth = test::run_program(
-      "cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
-  ASSERT_EQ(synth.status, 0) << synth.output;
-  const std::string data = dir / "scene/robot_1";
+  const std::string data = test::render_small_scene(dir / "scene");
   const RobotRun alone = stream_robot(data, false);
   const RobotRun beside = stream_robot(data, true);
   std::cout << "robot alone: " << alone.poses << " poses of " << alone.frames << ", ATE " << alone.ate_rmse

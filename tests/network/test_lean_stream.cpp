@@ -82,10 +82,7 @@ TEST(LeanStream, ARobotAnswersTheServersDepthRequestWithItsNextFrame) {
   // asks for full depth in that frame's ack. The robot sends each frame once the previous one is
   // acknowledged, so every request is answered by the very next frame (lag 1).
   test::TempDir dir("cslam_lean_request");
-  const auto synth = test::run_program(
-      "cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
-  ASSERT_EQ(synth.status, 0) << synth.output;
-  const std::string data = dir / "scene/robot_1";
+  const std::string data = test::render_small_scene(dir / "scene");
   const TumDataset dataset = open_tum_dataset(data);
   ASSERT_GE(dataset.pairs.size(), 50u);
   SystemConfig sc;

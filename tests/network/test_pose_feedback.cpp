@@ -21,10 +21,7 @@ namespace {
 
 TEST(PoseFeedback, AcksCarryTheServersTrajectoryPosesWhileASlowLiveWorkerSkipsFrames) {
   test::TempDir dir("cslam_pose_feedback");
-  const auto synth = test::run_program(
-      "cslam-synth", "--preset test-small --seed 7 --robots 1 --out " + (dir / "scene") + " --log-level warn");
-  ASSERT_EQ(synth.status, 0) << synth.output;
-  const std::string data = dir / "scene/robot_1";
+  const std::string data = test::render_small_scene(dir / "scene");
   const TumDataset dataset = open_tum_dataset(data);
   ASSERT_GE(dataset.pairs.size(), 50u);
 
