@@ -383,6 +383,8 @@ class PythonClientProtocol(unittest.TestCase):
         self.assertEqual(kinds, ["full", "key", "light", "full", "light", "key", "light", "light", "full"])
         s = sender.stats
         self.assertEqual((s.frames_light, s.colour_key_packets, s.depth_requests, s.stream_gaps), (6, 2, 1, 1))
+        # The request of seq 2's ack was answered by seq 4: two frames after the asking one.
+        self.assertEqual((s.depth_requests_met, s.depth_request_lag_sum, s.depth_request_lag_max), (1, 2, 2))
         stream = video.H264Encoder(64, 48, video.light_colour_stream())  # the sender's default colour stream
         coarse = codecs.encode_depth(video.subsample_depth(depth, 4), codecs.Codecs())[1]
         for i, f in enumerate(got):

@@ -66,4 +66,9 @@ class SenderStats:
     bytes_light: int = 0
     colour_key_packets: int = 0
     depth_requests: int = 0
+    # Requests answered by a full frame, and frames from the asking frame to that answer (1: the
+    # next frame), as the C++ sender counts them.
+    depth_requests_met: int = 0
+    depth_request_lag_sum: int = 0
+    depth_request_lag_max: int = 0
     stream_gaps: int = 0

@@ -200,8 +200,11 @@ class FrameSender:
         seq = self.last_seq + 1
         if self.lean is None or self.lean.next_is_full():
             frame = self.encode(bgr, depth, timestamp, depth_time_offset)
-            if self.lean:
-                self.lean.full_sent(seq)
+            lag = self.lean.full_sent(seq) if self.lean else None
+            if lag is not None:
+                self.stats.depth_requests_met += 1
+                self.stats.depth_request_lag_sum += lag
+                self.stats.depth_request_lag_max = max(self.stats.depth_request_lag_max, lag)
             return frame
         self._check_images(bgr, depth, depth_time_offset)
         packet, key, coarse = self.lean.encode_light(bgr, depth, seq)

@@ -224,6 +224,7 @@ class LeanStream:
         self._key_wanted = True     # the first colour packet is a key packet
         self._last_key_seq = 0      # a gap reported before it is healed by it
         self._last_full_seq = 0     # a depth request before it is met by it
+        self._request_seq = 0       # the frame whose ack asked for the pending full depth (0: none)
 
     def next_is_full(self):
         if not self._depth_wanted:
@@ -231,9 +232,14 @@ class LeanStream:
         return self._depth_wanted or self._since_full >= self.depth_every
 
     def full_sent(self, seq):
+        """Frames from the asking frame to this one if it answers a depth request (1: the next
+        frame), else None."""
+        lag = seq - self._request_seq if self._depth_wanted and self._request_seq > 0 else None
+        self._request_seq = 0
         self._since_full = 0
         self._depth_wanted = False
         self._last_full_seq = seq
+        return lag
 
     def encode_light(self, bgr, depth, seq):
         """(colour packet, key?, subsampled depth or None) of the light frame sent as `seq`."""
@@ -255,6 +261,8 @@ class LeanStream:
         """An ack asked for depth; True if that is a new request (not met by a full frame since)."""
         if acked_seq <= self._last_full_seq:
             return False
+        if not self._depth_wanted:
+            self._request_seq = acked_seq
         self._depth_wanted = True
         return True
 
