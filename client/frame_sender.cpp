@@ -89,7 +89,7 @@ wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) {
 wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
   const bool with_depth = !colour_encoder_ || depth_wanted_ || ++frames_since_depth_ >= rate_.depth_every();
   if (with_depth) {
-    if (depth_wanted_ && depth_request_seq_ > 0) {  // answers a request: how many frames after the asking one
+    if (depth_request_seq_ > 0) {  // answers a request: how many frames after the asking one
       const std::uint64_t lag = seq_ + 1 - depth_request_seq_;
       stats_.depth_request_lag_sum += lag;
       stats_.depth_request_lag_max = std::max(stats_.depth_request_lag_max, lag);

@@ -234,7 +234,7 @@ class LeanStream:
     def full_sent(self, seq):
         """Frames from the asking frame to this one if it answers a depth request (1: the next
         frame), else None."""
-        lag = seq - self._request_seq if self._depth_wanted and self._request_seq > 0 else None
+        lag = seq - self._request_seq if self._request_seq > 0 else None
         self._request_seq = 0
         self._since_full = 0
         self._depth_wanted = False
