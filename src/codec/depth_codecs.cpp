@@ -1,6 +1,8 @@
 #include "codec/depth_codecs.h"
 
 #include <algorithm>
+#include <cstring>
+#include <memory>
 
 #include <zstd.h>
 
@@ -136,6 +138,24 @@ inline std::int32_t predict(const std::uint16_t* row, const std::uint8_t* row_va
   return last;
 }
 
+// The decoder's view of one row: its ranks, hole mask and output, the row above (null for the
+// first), its residuals from its first valid pixel on, and the last valid rank decoded before.
+struct RankRow {
+  std::uint16_t* ranks;
+  const std::uint8_t* valid;
+  const std::uint16_t* above;
+  const std::uint8_t* above_valid;
+  std::uint16_t* pixels;
+  const std::uint8_t* low;
+  const std::uint8_t* high;
+  std::int32_t last;
+};
+
+struct RankTable {
+  const std::uint16_t* values;
+  std::uint32_t size;
+};
+
 void put_u32(std::vector<std::uint8_t>& out, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) out.push_back(std::uint8_t(v >> (8 * i)));
 }
@@ -145,6 +165,24 @@ inline std::uint16_t zigzag16(std::int32_t residual) {
   return std::uint16_t((std::uint16_t(r) << 1) ^ std::uint16_t(r >> 15));
 }
 inline std::uint16_t unzigzag16(std::uint16_t z) { return std::uint16_t((z >> 1) ^ std::uint16_t(-(z & 1))); }
+
+// Decodes pixel x of a row (a hole is 0); false if the residual gives a rank outside the table.
+// Each valid pixel's prediction needs the one decoded just before it in its row: a serial chain
+// per row. The caller runs two rows' chains side by side so that the CPU overlaps them.
+inline bool decode_rank(RankRow& row, int x, const RankTable& table) {
+  if (!row.valid[x]) {
+    row.pixels[x] = 0;
+    return true;
+  }
+  const std::uint16_t z = std::uint16_t(*row.low++ | (*row.high++ << 8));
+  const std::uint16_t r =
+      std::uint16_t(predict(row.ranks, row.valid, row.above, row.above_valid, x, row.last) + unzigzag16(z));
+  if (r >= table.size) return false;
+  row.ranks[x] = r;
+  row.last = r;
+  row.pixels[x] = table.values[r];
+  return true;
+}
 
 }  // namespace
 
@@ -218,13 +256,17 @@ void zstd_delta_decode(const std::uint8_t* data, std::size_t size, std::uint16_t
   if (announced == ZSTD_CONTENTSIZE_UNKNOWN || announced > max_payload || announced < 4 + n)
     throw InputError(source, "zstd depth: content size does not fit a " + std::to_string(width) + "x" +
                                  std::to_string(height) + " image");
-  std::vector<std::uint8_t> payload(announced);
-  const std::size_t got = ZSTD_decompress(payload.data(), payload.size(), data, size);
+  // Not zero-filled: zstd writes every byte it announces (checked below), and only valid pixels'
+  // ranks are ever read.
+  const std::unique_ptr<std::uint8_t[]> buffer(new std::uint8_t[announced]);
+  const std::uint8_t* payload = buffer.get();
+  const std::size_t payload_size = std::size_t(announced);
+  const std::size_t got = ZSTD_decompress(buffer.get(), payload_size, data, size);
   if (ZSTD_isError(got)) throw InputError(source, std::string("zstd depth: ") + ZSTD_getErrorName(got));
-  if (got != payload.size()) throw InputError(source, "zstd depth: decoded size differs from the announced size");
+  if (got != payload_size) throw InputError(source, "zstd depth: decoded size differs from the announced size");
   const std::uint32_t table_size = std::uint32_t(payload[0]) | (std::uint32_t(payload[1]) << 8) |
                                    (std::uint32_t(payload[2]) << 16) | (std::uint32_t(payload[3]) << 24);
-  if (table_size > 65535 || 4 + 2 * std::size_t(table_size) + n > payload.size())
+  if (table_size > 65535 || 4 + 2 * std::size_t(table_size) + n > payload_size)
     throw InputError(source, "zstd depth: value table larger than the data");
   std::vector<std::uint16_t> table(table_size);
   std::uint32_t value = 0;
@@ -234,38 +276,63 @@ void zstd_delta_decode(const std::uint8_t* data, std::size_t size, std::uint16_t
     if (d == 0 || value > 65535) throw InputError(source, "zstd depth: value table not strictly increasing");
     table[k] = std::uint16_t(value);
   }
-  const std::uint8_t* valid = payload.data() + 4 + 2 * std::size_t(table_size);
+  const std::uint8_t* valid = payload + 4 + 2 * std::size_t(table_size);
+  std::vector<std::uint32_t> row_valid_count(std::size_t(height), 0);
   std::size_t m = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (valid[i] > 1) throw InputError(source, "zstd depth: corrupt hole mask");
-    m += valid[i];
+  for (int y = 0; y < height; ++y) {
+    const std::uint8_t* row_valid = valid + std::size_t(y) * width;
+    std::uint32_t count = 0;
+    std::uint8_t bits = 0;  // any byte other than 0 or 1 sets a bit above the lowest
+    for (int x = 0; x < width; ++x) {
+      count += row_valid[x];
+      bits |= row_valid[x];
+    }
+    if (bits > 1) throw InputError(source, "zstd depth: corrupt hole mask");
+    row_valid_count[std::size_t(y)] = count;
+    m += count;
   }
-  if (4 + 2 * std::size_t(table_size) + n + 2 * m != payload.size() || (m > 0 && table_size == 0))
+  if (4 + 2 * std::size_t(table_size) + n + 2 * m != payload_size || (m > 0 && table_size == 0))
     throw InputError(source, "zstd depth: residual count does not match the hole mask");
+  const RankTable ranks_to_depth{table.data(), table_size};
+  const std::unique_ptr<std::uint16_t[]> ranks(new std::uint16_t[n]);
   const std::uint8_t* low = valid + n;
   const std::uint8_t* high = low + m;
-  std::vector<std::uint16_t> ranks(n, 0);
+  std::size_t k = 0;  // the next row's first residual
   std::int32_t last = 0;
-  std::size_t k = 0;
-  for (int y = 0; y < height; ++y) {
+  const auto row_cursor = [&](int y) {
     const std::size_t o = std::size_t(y) * width;
-    std::uint16_t* row = ranks.data() + o;
-    const std::uint8_t* row_valid = valid + o;
-    const std::uint16_t* above = y > 0 ? row - width : nullptr;
-    const std::uint8_t* above_valid = y > 0 ? row_valid - width : nullptr;
-    for (int x = 0; x < width; ++x) {
-      if (!row_valid[x]) {
-        pixels[o + x] = 0;
-        continue;
-      }
-      const std::uint16_t z = std::uint16_t(low[k] | (high[k] << 8));
-      ++k;
-      const std::uint16_t r = std::uint16_t(predict(row, row_valid, above, above_valid, x, last) + unzigzag16(z));
-      if (r >= table_size) throw InputError(source, "zstd depth: value rank outside the table");
-      row[x] = r;
-      last = r;
-      pixels[o + x] = table[r];
+    RankRow c{ranks.get() + o, valid + o, nullptr, nullptr, pixels + o, low + k, high + k, last};
+    if (y > 0) {
+      c.above = c.ranks - width;
+      c.above_valid = c.valid - width;
     }
+    k += row_valid_count[std::size_t(y)];
+    return c;
+  };
+  const auto fail = [&] { throw InputError(source, "zstd depth: value rank outside the table"); };
+  for (int y = 0; y < height;) {
+    RankRow a = row_cursor(y);
+    // Row y+1 goes beside row y, one pixel behind it, unless its first valid pixel has no valid
+    // pixel above: its prediction is then the last rank of row y, known only at that row's end.
+    const std::uint8_t* next_valid = a.valid + width;
+    const void* first = y + 1 < height ? std::memchr(next_valid, 1, std::size_t(width)) : nullptr;
+    const bool paired = y + 1 < height && (!first || a.valid[static_cast<const std::uint8_t*>(first) - next_valid]);
+    if (!paired) {
+      for (int x = 0; x < width; ++x)
+        if (!decode_rank(a, x, ranks_to_depth)) fail();
+      last = a.last;
+      ++y;
+      continue;
+    }
+    RankRow b = row_cursor(y + 1);
+    if (!decode_rank(a, 0, ranks_to_depth)) fail();
+    for (int x = 1; x < width; ++x) {
+      if (!decode_rank(a, x, ranks_to_depth)) fail();
+      if (!decode_rank(b, x - 1, ranks_to_depth)) fail();
+    }
+    if (!decode_rank(b, width - 1, ranks_to_depth)) fail();
+    last = first ? b.last : a.last;
+    y += 2;
   }
 }
 

@@ -3,8 +3,10 @@
 //  - RVL (Wilson, "Fast lossless depth image compression", 2017): runs of zeros and non-zeros,
 //    non-zero values as zig-zag deltas to the previous non-zero value, packed in 4-bit nibbles
 //    (3 data bits + continuation bit). Our own implementation from the paper's description.
-//  - zstd-delta: each pixel minus its left neighbour (first column: minus the pixel above),
-//    zig-zag coded, split into a low-byte and a high-byte plane, then zstd.
+//  - zstd-delta: the image's distinct values as a sorted table, the hole mask, and each valid
+//    pixel's rank in that table predicted from its valid causal neighbours (JPEG-LS's median edge
+//    detector), the zig-zag residuals split into a low-byte and a high-byte plane; then zstd.
+//    Layout in depth_codecs.cpp.
 #include <cstddef>
 #include <cstdint>
 #include <string>
