@@ -59,12 +59,18 @@ TEST(ZstdDelta, RoundTripsRowsThatStartUnderHolesAndEmptyRows) {
   // stretch of row 5; rows 8-10: a left hole column under which every row starts at x = 1.
   const auto hole = [&](int x, int y) {
     switch (y) {
-      case 0: return x < 3;
-      case 1: return x < 1;
-      case 3: return true;
-      case 5: return x < 10;
-      case 6: return x < 4 || (x > 12 && x < 15);
-      default: return y >= 8 ? x == 0 || (x == 5 && y == 9) : false;
+      case 0:
+        return x < 3;
+      case 1:
+        return x < 1;
+      case 3:
+        return true;
+      case 5:
+        return x < 10;
+      case 6:
+        return x < 4 || (x > 12 && x < 15);
+      default:
+        return y >= 8 ? x == 0 || (x == 5 && y == 9) : false;
     }
   };
   for (unsigned seed : {4u, 5u}) {
@@ -109,8 +115,7 @@ TEST(ZstdDelta, ARankOutsideTheTableOrABadMaskByteIsRejectedInEitherRowOfAPair) 
     const std::uint32_t t = std::uint32_t(p[0]) | (std::uint32_t(p[1]) << 8);
     p[4 + 2 * std::size_t(t) + std::size_t(w) + 3] = 2;
   });
-  EXPECT_THROW(depth_codec::zstd_delta_decode(bad_mask.data(), bad_mask.size(), back.data(), w, h, "test"),
-               InputError);
+  EXPECT_THROW(depth_codec::zstd_delta_decode(bad_mask.data(), bad_mask.size(), back.data(), w, h, "test"), InputError);
 }
 
 }  // namespace
