@@ -15,6 +15,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/thread_priority.h"
 #include "slam/features/opencv_threads.h"
 #include "proto/keys/curve_keys.h"
 #include "server/http/http_server.h"
@@ -139,10 +140,11 @@ int run(int argc, char** argv) {
               "(new-points), fully processed it (keyframe: repeatable runs, more latency) or not at all (none)",
               "new-points")
       .option("tracking-slots",
-              "client workers tracking at a time, served in arrival order (0: no limit). Below the cores: each "
-              "frame is tracked at full speed and pose latency drops, at the cost of frames processed when the "
-              "machine is short of CPU (docs/performance.md)",
-              "0")
+              "client workers tracking at a time, served in arrival order: auto (as many as the cores this "
+              "process may use) or a number (0: no limit). More robots than slots: each frame is tracked at "
+              "full speed instead of all at once at a fraction of it, and pose latency drops "
+              "(docs/performance.md)",
+              "auto")
       .option("flow",
               "flow frames (optical-flow tracking between full frames, a fraction of their CPU): off, under-load "
               "(while a client's worker falls behind its live frames, instead of skipping more), always",
@@ -222,8 +224,12 @@ int run(int argc, char** argv) {
   sc.client_queue_capacity = std::size_t(capacity);
   sc.run_slam = !cli.flag_set("no-slam");
   sc.slam.mapper.tracking_wait = cslam::parse_tracking_wait(cli.get("tracking-wait"));
-  sc.tracking_slots = cli.get_int("tracking-slots");
-  if (sc.tracking_slots < 0) throw cslam::ConfigError("cslam-server: --tracking-slots must be >= 0 (0: no limit)");
+  sc.tracking_slots = cli.get("tracking-slots") == "auto" ? cslam::usable_cores() : cli.get_int("tracking-slots");
+  if (sc.tracking_slots < 0)
+    throw cslam::ConfigError("cslam-server: --tracking-slots must be auto or >= 0 (0: no limit)");
+  cslam::logger("server")->info("tracking slots: {}{}",
+                                sc.tracking_slots == 0 ? "no limit" : std::to_string(sc.tracking_slots),
+                                cli.get("tracking-slots") == "auto" ? " (auto: the cores this process may use)" : "");
   sc.slam.tracker.flow.mode = cslam::parse_flow_mode(cli.get("flow"));
   if (cli.flag_set("deterministic")) {
     sc.slam.threaded = false;

@@ -1,11 +1,14 @@
 #include "core/thread_priority.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <thread>
 
 namespace cslam {
 
@@ -20,6 +23,15 @@ bool lower_current_thread_priority(int delta) {
   (void)delta;
   return false;
 #endif
+}
+
+int usable_cores() {
+#ifdef __linux__
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (::sched_getaffinity(0, sizeof(set), &set) == 0) return std::max(1, CPU_COUNT(&set));
+#endif
+  return std::max(1, int(std::thread::hardware_concurrency()));
 }
 
 void name_current_thread(const std::string& name) {

@@ -24,6 +24,10 @@ inline constexpr int kGroupBaNice = 19;
 // no privilege). Returns false if the system refused; never throws.
 bool lower_current_thread_priority(int delta = kComputeNice);
 
+// The cores this process may run on: its CPU affinity mask (a container limited to a cpuset sees
+// its own), else the machine's hardware threads; at least 1.
+int usable_cores();
+
 // Names the calling thread after its stage, e.g. "track/c3" (Linux keeps 15 characters): top -H,
 // ps -L, perf and /proc/PID/task/TID/comm show it, and the capacity benchmark sums CPU per stage.
 void name_current_thread(const std::string& name);

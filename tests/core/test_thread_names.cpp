@@ -1,6 +1,8 @@
-// Threads named after their stage (name_current_thread, QueueWorker's consumer thread), and a
-// computation run below its caller's priority (run_at_lower_priority).
+// Threads named after their stage (name_current_thread, QueueWorker's consumer thread), a
+// computation run below its caller's priority (run_at_lower_priority), and the cores a process
+// may use (usable_cores).
 #include <pthread.h>
+#include <sched.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -81,4 +83,27 @@ TEST(ThreadPriority, RunAtLowerPriorityLowersOnlyTheComputation) {
 TEST(ThreadPriority, RunAtLowerPriorityRethrowsOnTheCaller) {
   EXPECT_THROW(cslam::run_at_lower_priority(1, "solve", [] { throw std::runtime_error("solve failed"); }),
                std::runtime_error);
+}
+
+TEST(ThreadNames, UsableCoresFollowTheAffinityMask) {
+  // On a thread of its own, so that the test runner's mask is never touched.
+  int all = 0, one = 0;
+  bool restricted = false;
+  std::thread([&] {
+    all = cslam::usable_cores();
+    cpu_set_t mask;
+    CPU_ZERO(&mask);
+    if (::sched_getaffinity(0, sizeof(mask), &mask) != 0) return;
+    int first = 0;
+    while (!CPU_ISSET(first, &mask)) ++first;
+    cpu_set_t single;
+    CPU_ZERO(&single);
+    CPU_SET(first, &single);
+    restricted = ::sched_setaffinity(0, sizeof(single), &single) == 0;
+    one = cslam::usable_cores();
+  }).join();
+  EXPECT_GE(all, 1);
+  EXPECT_LE(all, int(std::max(1u, std::thread::hardware_concurrency())));
+  ASSERT_TRUE(restricted);
+  EXPECT_EQ(one, 1);
 }

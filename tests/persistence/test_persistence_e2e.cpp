@@ -203,9 +203,11 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   const double uninterrupted_upper = 1.19 * ate_ref;
   EXPECT_LE(ate, 1.15 * uninterrupted_upper) << "uninterrupted (stepped) " << ate_ref;
   const auto stats = nlohmann::json::parse(read_text(run + "/out2/stats.json"));
-  for (const auto& e : stats["fusion_events"])
-    if (e["kind"] == "reencounter")
+  for (const auto& e : stats["fusion_events"]) {
+    if (e["kind"] == "reencounter") {
       EXPECT_GE(e["keyframes_kept"].get<int>(), 1) << "a re-encounter after the restart without the seams' anchors";
+    }
+  }
 }
 
 // Session 1 on one server run (then stopped), session 2 on a restarted server that loaded the
