@@ -87,7 +87,7 @@ wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) {
 }
 
 wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
-  const bool with_depth = !colour_encoder_ || depth_wanted_ || ++frames_since_depth_ >= rate_.depth_every();
+  const bool with_depth = !colour_encoder_ || full_clock_.next(depth_wanted_, rate_.depth_every());
   if (with_depth) {
     if (depth_request_seq_ > 0) {  // answers a request: how many frames after the asking one
       const std::uint64_t lag = seq_ + 1 - depth_request_seq_;
@@ -96,7 +96,6 @@ wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
       ++stats_.depth_requests_met;
     }
     depth_request_seq_ = 0;
-    frames_since_depth_ = 0;
     depth_wanted_ = false;
     last_full_seq_ = seq_ + 1;  // encode_next runs right before the frame is sent with the next seq
     return encode(frame);

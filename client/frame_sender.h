@@ -30,6 +30,7 @@
 #include "codec/video_codec.h"
 #include "proto/wire.h"
 #include "proto/pose_feedback.h"
+#include "frame/full_frame_clock.h"
 #include "frame/rgbd_frame.h"
 
 namespace cslam::client {
@@ -49,12 +50,12 @@ struct SenderConfig {
   // so that a server which restarted from an older snapshot, or lost frames in flight, gets
   // them again: a resumed Welcome's last_seq says where the server stands. 0: keep none.
   std::size_t resend_buffer_bytes = std::size_t(128) << 20;
-  // Lean stream (docs/network.md): only every depth_every-th frame, and the next frame after an
-  // ack asks for it (want_depth: a keyframe is due), is a full frame: full depth with standalone
-  // colour (`codecs`). The frames between are light: colour as packets of one H.264 stream, and
-  // depth at every light_depth_subsample-th pixel of every such row (0: no depth). Keyframes
-  // come from full frames alone, so the map and the dense model see full-quality images.
-  // depth_every 1: every frame is full (no colour stream).
+  // Lean stream (docs/network.md): the next frame after an ack asks for it (want_depth: a
+  // keyframe is due), and otherwise the depth_every-th frame after the last full one, is a full
+  // frame (frame/full_frame_clock.h): full depth with standalone colour (`codecs`). The frames between are light:
+  // colour as packets of one H.264 stream, and depth at every light_depth_subsample-th pixel of every such row (0: no
+  // depth). Keyframes come from full frames alone, so the map and the dense model see full-quality images. depth_every
+  // 1: every frame is full (no colour stream).
   int depth_every = 1;
   int light_depth_subsample = 4;
   video::H264Options colour_stream = video::light_colour_stream();
@@ -186,7 +187,7 @@ class FrameSender {
   ImageEncoder full_images_;  // full frames' images (config.codecs)
   std::unique_ptr<video::H264Encoder> colour_encoder_;
   RateController rate_;
-  int frames_since_depth_ = 0;
+  FullFrameClock full_clock_;
   bool depth_wanted_ = true;             // the first frame carries depth
   bool key_wanted_ = true;               // the first colour packet, and the first after a gap or reconnect, is a key
   std::uint64_t last_key_seq_ = 0;       // seq of the last key packet sent (a gap before it is healed)

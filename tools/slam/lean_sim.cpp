@@ -17,8 +17,8 @@ LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config), full_im
 
 void LeanStreamSim::apply(RgbdFrame& frame, int n) {
   std::lock_guard<std::mutex> lock(mutex_);
-  const bool requested = requested_at_ >= 0 && n > requested_at_ + config_.request_delay;
-  if (n % config_.depth_every == 0 || requested) {
+  const bool requested = n == 0 || (requested_at_ >= 0 && n > requested_at_ + config_.request_delay);
+  if (clock_.next(requested, config_.depth_every)) {
     requested_at_ = -1;
     code_colour(frame, true);
     return;

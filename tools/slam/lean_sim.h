@@ -1,7 +1,8 @@
 #pragma once
-// What a lean stream (cslam-client --depth-every K) makes of one client's frames, offline: every
-// K-th frame, and the first frame `request_delay` frames after tracking asked for full depth
-// (the acks in flight), keeps its full depth; the others become light frames with the depth the
+// What a lean stream (cslam-client --depth-every K) makes of one client's frames, offline: the
+// first frame `request_delay` frames after tracking asked for full depth (the acks in flight),
+// and otherwise the K-th frame after the last full one (frame/full_frame_clock.h, the robot's own
+// rule), keeps its full depth; the others become light frames with the depth the
 // server expands from every S-th pixel of every S-th row (S = light_depth; 0 or 1: none). With
 // coded_colour the colour goes through the client's codecs and back as the server decodes it:
 // full frames with full_colour (the client's --rgb-codec: JPEG q75 by default, or standalone
@@ -15,6 +16,7 @@
 
 #include "codec/image_encoder.h"
 #include "codec/video_codec.h"
+#include "frame/full_frame_clock.h"
 #include "frame/rgbd_frame.h"
 
 namespace cslam {
@@ -49,6 +51,7 @@ class LeanStreamSim {
   std::unique_ptr<video::H264Decoder> decoder_;
   mutable std::mutex mutex_;
   int requested_at_ = -1;
+  FullFrameClock clock_;
   int light_frames_ = 0;
 };
 
