@@ -52,10 +52,11 @@ struct SenderConfig {
   std::size_t resend_buffer_bytes = std::size_t(128) << 20;
   // Lean stream (docs/network.md): the next frame after an ack asks for it (want_depth: a
   // keyframe is due), and otherwise the depth_every-th frame after the last full one, is a full
-  // frame (frame/full_frame_clock.h): full depth with standalone colour (`codecs`). The frames between are light:
-  // colour as packets of one H.264 stream, and depth at every light_depth_subsample-th pixel of every such row (0: no
-  // depth). Keyframes come from full frames alone, so the map and the dense model see full-quality images. depth_every
-  // 1: every frame is full (no colour stream).
+  // frame (frame/full_frame_clock.h): full depth with standalone colour (`codecs`). The frames
+  // between are light: colour as packets of one H.264 stream, and depth at every
+  // light_depth_subsample-th pixel of every such row (0: no depth). Keyframes come from full
+  // frames alone, so the map and the dense model see full-quality images. depth_every 1: every
+  // frame is full (no colour stream).
   int depth_every = 1;
   int light_depth_subsample = 4;
   video::H264Options colour_stream = video::light_colour_stream();

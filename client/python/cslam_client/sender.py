@@ -25,9 +25,9 @@ Live frames are marked ``live`` so the server may skip a stale one.
 Lean stream (``depth_every=N``, as cslam-client --depth-every N): the N-th frame after the last
 full one is full (colour with ``codecs``, full depth), and so is the next one after an ack asks
 for depth; the frames between are light: colour as packets of one H.264 stream (video.py, the
-C++ encoder's bytes), depth every ``light_depth_subsample``-th pixel of every such row. A light frame is encoded
-only when it leaves (in live mode too). ERROR_STREAM_GAP and a reconnect make the next colour
-packet a key packet.
+C++ encoder's bytes), depth every ``light_depth_subsample``-th pixel of every such row. A light
+frame is encoded only when it leaves (in live mode too). ERROR_STREAM_GAP and a reconnect make the
+next colour packet a key packet.
 """
 import collections
 import logging

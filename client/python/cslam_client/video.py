@@ -203,9 +203,10 @@ class LeanStream:
     """Which frames of a lean stream are full and which light, and the robot's colour stream, as
     client/frame_sender.cpp decides them (frame/full_frame_clock.h). The first frame is full
     (full depth with standalone colour), and so is the next one after an ack asks for depth
-    (want_depth: a keyframe is due); otherwise the depth_every-th frame after the last full one. The frames between are light: colour as the next packet of
-    one H.264 stream, depth subsampled by light_depth_subsample (0: none). The first colour packet
-    is a key packet, and so is the first after a (re)connect or a gap the server reported.
+    (want_depth: a keyframe is due); otherwise the depth_every-th frame after the last full one.
+    The frames between are light: colour as the next packet of one H.264 stream, depth
+    subsampled by light_depth_subsample (0: none). The first colour packet is a key packet, and
+    so is the first after a (re)connect or a gap the server reported.
 
     Call next_is_full() and then encode_light() or full_sent() for a frame that leaves right
     away with sequence number `seq`: a colour packet that never left would break the stream."""
