@@ -224,12 +224,13 @@ int run(int argc, char** argv) {
   sc.client_queue_capacity = std::size_t(capacity);
   sc.run_slam = !cli.flag_set("no-slam");
   sc.slam.mapper.tracking_wait = cslam::parse_tracking_wait(cli.get("tracking-wait"));
-  sc.tracking_slots = cli.get("tracking-slots") == "auto" ? cslam::usable_cores() : cli.get_int("tracking-slots");
+  const bool auto_slots = cli.get("tracking-slots") == "auto";
+  sc.tracking_slots = auto_slots ? cslam::usable_cores() : cli.get_int("tracking-slots");
   if (sc.tracking_slots < 0)
     throw cslam::ConfigError("cslam-server: --tracking-slots must be auto or >= 0 (0: no limit)");
   cslam::logger("server")->info("tracking slots: {}{}",
                                 sc.tracking_slots == 0 ? "no limit" : std::to_string(sc.tracking_slots),
-                                cli.get("tracking-slots") == "auto" ? " (auto: the cores this process may use)" : "");
+                                auto_slots ? " (auto: the cores this process may use)" : "");
   sc.slam.tracker.flow.mode = cslam::parse_flow_mode(cli.get("flow"));
   if (cli.flag_set("deterministic")) {
     sc.slam.threaded = false;
