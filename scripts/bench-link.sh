@@ -8,7 +8,8 @@
 # robots step to a lean stream while their acks say the link queues). Reports per robot: frames processed (of those captured), pose latency p50/p99
 # (capture to ack, client side), MB/s sent and ATE; medians and min-max over the runs.
 # A mode may end in @sS: the server runs with --tracking-slots S (e.g. "lean lean@s2"), and in @pP:
-# the robots encode the colour stream with x264 preset P (e.g. "lean lean@pveryfast").
+# the robots encode the colour stream with x264 preset P (e.g. "lean lean@pveryfast"), and in @fF:
+# the server's flow frames (--flow F, e.g. "lean lean@falways").
 # Needs root (ip netns, tc). Usage:
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
@@ -48,6 +49,7 @@ run_case() {
     case "$opt" in
       '') ;;
       s*) server_extra+=(--tracking-slots "${opt#s}") ;;
+      f*) server_extra+=(--flow "${opt#f}") ;;
       p*) client_extra+=(--colour-preset "${opt#p}") ;;
       *) echo "bench-link.sh: unknown mode suffix @$opt in $2" >&2; exit 2 ;;
     esac
