@@ -56,6 +56,36 @@ void ClientSlam::set_tracking_wait_hooks(TrackingWaitHooks hooks) {
   if (mapper_) mapper_->set_wait_hooks(wait_hooks_);
 }
 
+void ClientSlam::set_early_pose_listener(EarlyPoseListener listener) {
+  early_pose_listener_ = std::move(listener);
+  tracker_->set_pose_listener([this](const Tracker::TrackedPose& tracked) { publish_early_pose(tracked); });
+}
+
+void ClientSlam::publish_early_pose(const Tracker::TrackedPose& tracked) {
+  if (!early_pose_listener_) return;
+  FramePose pose;
+  std::uint64_t epoch = 0;
+  {
+    // The order trajectory() takes: the records, then every map shared.
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<Map*> ptrs;
+    for (const auto& m : maps_) ptrs.push_back(m.get());
+    const auto map_locks = lock_maps<std::shared_lock<std::shared_mutex>>(ptrs);
+    const Map& map = *tracker_->map();
+    if (map.big_change_index() != tracked.change_index) return;
+    // The frame's record now (process() replaces it with the keyframe as reference, the same pose).
+    records_.push_back({tracked.timestamp, tracked.reference, tracked.T_cam_ref, map.index()});
+    const LiveReference ref = live_reference(records_.back());
+    if (!ref.keyframe) {
+      records_.pop_back();
+      return;
+    }
+    pose = {(ref.T_cam_ref * ref.keyframe->T_cam_world).inverse(), map.index()};
+    for (const Map* m : ptrs) epoch += m->big_change_index();
+  }
+  early_pose_listener_(pose, epoch);
+}
+
 void ClientSlam::start_new_map() {
   auto map = std::make_shared<Map>(info_.id, int(maps_.size()), ids_);
   std::unique_ptr<LocalMapper> mapper = attach_workers(map);
@@ -171,7 +201,11 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   track_ms_.push_back(r.track_ms);
   snapshot_.state = tracker_->state();
   if (t.ok && t.reference) {
-    records_.push_back({frame.timestamp, t.reference, t.T_cam_ref, tracker_->map()->index()});
+    const FrameRecord record{frame.timestamp, t.reference, t.T_cam_ref, tracker_->map()->index()};
+    if (!records_.empty() && records_.back().timestamp == frame.timestamp)
+      records_.back() = record;  // publish_early_pose's (timestamps increase)
+    else
+      records_.push_back(record);
     if (++records_since_reanchor_ >= kReanchorEvery && reanchor_records()) records_since_reanchor_ = 0;
     ++snapshot_.frames_tracked;
     snapshot_.T_world_cam = t.T_cam_world.inverse();

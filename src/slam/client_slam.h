@@ -109,6 +109,14 @@ class ClientSlam {
   // Runs around tracking's waits for local mapping, in every map's mapper; set before the first
   // frame (the system lends the worker's tracking slot meanwhile).
   void set_tracking_wait_hooks(TrackingWaitHooks hooks);
+  // Called on the processing thread, inside process(), with a frame's pose as soon as it is final
+  // when that is well before process() returns: a frame that becomes a keyframe, before the
+  // keyframe is made and local mapping is waited for. The pose is the frame's trajectory() entry,
+  // which exists from then on; `map_epoch`: the sum of the client's maps' big-change indices, read
+  // with it. Not called if the map moved after the frame was tracked (process() then ends with the
+  // pose in the moved map). Set before the first frame.
+  using EarlyPoseListener = std::function<void(const FramePose& pose, std::uint64_t map_epoch)>;
+  void set_early_pose_listener(EarlyPoseListener listener);
 
  private:
   // Finishes the current map's local mapper and loop closer and starts both on `map`, the mapper
@@ -116,6 +124,7 @@ class ClientSlam {
   // tracker the returned mapper, then keeps it in mapper_.
   std::unique_ptr<LocalMapper> attach_workers(const std::shared_ptr<Map>& map);
   void start_new_map();
+  void publish_early_pose(const Tracker::TrackedPose& tracked);
   // reanchor_culled() over the records (frame_record.h) with every map's lock held shared,
   // taken without waiting. Caller holds mutex_; false if a map was busy (tried again later).
   bool reanchor_records();
@@ -133,6 +142,7 @@ class ClientSlam {
   std::shared_ptr<IdAllocator> ids_;
   KeyFrameListener listener_;
   TrackingWaitHooks wait_hooks_;
+  EarlyPoseListener early_pose_listener_;
   std::vector<std::shared_ptr<Map>> maps_;
   std::unique_ptr<LocalMapper> mapper_;
   std::unique_ptr<LoopCloser> loop_closer_;

@@ -55,6 +55,9 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
                                       if (slot_) slot_->take_back();
                                       mapping_wait_ms_ += ms_since(mapping_wait_start_);
                                     }});
+  if (slam_)
+    slam_->set_early_pose_listener(
+        [this](const ClientSlam::FramePose& pose, std::uint64_t map_epoch) { on_early_pose(pose, map_epoch); });
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = GroupId::from_value(info_.id);  // until the first frame reports its group
@@ -74,6 +77,7 @@ bool ClientPipeline::submit(RgbdFrame frame) {
   }
   if (config_.stepped) {
     if (queue_.closed()) return false;
+    current_ = {&frame, frame.received};
     report(process_timed(frame), frame);
     return true;
   }
@@ -127,12 +131,14 @@ void ClientPipeline::run() {
                             : now < overloaded_until            ? WorkerLoad::kOverloaded
                                                                 : WorkerLoad::kBehind;
     const auto started = Clock::now();
-    report(process_timed(*frame, load), *frame, started, skipped_any ? 0 : slot_ms);
+    current_ = {&*frame, started, skipped_any ? 0 : slot_ms};
+    report(process_timed(*frame, load), *frame, started, current_.slot_ms);
   }
 }
 
 FrameDone ClientPipeline::process_timed(const RgbdFrame& frame, WorkerLoad load) {
   const double cpu_started = thread_cpu_ms();
+  current_.cpu_started_ms = cpu_started;
   const bool tracing = latency_log_->should_log(spdlog::level::trace);
   const double runqueue_started = tracing ? thread_runqueue_ms() : 0;
   FrameDone done = process(frame, load);
@@ -180,6 +186,47 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
 }
 
 void ClientPipeline::report(FrameDone done, const RgbdFrame& frame, Clock::time_point started, double slot_ms) {
+  if (current_.pose_sent && &frame == current_.frame && done.fate != FrameFate::kSkipped) {
+    current_.pose_sent = false;  // on_early_pose sent it
+    return;
+  }
+  if (slam_) {
+    // Group and epoch of the map the frame belongs to (the current map when it has no pose).
+    const auto maps = slam_->maps();
+    if (!done.has_pose) done.map = slam_->snapshot().current_map;
+    for (const auto& m : maps) {
+      std::shared_lock<std::shared_mutex> map_lock(m->mutex);
+      done.map_epoch += m->big_change_index();
+    }
+    done.group = group_of_map(maps, done.map);
+  } else {
+    done.group = GroupId::from_value(info_.id);  // counting-only pipeline
+  }
+  const bool skipped = done.fate == FrameFate::kSkipped;
+  publish(done, frame, started, slot_ms, skipped ? 0 : mapping_wait_ms_, skipped ? 0 : done_cpu_ms_);
+}
+
+void ClientPipeline::on_early_pose(const ClientSlam::FramePose& pose, std::uint64_t map_epoch) {
+  if (!current_.frame) return;
+  FrameDone done;
+  done.fate = FrameFate::kTracked;
+  done.has_pose = true;
+  done.T_world_cam = pose.T_world_cam;
+  done.map = pose.map_index;
+  done.map_epoch = map_epoch;
+  done.group = group_of_map(slam_->maps(), pose.map_index);
+  publish(done, *current_.frame, current_.started, current_.slot_ms, mapping_wait_ms_,
+          thread_cpu_ms() - current_.cpu_started_ms);
+  current_.pose_sent = true;
+}
+
+GroupId ClientPipeline::group_of_map(const std::vector<std::shared_ptr<Map>>& maps, int map) const {
+  const GroupId g = map >= 0 && std::size_t(map) < maps.size() && group_of_ ? group_of_(maps[map].get()) : GroupId();
+  return g.valid() ? g : GroupId::of_map(info_.id, 0);
+}
+
+void ClientPipeline::publish(FrameDone& done, const RgbdFrame& frame, Clock::time_point started, double slot_ms,
+                             double mapping_wait_ms, double work_cpu_ms) {
   done.client = frame.client;
   done.seq = frame.seq;
   done.timestamp = frame.timestamp;
@@ -192,24 +239,9 @@ void ClientPipeline::report(FrameDone done, const RgbdFrame& frame, Clock::time_
     parts.decode_ms = std::chrono::duration<double, std::milli>(frame.received - frame.arrived).count();
   parts.slot_ms = slot_ms;
   parts.queue_ms = std::max(0.0, std::chrono::duration<double, std::milli>(started - frame.received).count() - slot_ms);
-  parts.mapping_wait_ms = done.fate == FrameFate::kSkipped ? 0 : mapping_wait_ms_;
-  parts.work_ms =
-      std::max(0.0, std::chrono::duration<double, std::milli>(now - started).count() - parts.mapping_wait_ms);
-  parts.work_cpu_ms = done.fate == FrameFate::kSkipped ? 0 : done_cpu_ms_;
-  if (slam_) {
-    // Group and epoch of the map the frame belongs to (the current map when it has no pose).
-    const auto maps = slam_->maps();
-    if (!done.has_pose) done.map = slam_->snapshot().current_map;
-    for (const auto& m : maps) {
-      std::shared_lock<std::shared_mutex> map_lock(m->mutex);
-      done.map_epoch += m->big_change_index();
-    }
-    const GroupId g =
-        done.map >= 0 && std::size_t(done.map) < maps.size() && group_of_ ? group_of_(maps[done.map].get()) : GroupId();
-    done.group = g.valid() ? g : GroupId::of_map(info_.id, 0);
-  } else {
-    done.group = GroupId::from_value(info_.id);  // counting-only pipeline
-  }
+  parts.mapping_wait_ms = mapping_wait_ms;
+  parts.work_ms = std::max(0.0, std::chrono::duration<double, std::milli>(now - started).count() - mapping_wait_ms);
+  parts.work_cpu_ms = work_cpu_ms;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     done.frames_skipped = counters_.frames_skipped;

@@ -55,7 +55,14 @@ class ClientPipeline {
   // process() with the worker's CPU time (and, when tracing, its wait for a core) kept for report().
   FrameDone process_timed(const RgbdFrame& frame, WorkerLoad load = WorkerLoad::kKeepingUp);
   // `started`: when the worker began this frame; `slot_ms`: how long it waited for a slot first.
+  // Nothing more goes out for a frame whose pose on_early_pose sent.
   void report(FrameDone done, const RgbdFrame& frame, Clock::time_point started = {}, double slot_ms = 0);
+  // ClientSlam's early pose of the current frame (a new keyframe's, before local mapping's wait).
+  void on_early_pose(const ClientSlam::FramePose& pose, std::uint64_t map_epoch);
+  // The frame's latency and parts recorded, then config_.on_frame_done.
+  void publish(FrameDone& done, const RgbdFrame& frame, Clock::time_point started, double slot_ms,
+               double mapping_wait_ms, double work_cpu_ms);
+  GroupId group_of_map(const std::vector<std::shared_ptr<Map>>& maps, int map) const;
 
   static constexpr std::size_t kLatencyWindow = 512;  // frames kept for the latency percentiles
 
@@ -78,6 +85,14 @@ class ClientPipeline {
   double done_cpu_ms_ = 0;       // the worker's CPU time for its last processed frame (worker thread only)
   double done_runqueue_ms_ = 0;  // ... and its time waiting for a core (traced only)
   Clock::time_point mapping_wait_start_;
+  // The frame being processed, for on_early_pose (worker thread only).
+  struct Current {
+    const RgbdFrame* frame = nullptr;
+    Clock::time_point started;
+    double slot_ms = 0;
+    double cpu_started_ms = 0;
+    bool pose_sent = false;
+  } current_;
   std::thread thread_;
 };
 

@@ -201,6 +201,45 @@ TEST_F(ClientSlamTest, TrackingWaitHooksRunAroundEachWaitForLocalMapping) {
   EXPECT_FALSE(other_thread);
 }
 
+// A frame that becomes a keyframe gives its pose before the keyframe is made and local mapping is
+// waited for, and from then on the trajectory holds it with that pose; nothing else does.
+TEST_F(ClientSlamTest, AKeyframesPoseComesBeforeTheKeyframeIsMade) {
+  SlamConfig cfg;
+  cfg.threaded = false;  // one outcome: no loop closure or map change can race the keyframes
+  ClientSlam slam(info_, cfg, *vocabulary_);
+  double current = 0;  // timestamp of the frame in process()
+  std::vector<double> early;
+  double worst_gap = 0;
+  std::uint64_t last_epoch = 0;
+  slam.set_early_pose_listener([&](const ClientSlam::FramePose& pose, std::uint64_t epoch) {
+    early.push_back(current);
+    last_epoch = epoch;
+    EXPECT_EQ(pose.map_index, 0);
+    const Trajectory trajectory = slam.trajectory();
+    ASSERT_FALSE(trajectory.empty());
+    EXPECT_EQ(trajectory.back().timestamp, current);
+    worst_gap =
+        std::max(worst_gap, (trajectory.back().T_world_cam.translation() - pose.T_world_cam.translation()).norm() +
+                                trajectory.back().T_world_cam.rotation().angularDistance(pose.T_world_cam.rotation()));
+  });
+  std::vector<double> keyframes;
+  std::size_t tracked = 0;
+  for (int i = 0; i < 60; ++i) {
+    const RgbdFrame f = frame(i);
+    current = f.timestamp;
+    const ProcessResult r = slam.process(f);
+    ASSERT_EQ(r.fate, FrameFate::kTracked) << i;
+    ++tracked;
+    if (r.new_keyframe) keyframes.push_back(f.timestamp);
+    EXPECT_EQ(slam.trajectory().size(), tracked) << i;  // one entry per frame: the early one was replaced
+  }
+  slam.finish();
+  EXPECT_GE(keyframes.size(), 3u);
+  EXPECT_EQ(early, keyframes);  // the first keyframe (the map's start) has no pose to give before it
+  EXPECT_EQ(last_epoch, 0u);
+  EXPECT_LT(worst_gap, 1e-12);
+}
+
 // A robot that saves bandwidth sends full depth only every few frames (and when asked): the
 // light frames between (no depth, or depth at every 4th pixel of every 4th row spread back to
 // full size) are tracked, a keyframe that falls due on one of them waits for the next frame with

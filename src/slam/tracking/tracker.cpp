@@ -346,6 +346,8 @@ void Tracker::decide_keyframe(Frame& frame, TrackResult& result) {
     return;
   }
   keyframe_deferred_ = false;
+  if (pose_listener_ && frame.reference)
+    pose_listener_({frame.data->timestamp, frame.reference, frame.T_cam_ref, tracked_change_index_});
   if (const KeyFramePtr kf = create_keyframe(frame)) {
     result.new_keyframe = true;
     result.keyframe = kf->id;

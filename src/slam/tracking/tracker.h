@@ -96,6 +96,17 @@ class Tracker {
   // nullopt while tracking has no velocity (before the second tracked frame, after a loss).
   std::optional<SE3> predicted_motion(double seconds) const;
   const std::shared_ptr<Map>& map() const { return map_; }
+  // Called with a frame's final pose when the frame is about to become a keyframe, before the
+  // keyframe is made and handed to local mapping (which may wait): whoever reports poses need not
+  // wait for that.
+  struct TrackedPose {
+    double timestamp = 0;
+    KeyFramePtr reference;  // the frame's reference keyframe before it becomes one itself
+    SE3 T_cam_ref;
+    std::uint64_t change_index = 0;  // the map's big-change index the pose was tracked under
+  };
+  using PoseListener = std::function<void(const TrackedPose&)>;
+  void set_pose_listener(PoseListener listener) { pose_listener_ = std::move(listener); }
   // Starts over on a new, empty map (after a long loss); the previous map is kept by the caller.
   void reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink);
   // Continues in an existing (restored) map: lost, so the next frames relocalise in it.
@@ -131,6 +142,7 @@ class Tracker {
   TrackerConfig config_;
   std::shared_ptr<Map> map_;
   KeyFrameSink* sink_;
+  PoseListener pose_listener_;
   FrameFate state_ = FrameFate::kNotInitialized;
   std::unique_ptr<Frame> last_;
   std::unique_ptr<Frame> last_full_;  // while flow frames follow it: the last full frame (track_with_motion_model)
