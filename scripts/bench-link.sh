@@ -9,7 +9,8 @@
 # (capture to ack, client side), MB/s sent and ATE; medians and min-max over the runs.
 # A mode may end in @sS: the server runs with --tracking-slots S (e.g. "lean lean@s2"), and in @pP:
 # the robots encode the colour stream with x264 preset P (e.g. "lean lean@pveryfast"), and in @fF:
-# the server's flow frames (--flow F, e.g. "lean lean@falways").
+# the server's flow frames (--flow F, e.g. "lean lean@falways"), and in @xPATH: that cslam-server
+# binary (e.g. the previous build's copied aside: "lean@x/tmp/cslam-server.before lean").
 # Needs root (ip netns, tc). Usage:
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
@@ -43,7 +44,7 @@ if [ ! -f "$SCENE/robot_${N}/groundtruth.txt" ]; then
 fi
 
 run_case() {
-  local dir="$1" mode="${2%%@*}" server_extra=() client_extra=() opt
+  local dir="$1" mode="${2%%@*}" server_extra=() client_extra=() opt server_bin="$BIN/cslam-server"
   IFS=@ read -ra opts <<< "${2#"$mode"}"
   for opt in "${opts[@]}"; do
     case "$opt" in
@@ -51,12 +52,13 @@ run_case() {
       s*) server_extra+=(--tracking-slots "${opt#s}") ;;
       f*) server_extra+=(--flow "${opt#f}") ;;
       p*) client_extra+=(--colour-preset "${opt#p}") ;;
+      x*) server_bin="${opt#x}" ;;
       *) echo "bench-link.sh: unknown mode suffix @$opt in $2" >&2; exit 2 ;;
     esac
   done
   rm -rf "$dir"; mkdir -p "$dir"
   inns /usr/bin/time -f "%U %S %M %e" -o "$dir/server_time.txt" \
-    "$BIN/cslam-server" "${server_extra[@]}" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$N" --exit-when-done \
+    "$server_bin" "${server_extra[@]}" --bind "tcp://127.0.0.1:*" --endpoint-file "$dir/endpoint" --clients "$N" --exit-when-done \
     --http off --heartbeat-timeout 30 --out-dir "$dir/out" --log-level warn > "$dir/server.log" 2>&1 &
   local server_pid=$!
   wait_endpoint "$dir/endpoint"
