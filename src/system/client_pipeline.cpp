@@ -141,6 +141,7 @@ FrameDone ClientPipeline::process_timed(const RgbdFrame& frame, WorkerLoad load)
   current_.cpu_started_ms = cpu_started;
   const bool tracing = latency_log_->should_log(spdlog::level::trace);
   const double runqueue_started = tracing ? thread_runqueue_ms() : 0;
+  current_.runqueue_started_ms = runqueue_started;
   FrameDone done = process(frame, load);
   done_cpu_ms_ = thread_cpu_ms() - cpu_started;
   done_runqueue_ms_ = tracing ? thread_runqueue_ms() - runqueue_started : 0;
@@ -215,6 +216,8 @@ void ClientPipeline::on_early_pose(const ClientSlam::FramePose& pose, std::uint6
   done.map = pose.map_index;
   done.map_epoch = map_epoch;
   done.group = group_of_map(slam_->maps(), pose.map_index);
+  if (latency_log_->should_log(spdlog::level::trace))
+    done_runqueue_ms_ = thread_runqueue_ms() - current_.runqueue_started_ms;  // so far (the trace line)
   publish(done, *current_.frame, current_.started, current_.slot_ms, mapping_wait_ms_,
           thread_cpu_ms() - current_.cpu_started_ms);
   current_.pose_sent = true;

@@ -91,6 +91,7 @@ class ClientPipeline {
     Clock::time_point started;
     double slot_ms = 0;
     double cpu_started_ms = 0;
+    double runqueue_started_ms = 0;  // when tracing
     bool pose_sent = false;
   } current_;
   std::thread thread_;

@@ -34,6 +34,11 @@ inline RunResult run_program(const std::string& program, const std::string& args
   return run_command(std::string(CSLAM_BIN_DIR) + "/" + program + " " + args);
 }
 
+// cslam-synth's small test scene in `out`: `--preset test-small` with `args` (e.g. "--frames 60 --seed 5").
+inline RunResult render_test_scene(const std::string& out, const std::string& args) {
+  return run_program("cslam-synth", "--preset test-small " + args + " --out " + out + " --log-level warn");
+}
+
 // A fresh folder under the system temp dir, removed when the object goes away.
 class TempDir {
  public:

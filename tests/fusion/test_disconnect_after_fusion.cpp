@@ -18,8 +18,7 @@ using namespace cslam;
 
 TEST(FusionDisconnect, ClientStoppingAfterFusionKeepsItsPartOfTheFusedMap) {
   test::TempDir dir("cslam_fusion_disconnect");
-  const auto r = test::run_program(
-      "cslam-synth", "--preset test-small --frames 120 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::render_test_scene(dir / "scene", "--frames 120 --seed 5");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset d1 = open_tum_dataset(dir / "scene/robot_1"), d2 = open_tum_dataset(dir / "scene/robot_2");
 

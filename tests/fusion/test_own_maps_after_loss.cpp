@@ -60,8 +60,7 @@ Blackout make_blackout(const TumDataset& ds, ClientId id) {
 
 TEST(FusionOwnMaps, MapStartedAfterALongLossIsJoinedAndTheTrajectoryCoversBoth) {
   test::TempDir dir("cslam_fusion_own_maps");
-  const auto r = test::run_program(
-      "cslam-synth", "--preset test-small --frames 120 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::render_test_scene(dir / "scene", "--frames 120 --seed 5");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset ds = open_tum_dataset(dir / "scene/robot_1");
   ASSERT_TRUE(ds.groundtruth);

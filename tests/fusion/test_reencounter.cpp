@@ -33,8 +33,7 @@ double mean_translation_gap(const std::vector<KeyFramePtr>& kfs, const std::map<
 
 // One robot of the small synthetic scene over 240 frames, mapped offline (~40 keyframes).
 test::ClientMap build_long_map(const test::TempDir& dir) {
-  const auto r = test::run_program(
-      "cslam-synth", "--preset test-small --frames 240 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::render_test_scene(dir / "scene", "--frames 240 --seed 5");
   if (r.status != 0) throw std::runtime_error("cslam-synth failed: " + r.output);
   auto voc = std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path()));
   return test::build_client_map(dir / "scene/robot_1", 1, voc);

@@ -26,8 +26,7 @@ class ClientSlamTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new test::TempDir("cslam_client_slam");
-    const auto r = test::run_program("cslam-synth",
-                                     "--preset test-small --seed 5 --out " + (*dir_ / "scene") + " --log-level warn");
+    const auto r = test::render_test_scene(*dir_ / "scene", "--seed 5");
     ASSERT_EQ(r.status, 0) << r.output;
     vocabulary_ = new std::shared_ptr<const Vocabulary>(
         std::make_shared<const Vocabulary>(Vocabulary::load(default_vocabulary_path())));

@@ -18,8 +18,7 @@ using namespace cslam;
 
 TEST(ClientPipelineFlow, AWorkerBehindItsLiveFramesTracksFlowFramesInsteadOfSkipping) {
   test::TempDir dir("cslam_pipeline_flow");
-  const auto r = test::run_program(
-      "cslam-synth", "--preset test-small --frames 90 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::render_test_scene(dir / "scene", "--frames 90 --seed 5");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset ds = open_tum_dataset(dir / "scene/robot_1");
   ASSERT_GE(ds.pairs.size(), 90u);

@@ -17,8 +17,7 @@ using namespace cslam;
 
 TEST(ClientPipelinePose, AKeyframesFrameIsAcknowledgedBeforeItsProcessingEnds) {
   test::TempDir dir("cslam_pipeline_pose");
-  const auto r = test::run_program(
-      "cslam-synth", "--preset test-small --frames 60 --seed 5 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::render_test_scene(dir / "scene", "--frames 60 --seed 5");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset ds = open_tum_dataset(dir / "scene/robot_1");
   ASSERT_GE(ds.pairs.size(), 60u);

@@ -16,8 +16,7 @@ using test::expect_consistent;
 
 TEST(GlobalBa, InterruptedManyTimesLeavesMapConsistent) {
   test::TempDir dir("cslam_gba");
-  const auto r =
-      test::run_program("cslam-synth", "--preset test-small --seed 9 --out " + (dir / "scene") + " --log-level warn");
+  const auto r = test::render_test_scene(dir / "scene", "--seed 9");
   ASSERT_EQ(r.status, 0) << r.output;
   const TumDataset ds = open_tum_dataset(dir / "scene/robot_1");
   ClientInfo info;
