@@ -80,10 +80,23 @@ void ClientSlam::publish_early_pose(const Tracker::TrackedPose& tracked) {
       records_.pop_back();
       return;
     }
-    pose = {(ref.T_cam_ref * ref.keyframe->T_cam_world).inverse(), map.index()};
-    for (const Map* m : ptrs) epoch += m->big_change_index();
+    pose = {ref.T_world_cam(), map.index()};
+    epoch = map_epoch_locked(ptrs);
   }
   early_pose_listener_(pose, epoch);
+}
+
+std::uint64_t ClientSlam::map_epoch_locked(const std::vector<Map*>& maps) {
+  std::uint64_t epoch = 0;
+  for (const Map* m : maps) epoch += m->big_change_index();
+  return epoch;
+}
+
+std::uint64_t ClientSlam::map_epoch() const {
+  std::vector<Map*> ptrs;
+  for (const auto& m : maps()) ptrs.push_back(m.get());
+  const auto map_locks = lock_maps<std::shared_lock<std::shared_mutex>>(ptrs);
+  return map_epoch_locked(ptrs);
 }
 
 void ClientSlam::start_new_map() {
@@ -278,7 +291,7 @@ Trajectory ClientSlam::trajectory(const MapFrameOf& frame_of) const {
     if (std::size_t(r.map_index) >= maps_.size() || !in_frame(maps_[std::size_t(r.map_index)].get())) continue;
     const LiveReference ref = live_reference(r);
     if (!ref.keyframe) continue;
-    out.push_back({r.timestamp, (ref.T_cam_ref * ref.keyframe->T_cam_world).inverse()});
+    out.push_back({r.timestamp, ref.T_world_cam()});
   }
   return out;
 }
@@ -290,7 +303,7 @@ std::optional<ClientSlam::FramePose> ClientSlam::last_frame_pose(double timestam
   std::shared_lock<std::shared_mutex> map_lock(maps_[r.map_index]->mutex);
   const LiveReference ref = live_reference(r);
   if (!ref.keyframe) return std::nullopt;
-  return FramePose{(ref.T_cam_ref * ref.keyframe->T_cam_world).inverse(), r.map_index};
+  return FramePose{ref.T_world_cam(), r.map_index};
 }
 
 std::shared_ptr<Map> ClientSlam::main_map() const {

@@ -117,6 +117,9 @@ class ClientSlam {
   // pose in the moved map). Set before the first frame.
   using EarlyPoseListener = std::function<void(const FramePose& pose, std::uint64_t map_epoch)>;
   void set_early_pose_listener(EarlyPoseListener listener);
+  // The sum of the client's maps' big-change indices: it grows whenever a fusion, group BA or loop
+  // correction may have moved a map (FrameDone::map_epoch).
+  std::uint64_t map_epoch() const;
 
  private:
   // Finishes the current map's local mapper and loop closer and starts both on `map`, the mapper
@@ -125,6 +128,7 @@ class ClientSlam {
   std::unique_ptr<LocalMapper> attach_workers(const std::shared_ptr<Map>& map);
   void start_new_map();
   void publish_early_pose(const Tracker::TrackedPose& tracked);
+  static std::uint64_t map_epoch_locked(const std::vector<Map*>& maps);  // caller holds their locks
   // reanchor_culled() over the records (frame_record.h) with every map's lock held shared,
   // taken without waiting. Caller holds mutex_; false if a map was busy (tried again later).
   bool reanchor_records();

@@ -21,6 +21,8 @@ struct FrameRecord {
 struct LiveReference {
   const KeyFrame* keyframe = nullptr;
   SE3 T_cam_ref;
+  // The frame's pose at the keyframe's current estimate (keyframe not null).
+  SE3 T_world_cam() const { return (T_cam_ref * keyframe->T_cam_world).inverse(); }
 };
 LiveReference live_reference(const FrameRecord& record);
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <shared_mutex>
+#include <utility>
 
 #include "core/log.h"
 #include "core/stopwatch.h"
@@ -187,19 +188,12 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
 }
 
 void ClientPipeline::report(FrameDone done, const RgbdFrame& frame, Clock::time_point started, double slot_ms) {
-  if (current_.pose_sent && &frame == current_.frame && done.fate != FrameFate::kSkipped) {
-    current_.pose_sent = false;  // on_early_pose sent it
-    return;
-  }
+  if (std::exchange(current_.pose_sent, false)) return;  // on_early_pose sent this frame's
   if (slam_) {
     // Group and epoch of the map the frame belongs to (the current map when it has no pose).
-    const auto maps = slam_->maps();
     if (!done.has_pose) done.map = slam_->snapshot().current_map;
-    for (const auto& m : maps) {
-      std::shared_lock<std::shared_mutex> map_lock(m->mutex);
-      done.map_epoch += m->big_change_index();
-    }
-    done.group = group_of_map(maps, done.map);
+    done.map_epoch = slam_->map_epoch();
+    done.group = group_of_map(slam_->maps(), done.map);
   } else {
     done.group = GroupId::from_value(info_.id);  // counting-only pipeline
   }
