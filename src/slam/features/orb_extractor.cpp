@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "slam/features/fast_corners.h"
+#include "slam/features/orb_descriptor.h"
 #include "slam/features/patch_moments.h"
 
 namespace cslam {
@@ -164,6 +165,7 @@ OrbExtractor::OrbExtractor(const OrbConfig& config) : config_(config) {
   if (config.edge_threshold < 19) throw ConfigError("OrbConfig.edge_threshold must be >= 19 (rotated 31x31 patch)");
   if (config.cell_size < 8) throw ConfigError("OrbConfig.cell_size must be >= 8");
 
+  pattern_ = opencv_orb_pattern();
   const int L = config.num_levels;
   scale_factors_.resize(L);
   for (int l = 0; l < L; ++l) scale_factors_[l] = std::pow(config.scale_factor, l);
@@ -278,12 +280,17 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
     throw std::invalid_argument("OrbExtractor::extract: image must be CV_8UC1 or CV_8UC3");
 
   const int L = config_.num_levels;
-  cv::Ptr<cv::ORB> orb = cv::ORB::create(config_.num_features, float(config_.scale_factor), 1, config_.edge_threshold,
-                                         0, 2, cv::ORB::FAST_SCORE, kPatchSize, config_.ini_fast_threshold);
+  // Descriptors: OpenCV's bits, computed here (orb_descriptor.h) unless the pattern could not be
+  // read from OpenCV; then by cv::ORB::compute.
+  cv::Ptr<cv::ORB> orb;
+  if (!pattern_)
+    orb = cv::ORB::create(config_.num_features, float(config_.scale_factor), 1, config_.edge_threshold, 0, 2,
+                          cv::ORB::FAST_SCORE, kPatchSize, config_.ini_fast_threshold);
   cv::Mat level = gray;
   int carry = 0;  // budget a level could not use is handed to the next one
   std::vector<cv::KeyPoint> kps;
-  cv::Mat desc;
+  cv::Mat desc, blur_buffer;
+  std::vector<Descriptor> level_descriptors;
   for (int l = 0; l < L; ++l) {
     if (l > 0) {
       const cv::Size size(int(std::lround(gray.cols * inv_scale_factors_[l])),
@@ -305,7 +312,15 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
     }
     const std::size_t n_before = kps.size();
     std::vector<cv::KeyPoint> detected = kps;
-    orb->compute(level, kps, desc);
+    if (pattern_) {
+      // detect_level keeps keypoints at >= edge_threshold from the border: cv::ORB::compute's
+      // border filter would drop none of them.
+      level_descriptors.clear();
+      compute_orb_descriptors(blur_for_orb(level, blur_buffer), kps, *pattern_, level_descriptors);
+      desc = cv::Mat(int(level_descriptors.size()), 32, CV_8UC1, level_descriptors.data());
+    } else {
+      orb->compute(level, kps, desc);
+    }
     // OpenCV may drop keypoints near the border; class_id maps the survivors back.
     const double s = scale_factors_[l];
     // A level's pixel to level 0: cv::resize aligns pixel centres, and the level's size was

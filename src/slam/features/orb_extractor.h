@@ -2,8 +2,9 @@
 // ORB features in the ORB-SLAM2 manner: an 8-level pyramid (factor 1.2), FAST with an initial
 // threshold and a lower fallback threshold per 30-pixel cell, keypoints spread evenly over each
 // level with a quadtree and a per-level budget following a geometric series, intensity-centroid
-// orientation (circular patch of radius 15) and 256-bit rotated BRIEF descriptors computed by
-// OpenCV's ORB on the Gaussian-blurred level (7x7, sigma 2) with our keypoints and angles.
+// orientation (circular patch of radius 15) and 256-bit rotated BRIEF descriptors, bit for bit
+// those of OpenCV's ORB on the Gaussian-blurred level (7x7, sigma 2) with our keypoints and angles
+// (orb_descriptor.h).
 #include <array>
 #include <cstddef>
 #include <vector>
@@ -15,6 +16,8 @@
 #include "geometry/camera.h"
 
 namespace cslam {
+
+struct OrbPattern;  // orb_descriptor.h
 
 struct OrbConfig {
   int num_features = 1000;
@@ -63,6 +66,7 @@ class OrbExtractor {
   float orientation(const cv::Mat& image, const cv::Point2f& pt) const;
 
   OrbConfig config_;
+  const OrbPattern* pattern_ = nullptr;  // OpenCV's descriptor pattern (orb_descriptor.h); null: cv::ORB
   std::vector<double> scale_factors_, inv_scale_factors_, level_sigma2_, inv_level_sigma2_;
   std::vector<int> features_per_level_;
 };
