@@ -57,7 +57,7 @@ std::vector<cv::KeyPoint> keypoints_over(const cv::Mat& image, int count, cv::RN
 TEST(OrbDescriptor, ThePatternIsReadFromOpenCv) {
   const std::unique_ptr<OrbPattern> pattern = probe_opencv_orb_pattern();
   ASSERT_NE(pattern, nullptr);
-  ASSERT_EQ(opencv_orb_pattern() != nullptr, true);
+  ASSERT_NE(opencv_orb_pattern(), nullptr);
   std::set<std::tuple<float, float, float, float>> pairs;
   for (int i = 0; i < 256; ++i) {
     const float x1 = pattern->x[2 * i], y1 = pattern->y[2 * i], x2 = pattern->x[2 * i + 1], y2 = pattern->y[2 * i + 1];
