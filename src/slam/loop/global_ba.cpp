@@ -18,7 +18,9 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps,
   cameras_.clear();
   camera_map_.clear();
   map_points_.assign(maps.size(), {});
-  std::map<KeyFrame*, int, ById> index;
+  // Each keyframe's camera: looked up for every observation of every point (hundreds of
+  // thousands in a fused group), so hashed by address.
+  std::unordered_map<const KeyFrame*, int> index;
   for (std::size_t m = 0; m < maps_.size(); ++m) {
     Map* map = maps_[m];
     change_index_.push_back(map->big_change_index());
@@ -45,23 +47,27 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps,
     map_points_[m].emplace_back(it->second, mp);
     return it->second;
   };
+  struct Seen {
+    const KeyFrame* kf;
+    int camera, keypoint;
+  };
+  std::vector<Seen> seen;  // a point's observations by keyframes in the problem, in their order
   for (std::size_t m = 0; m < maps_.size(); ++m)
     for (const auto& mp : maps_[m]->map_points()) {
       if (mp->bad) continue;
-      bool observed = false;
-      for (const auto& [kf, idx] : mp->observations) observed = observed || index.count(kf);
-      if (!observed) continue;
+      seen.clear();
+      for (const auto& [kf, idx] : mp->observations)
+        if (const auto it = index.find(kf); it != index.end()) seen.push_back({kf, it->second, idx});
+      if (seen.empty()) continue;
       const int p = variable_of(mp, m);
-      for (const auto& [kf, idx] : mp->observations) {
-        auto it = index.find(kf);
-        if (it == index.end()) continue;
-        const FrameData& f = *kf->data;
+      for (const Seen& s : seen) {
+        const FrameData& f = *s.kf->data;
         BaObservation o;
-        o.camera = it->second;
+        o.camera = s.camera;
         o.point = p;
-        o.uv = f.features.undistorted[idx];
-        o.u_right = f.u_right[idx];
-        o.inv_sigma2 = f.pyramid->inv_sigma2[f.features.keypoints[idx].octave];
+        o.uv = f.features.undistorted[s.keypoint];
+        o.u_right = f.u_right[s.keypoint];
+        o.inv_sigma2 = f.pyramid->inv_sigma2[f.features.keypoints[s.keypoint].octave];
         problem_.observations.push_back(o);
       }
     }
