@@ -119,13 +119,14 @@ namespace {
 // Predicts a valid pixel's value rank from its causal neighbours that are valid (not holes):
 // the LOCO-I / JPEG-LS median edge detector when left (a), upper (b) and upper-left (c) are all
 // valid, else the one valid of a/b (or their mean), else the last valid rank seen (`last`).
-inline std::int32_t predict(const std::uint16_t* row, const std::uint8_t* row_valid, const std::uint16_t* above,
-                            const std::uint8_t* above_valid, int x, std::int32_t last) {
-  const bool va = x > 0 && row_valid[x - 1];
+// The left neighbour comes as its validity and rank: the decoder keeps both in registers (the
+// rank just decoded starts the next pixel's prediction: a chain it need not pass through memory).
+inline std::int32_t predict_from(bool va, std::int32_t a, const std::uint16_t* above, const std::uint8_t* above_valid,
+                                 int x, std::int32_t last) {
   const bool vb = above && above_valid[x];
   const bool vc = above && x > 0 && above_valid[x - 1];
   if (va && vb) {
-    const std::int32_t a = row[x - 1], b = above[x];
+    const std::int32_t b = above[x];
     if (!vc) return (a + b) / 2;
     const std::int32_t c = above[x - 1];
     // Branch-free form (selects compile to conditional moves; depth noise defeats prediction).
@@ -133,9 +134,15 @@ inline std::int32_t predict(const std::uint16_t* row, const std::uint8_t* row_va
     const std::int32_t p = c >= hi ? lo : a + b - c;
     return c <= lo ? hi : p;
   }
-  if (va) return row[x - 1];
+  if (va) return a;
   if (vb) return above[x];
   return last;
+}
+
+// The encoder's form: the left neighbour read from the row.
+inline std::int32_t predict(const std::uint16_t* row, const std::uint8_t* row_valid, const std::uint16_t* above,
+                            const std::uint8_t* above_valid, int x, std::int32_t last) {
+  return predict_from(x > 0 && row_valid[x - 1], x > 0 ? row[x - 1] : 0, above, above_valid, x, last);
 }
 
 // The decoder's view of one row: its ranks, hole mask and output, the row above (null for the
@@ -148,7 +155,8 @@ struct RankRow {
   std::uint16_t* pixels;
   const std::uint8_t* low;
   const std::uint8_t* high;
-  std::int32_t last;
+  std::int32_t last;        // the last valid rank decoded (this row's or, before its first, the rows' above)
+  bool left_valid = false;  // the pixel just decoded in this row is valid (its rank: last)
 };
 
 struct RankTable {
@@ -172,14 +180,16 @@ inline std::uint16_t unzigzag16(std::uint16_t z) { return std::uint16_t((z >> 1)
 inline bool decode_rank(RankRow& row, int x, const RankTable& table) {
   if (!row.valid[x]) {
     row.pixels[x] = 0;
+    row.left_valid = false;
     return true;
   }
   const std::uint16_t z = std::uint16_t(*row.low++ | (*row.high++ << 8));
   const std::uint16_t r =
-      std::uint16_t(predict(row.ranks, row.valid, row.above, row.above_valid, x, row.last) + unzigzag16(z));
+      std::uint16_t(predict_from(row.left_valid, row.last, row.above, row.above_valid, x, row.last) + unzigzag16(z));
   if (r >= table.size) return false;
   row.ranks[x] = r;
   row.last = r;
+  row.left_valid = true;
   row.pixels[x] = table.values[r];
   return true;
 }
