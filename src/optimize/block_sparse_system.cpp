@@ -29,6 +29,12 @@ BlockSparseCameraSystem::BlockSparseCameraSystem(int num_cameras, std::vector<st
     column_start_.push_back(int(block_row_.size()));
   }
   blocks_.assign(block_row_.size(), Matrix6d::Zero());
+  if (num_cameras <= kDenseIndexMaxCameras) {
+    dense_index_.assign(size_t(num_cameras) * size_t(num_cameras), -1);
+    for (int col = 0; col < num_cameras; ++col)
+      for (int k = column_start_[size_t(col)]; k < column_start_[size_t(col) + 1]; ++k)
+        dense_index_[size_t(block_row_[size_t(k)]) * size_t(num_cameras) + size_t(col)] = k;
+  }
 
   // Column-major storage of the lower triangle: column 6b+c holds rows 6b+c..6b+5 of the
   // diagonal block, then all six rows of each block below it.
@@ -62,6 +68,8 @@ BlockSparseCameraSystem::BlockSparseCameraSystem(int num_cameras, std::vector<st
 
 int BlockSparseCameraSystem::block_index(int row, int col) const {
   if (col < 0 || col >= num_cameras_ || row < col) return -1;
+  if (!dense_index_.empty())
+    return row < num_cameras_ ? dense_index_[size_t(row) * size_t(num_cameras_) + size_t(col)] : -1;
   const auto first = block_row_.begin() + column_start_[size_t(col)],
              last = block_row_.begin() + column_start_[size_t(col) + 1];
   const auto it = std::lower_bound(first, last, row);

@@ -40,7 +40,13 @@ class BlockSparseCameraSystem {
   bool solve(const Eigen::VectorXd& rhs, Eigen::VectorXd& x);
 
  private:
+  // Up to this many cameras, block_index reads a dense table (it runs for every pair of cameras
+  // that share a point when a problem is set up: hundreds of thousands of look-ups for a group of
+  // fused maps); beyond it, a binary search in the block's column.
+  static constexpr int kDenseIndexMaxCameras = 512;
+
   int num_cameras_;
+  std::vector<int> dense_index_;   // row * num_cameras_ + col -> block, -1 outside the pattern; empty beyond the limit
   std::vector<int> column_start_;  // per block column: its first block (the diagonal one); then the rows below
   std::vector<int> block_row_;     // per block: its row camera (ascending within a column)
   std::vector<Matrix6d> blocks_;

@@ -3,7 +3,9 @@
 // pairs, and a matrix that is not positive definite.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
+#include <set>
 
 #include <Eigen/Cholesky>
 
@@ -94,6 +96,39 @@ TEST(BlockSparseCameraSystem, PatternLookupsAndBadPairs) {
   EXPECT_THROW(BlockSparseCameraSystem(0, {}), std::invalid_argument);
   Eigen::VectorXd x;
   EXPECT_THROW(S.solve(Eigen::VectorXd::Zero(6), x), std::invalid_argument);
+}
+
+TEST(BlockSparseCameraSystem, BlockIndicesWithAndWithoutTheDenseTable) {
+  // 300 cameras read a dense table, 600 search their column: both give each pattern pair its own
+  // block, every block to exactly one pair, and -1 off the pattern or out of range.
+  std::mt19937 rng(5);
+  for (const int n : {300, 600}) {
+    std::set<std::pair<int, int>> pattern;
+    std::vector<std::vector<int>> below(static_cast<size_t>(n));
+    for (int col = 0; col + 1 < n; ++col)
+      for (int k = 0; k < 3; ++k) {
+        const int row = col + 1 + int(rng() % std::uint32_t(std::min(40, n - col - 1)));
+        below[size_t(col)].push_back(row);
+        pattern.emplace(row, col);
+      }
+    const BlockSparseCameraSystem S(n, below);
+    EXPECT_EQ(S.num_blocks(), n + int(pattern.size()));
+    std::vector<int> owner(static_cast<size_t>(S.num_blocks()), 0);
+    for (int a = 0; a < n; ++a)
+      for (int b = 0; b <= a; ++b) {
+        const int k = S.block_index(a, b);
+        if (a != b && !pattern.count({a, b})) {
+          ASSERT_EQ(k, -1) << n << ": " << a << "," << b;
+          continue;
+        }
+        ASSERT_GE(k, 0) << n << ": " << a << "," << b;
+        ASSERT_LT(k, S.num_blocks());
+        ++owner[size_t(k)];
+      }
+    EXPECT_EQ(std::count(owner.begin(), owner.end(), 1), S.num_blocks()) << n;
+    EXPECT_EQ(S.block_index(n, 0), -1);
+    EXPECT_EQ(S.block_index(0, n), -1);
+  }
 }
 
 TEST(BlockSparseCameraSystem, NotPositiveDefiniteIsRefused) {
