@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "slam/features/fast_corners.h"
+#include "slam/features/linear_resize.h"
 #include "slam/features/orb_descriptor.h"
 #include "slam/features/patch_moments.h"
 
@@ -166,6 +167,7 @@ OrbExtractor::OrbExtractor(const OrbConfig& config) : config_(config) {
   if (config.cell_size < 8) throw ConfigError("OrbConfig.cell_size must be >= 8");
 
   pattern_ = opencv_orb_pattern();
+  linear_resize_ = opencv_linear_resize();
   const int L = config.num_levels;
   scale_factors_.resize(L);
   for (int l = 0; l < L; ++l) scale_factors_[l] = std::pow(config.scale_factor, l);
@@ -297,7 +299,10 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
                           int(std::lround(gray.rows * inv_scale_factors_[l])));
       if (size.width <= 2 * config_.edge_threshold + 8 || size.height <= 2 * config_.edge_threshold + 8) break;
       cv::Mat smaller;
-      cv::resize(level, smaller, size, 0, 0, cv::INTER_LINEAR);
+      if (linear_resize_)
+        resize_linear(level, smaller, size, *linear_resize_);
+      else
+        cv::resize(level, smaller, size, 0, 0, cv::INTER_LINEAR);
       level = smaller;
     }
     const int budget = features_per_level_[l] + carry;

@@ -17,7 +17,8 @@
 
 namespace cslam {
 
-struct OrbPattern;  // orb_descriptor.h
+struct OrbPattern;    // orb_descriptor.h
+struct LinearResize;  // linear_resize.h
 
 struct OrbConfig {
   int num_features = 1000;
@@ -66,7 +67,8 @@ class OrbExtractor {
   float orientation(const cv::Mat& image, const cv::Point2f& pt) const;
 
   OrbConfig config_;
-  const OrbPattern* pattern_ = nullptr;  // OpenCV's descriptor pattern (orb_descriptor.h); null: cv::ORB
+  const OrbPattern* pattern_ = nullptr;          // OpenCV's descriptor pattern (orb_descriptor.h); null: cv::ORB
+  const LinearResize* linear_resize_ = nullptr;  // cv::resize's rounding (linear_resize.h); null: cv::resize
   std::vector<double> scale_factors_, inv_scale_factors_, level_sigma2_, inv_level_sigma2_;
   std::vector<int> features_per_level_;
 };

@@ -72,7 +72,9 @@ TEST(Fuse, TwoStepsWriteWhatOneFuseWrites) {
     for (FuseScene* s : {&one, &two}) {
       EXPECT_EQ(s->kf2->map_points[p] == s->points[p], seen) << p;
       EXPECT_EQ(s->points[p]->in_keyframe(s->kf2.get()), seen) << p;
-      if (s->duplicates[p]) EXPECT_EQ(s->duplicates[p]->bad, seen) << p;
+      if (s->duplicates[p]) {
+        EXPECT_EQ(s->duplicates[p]->bad, seen) << p;
+      }
     }
   }
   EXPECT_EQ(one.map.num_map_points(), two.map.num_map_points());
