@@ -3,7 +3,8 @@
 //     edges to the next K keyframes (measured on the drifted poses, as the map holds them) and
 //     one loop edge with the true relative pose; SE3 and Sim3 (with scale drift) graphs;
 //  2. sim3_ransac on M matches with a fraction of wrong matches (fix_scale and 7 DoF);
-//  3. refine_sim3 on the same matches starting from the RANSAC result.
+//  3. refine_sim3 on the same matches starting from the RANSAC result, and its Ceres reference
+//     refine_sim3_ceres beside it (time and the largest difference between the two).
 // Each is repeated --runs times; median, min and max of wall-clock ms and of process CPU ms are
 // printed (CPU time is the better figure when other jobs share the machine; threads = 1).
 #include <sys/resource.h>
@@ -153,15 +154,21 @@ int run(int argc, char** argv) {
     const auto matches = make_matches(k, truth, nmatches, outliers, 11);
     Sim3RansacConfig cfg;
     cfg.fix_scale = fix_scale;
-    RepeatTiming ms, ms_refine;
+    RepeatTiming ms, ms_refine, ms_ceres;
     Sim3RansacResult rr;
-    Sim3RefineResult rf;
+    Sim3RefineResult rf, rf_ceres;
+    double largest_difference = 0;
     int iterations_sum = 0;
     for (int i = 0; i < runs; ++i) {
       cfg.seed = std::uint64_t(i + 1);
       ms.measure([&] { rr = sim3_ransac(matches, k, k, cfg); });
       iterations_sum += rr.iterations;
       ms_refine.measure([&] { rf = refine_sim3(rr.S_12, matches, k, k, fix_scale); });
+      ms_ceres.measure([&] { rf_ceres = refine_sim3_ceres(rr.S_12, matches, k, k, fix_scale); });
+      largest_difference =
+          std::max(largest_difference, rf.S_12.rotation().angularDistance(rf_ceres.S_12.rotation()) +
+                                           (rf.S_12.translation() - rf_ceres.S_12.translation()).norm() +
+                                           std::abs(std::log(rf.S_12.scale() / rf_ceres.S_12.scale())));
     }
     char label[128];
     std::snprintf(label, sizeof label, "sim3_ransac %s, %d matches, %.0f%% wrong", fix_scale ? "SE3" : "Sim3", nmatches,
@@ -181,6 +188,12 @@ int run(int argc, char** argv) {
         rf.num_inliers, rf.initial_cost, rf.final_cost,
         rf.S_12.rotation().angularDistance(truth.rotation()) * 180 / M_PI,
         (rf.S_12.translation() - truth.translation()).norm(), rf.S_12.scale());
+    std::snprintf(label, sizeof label, "refine_sim3_ceres %s, %d matches (reference)", fix_scale ? "SE3" : "Sim3",
+                  nmatches);
+    print(label, ms_ceres);
+    std::printf(
+        "    largest difference to refine_sim3 over the runs: %.2e (rotation rad + translation m + log-scale)\n",
+        largest_difference);
   }
   return 0;
 }

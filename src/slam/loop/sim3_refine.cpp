@@ -1,12 +1,20 @@
+// Sim3 refinement by Levenberg-Marquardt with analytic Jacobians (sim3_projection.h). It minimises
+// the cost of the Ceres reference (refine_sim3_ceres: 0.5 sum rho(|r|^2) over both images'
+// whitened residuals, Cauchy then Huber) in the same parameters with the same step control
+// (optimize/lm_driver.h), so it ends where Ceres ends, without building a Ceres problem (with
+// autodiff cost functions and a dense QR) per stage.
 #include "slam/loop/sim3_refine.h"
 
+#include <array>
 #include <cmath>
-#include <memory>
+#include <limits>
 
-#include <ceres/ceres.h>
+#include <Eigen/Cholesky>
 
 #include "core/error.h"
+#include "optimize/lm_driver.h"
 #include "slam/loop/sim3_costs.h"
+#include "slam/loop/sim3_projection.h"
 
 namespace cslam {
 
@@ -14,54 +22,155 @@ namespace {
 
 constexpr int kIterationsPerStage = 10;
 
-// Adds both image residuals of every selected match to `problem`.
 enum class Kernel { kCauchy, kHuber };
 
-void add_matches(ceres::Problem& problem, Sim3Param& param, const std::vector<Sim3Correspondence>& matches,
-                 const std::vector<char>& use, const StereoIntrinsics& k1, const StereoIntrinsics& k2, double chi2,
-                 Kernel kernel) {
-  const double delta = std::sqrt(chi2);
-  auto loss = [&]() -> ceres::LossFunction* {
-    if (kernel == Kernel::kCauchy) return new ceres::CauchyLoss(delta);
-    return new ceres::HuberLoss(delta);
-  };
-  for (size_t i = 0; i < matches.size(); ++i) {
-    if (!use[i]) continue;
-    const auto& m = matches[i];
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Sim3ReprojectionCost1, 2, 6, 1>(
-                                 new Sim3ReprojectionCost1(k1, m.p2, m.uv1, 1.0 / std::sqrt(m.sigma2_1), m.T_view_1)),
-                             loss(), param.pose.data(), &param.log_scale);
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Sim3ReprojectionCost2, 2, 6, 1>(
-                                 new Sim3ReprojectionCost2(k2, m.p1, m.uv2, 1.0 / std::sqrt(m.sigma2_2))),
-                             loss(), param.pose.data(), &param.log_scale);
+using Vector7d = Eigen::Matrix<double, 7, 1>;
+using Matrix7d = Eigen::Matrix<double, 7, 7>;
+
+// rho and rho' of Ceres' CauchyLoss(delta) / HuberLoss(delta) at the squared norm s. Both have
+// rho'' <= 0, for which Ceres' residual correction is plain IRLS with weight rho'.
+struct KernelValue {
+  double rho, weight;
+};
+KernelValue apply_kernel(Kernel kernel, double s, double delta2) {
+  if (kernel == Kernel::kCauchy) {
+    const double sum = 1.0 + s / delta2;
+    return {delta2 * std::log(sum), 1.0 / sum};
   }
+  const HuberValue h = huber(s, std::sqrt(delta2), delta2);
+  return {h.rho, h.weight};
 }
 
-ceres::Solver::Summary solve(ceres::Problem& problem, Sim3Param& param, bool fix_scale) {
-  if (fix_scale) problem.SetParameterBlockConstant(&param.log_scale);
-  ceres::Solver::Options opts;
-  opts.linear_solver_type = ceres::DENSE_QR;
-  opts.max_num_iterations = kIterationsPerStage;
-  opts.num_threads = 1;
-  opts.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(opts, &problem, &summary);
-  return summary;
+struct Linearization {
+  Matrix7d H = Matrix7d::Zero();  // J^T W J
+  Vector7d g = Vector7d::Zero();  // J^T W r
+  double cost = 0;
+};
+
+class Sim3Problem {
+ public:
+  Sim3Problem(const std::vector<Sim3Correspondence>& matches, const std::vector<char>& use, const StereoIntrinsics& k1,
+              const StereoIntrinsics& k2, double chi2, Kernel kernel, bool fix_scale, std::array<double, 7>& x)
+      : matches_(matches), use_(use), k1_(k1), k2_(k2), delta2_(chi2), kernel_(kernel), n_(fix_scale ? 6 : 7), x_(x) {}
+
+  bool linearize() { return linearize_at(x_.data(), cur_); }
+  double cost() const { return cur_.cost; }
+  // Over the free parameters only: Ceres leaves a constant block out of its parameter vector.
+  double gradient_max_norm() const { return cur_.g.head(n_).lpNorm<Eigen::Infinity>(); }
+  double x_norm() const { return Eigen::Map<const Vector7d>(x_.data()).head(n_).norm(); }
+
+  bool solve(double radius, double& step_norm, double& model_cost_change) {
+    step_.setZero();
+    if (n_ == 6) {
+      Eigen::Matrix<double, 6, 6> A = cur_.H.topLeftCorner<6, 6>();
+      for (int d = 0; d < 6; ++d) A(d, d) += lm_damping(cur_.H(d, d), radius);
+      step_.head<6>() = -A.ldlt().solve(cur_.g.head<6>());
+    } else {
+      Matrix7d A = cur_.H;
+      for (int d = 0; d < 7; ++d) A(d, d) += lm_damping(cur_.H(d, d), radius);
+      step_ = -A.ldlt().solve(cur_.g);
+    }
+    step_norm = step_.norm();
+    model_cost_change = -(cur_.g.dot(step_) + 0.5 * step_.dot(cur_.H * step_));
+    return step_.allFinite();
+  }
+  double try_step() {
+    for (int d = 0; d < 7; ++d) candidate_x_[d] = x_[d] + step_(d);
+    const double c = cost_at(candidate_x_.data());
+    return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
+  }
+  bool accept() {
+    if (!linearize_at(candidate_x_.data(), next_)) return false;
+    x_ = candidate_x_;
+    std::swap(cur_, next_);
+    return true;
+  }
+  void commit() { x_ = candidate_x_; }
+
+  // The cost linearize_at computes, summed in the same order, without derivatives.
+  double cost_at(const double* x) const {
+    Sim3LinearizationPoint S;
+    S.set_transform(x);
+    double cost = 0;
+    for (std::size_t i = 0; i < matches_.size(); ++i) {
+      if (!use_[i]) continue;
+      const Sim3Correspondence& m = matches_[i];
+      cost +=
+          apply_kernel(kernel_, sim3_residual_1(S, m, k1_, 1.0 / std::sqrt(m.sigma2_1), nullptr).squaredNorm(), delta2_)
+              .rho;
+      cost +=
+          apply_kernel(kernel_, sim3_residual_2(S, m, k2_, 1.0 / std::sqrt(m.sigma2_2), nullptr).squaredNorm(), delta2_)
+              .rho;
+    }
+    return 0.5 * cost;
+  }
+
+ private:
+  bool linearize_at(const double* x, Linearization& lin) const {
+    Sim3LinearizationPoint S;
+    S.set(x);
+    lin.H.setZero();
+    lin.g.setZero();
+    double cost = 0;
+    Matrix27d J;
+    auto add = [&](const Eigen::Vector2d& r) {
+      const KernelValue kv = apply_kernel(kernel_, r.squaredNorm(), delta2_);
+      cost += kv.rho;
+      lin.H.noalias() += (kv.weight * J.transpose()) * J;
+      lin.g.noalias() += (kv.weight * J.transpose()) * r;
+    };
+    for (std::size_t i = 0; i < matches_.size(); ++i) {
+      if (!use_[i]) continue;
+      const Sim3Correspondence& m = matches_[i];
+      add(sim3_residual_1(S, m, k1_, 1.0 / std::sqrt(m.sigma2_1), &J));
+      add(sim3_residual_2(S, m, k2_, 1.0 / std::sqrt(m.sigma2_2), &J));
+    }
+    lin.cost = 0.5 * cost;
+    return std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  }
+
+  const std::vector<Sim3Correspondence>& matches_;
+  const std::vector<char>& use_;
+  const StereoIntrinsics &k1_, &k2_;
+  const double delta2_;
+  const Kernel kernel_;
+  const int n_;  // free parameters: 6 with a fixed scale, else 7
+  std::array<double, 7>& x_;
+  std::array<double, 7> candidate_x_{};
+  Vector7d step_ = Vector7d::Zero();
+  Linearization cur_, next_;
+};
+
+std::array<double, 7> to_x(const Sim3& S) {
+  const Sim3Param p = to_sim3_param(S);
+  return {p.pose[0], p.pose[1], p.pose[2], p.pose[3], p.pose[4], p.pose[5], p.log_scale};
 }
 
-int classify(const Sim3& S, const std::vector<Sim3Correspondence>& matches, const StereoIntrinsics& k1,
-             const StereoIntrinsics& k2, double chi2, std::vector<char>& inlier) {
+Sim3 from_x(const std::array<double, 7>& x) { return from_sim3_param(x.data(), x[6]); }
+
+// One stage on the matches flagged in `use`; as Ceres, an unusable solve leaves x unchanged.
+bool run_stage(const std::vector<Sim3Correspondence>& matches, const std::vector<char>& use, const StereoIntrinsics& k1,
+               const StereoIntrinsics& k2, double chi2, Kernel kernel, bool fix_scale, std::array<double, 7>& x) {
+  const std::array<double, 7> before = x;
+  Sim3Problem problem(matches, use, k1, k2, chi2, kernel, fix_scale, x);
+  const LmOutcome lm = levenberg_marquardt(problem, kIterationsPerStage);
+  if (!lm.usable) x = before;
+  return lm.converged;
+}
+
+}  // namespace
+
+int classify_sim3_matches(const Sim3& S_12, const std::vector<Sim3Correspondence>& matches, const StereoIntrinsics& k1,
+                          const StereoIntrinsics& k2, double chi2, std::vector<char>& inlier) {
   int n = 0;
   inlier.assign(matches.size(), 0);
-  for (size_t i = 0; i < matches.size(); ++i) {
-    const auto e = sim3_match_chi2(S, matches[i], k1, k2);
+  for (std::size_t i = 0; i < matches.size(); ++i) {
+    const auto e = sim3_match_chi2(S_12, matches[i], k1, k2);
     inlier[i] = e.e1 <= chi2 && e.e2 <= chi2;
     n += inlier[i];
   }
   return n;
 }
-
-}  // namespace
 
 Sim3RefineResult refine_sim3(const Sim3& S_12_initial, const std::vector<Sim3Correspondence>& matches,
                              const StereoIntrinsics& k1, const StereoIntrinsics& k2, bool fix_scale, double chi2) {
@@ -71,32 +180,20 @@ Sim3RefineResult refine_sim3(const Sim3& S_12_initial, const std::vector<Sim3Cor
   res.inlier.assign(matches.size(), 0);
   if (matches.size() < 3) return res;
 
-  const Sim3Param initial = to_sim3_param(S_12_initial);
-  Sim3Param param = initial;
-  ceres::Problem::Options popts;
-  popts.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-  {
-    ceres::Problem all(popts);
-    add_matches(all, param, matches, std::vector<char>(matches.size(), 1), k1, k2, chi2, Kernel::kCauchy);
-    res.converged = solve(all, param, fix_scale).termination_type == ceres::CONVERGENCE;
-  }
+  const std::array<double, 7> initial = to_x(S_12_initial);
+  std::array<double, 7> x = initial;
+  res.converged = run_stage(matches, std::vector<char>(matches.size(), 1), k1, k2, chi2, Kernel::kCauchy, fix_scale, x);
   std::vector<char> inlier;
-  const int n1 = classify(from_sim3_param(param.pose.data(), param.log_scale), matches, k1, k2, chi2, inlier);
-  if (n1 >= 3) {
-    ceres::Problem kept(popts);
-    add_matches(kept, param, matches, inlier, k1, k2, chi2, Kernel::kHuber);
-    res.converged = solve(kept, param, fix_scale).termination_type == ceres::CONVERGENCE;
-  }
-  res.S_12 = from_sim3_param(param.pose.data(), param.log_scale);
-  res.num_inliers = classify(res.S_12, matches, k1, k2, chi2, res.inlier);
+  if (classify_sim3_matches(from_x(x), matches, k1, k2, chi2, inlier) >= 3)
+    res.converged = run_stage(matches, inlier, k1, k2, chi2, Kernel::kHuber, fix_scale, x);
+  res.S_12 = from_x(x);
+  res.num_inliers = classify_sim3_matches(res.S_12, matches, k1, k2, chi2, res.inlier);
   // Huber cost of the final inliers at the initial and the refined estimate.
   if (res.num_inliers > 0) {
-    Sim3Param eval = initial;
-    ceres::Problem final_set(popts);
-    add_matches(final_set, eval, matches, res.inlier, k1, k2, chi2, Kernel::kHuber);
-    final_set.Evaluate(ceres::Problem::EvaluateOptions(), &res.initial_cost, nullptr, nullptr, nullptr);
-    eval = param;
-    final_set.Evaluate(ceres::Problem::EvaluateOptions(), &res.final_cost, nullptr, nullptr, nullptr);
+    std::array<double, 7> scratch = initial;
+    const Sim3Problem final_set(matches, res.inlier, k1, k2, chi2, Kernel::kHuber, fix_scale, scratch);
+    res.initial_cost = final_set.cost_at(initial.data());
+    res.final_cost = final_set.cost_at(x.data());
   }
   return res;
 }
