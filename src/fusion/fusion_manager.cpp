@@ -19,10 +19,10 @@ void transform_map(Map& map, const SE3& T_new_old) {
   const SE3 T_old_new = T_new_old.inverse();
   for (const auto& kf : map.keyframes()) kf->T_cam_world = kf->T_cam_world * T_old_new;
   // A rigid move: normals turn with the map; distances and descriptors stay what they were.
-  for (const auto& mp : map.map_points()) {
-    mp->position = T_new_old * mp->position;
-    mp->normal = T_new_old.rotation() * mp->normal;
-  }
+  map.for_each_map_point([&](MapPoint& mp) {
+    mp.position = T_new_old * mp.position;
+    mp.normal = T_new_old.rotation() * mp.normal;
+  });
   map.note_big_change();
 }
 

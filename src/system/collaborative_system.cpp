@@ -242,18 +242,18 @@ std::vector<ViewerPoint> CollaborativeSystem::map_points(GroupId group, std::siz
   for (const auto& [id, m] : maps) {
     std::shared_lock<std::shared_mutex> lock(m->mutex);
     std::size_t i = 0;
-    for (const auto& mp : m->map_points()) {
-      if (i++ % step != 0 || mp->bad) continue;
+    m->for_each_map_point([&](const MapPoint& mp) {
+      if (i++ % step != 0 || mp.bad) return;
       ViewerPoint v;
-      v.x = float(mp->position.x());
-      v.y = float(mp->position.y());
-      v.z = float(mp->position.z());
-      v.b = mp->color[0];
-      v.g = mp->color[1];
-      v.r = mp->color[2];
+      v.x = float(mp.position.x());
+      v.y = float(mp.position.y());
+      v.z = float(mp.position.z());
+      v.b = mp.color[0];
+      v.g = mp.color[1];
+      v.r = mp.color[2];
       v.client = id;
       out.push_back(v);
-    }
+    });
   }
   return out;
 }

@@ -53,12 +53,12 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps,
   };
   std::vector<Seen> seen;  // a point's observations by keyframes in the problem, in their order
   for (std::size_t m = 0; m < maps_.size(); ++m)
-    for (const auto& mp : maps_[m]->map_points()) {
-      if (mp->bad) continue;
+    maps_[m]->for_each_map_point_ptr([&](const MapPointPtr& mp) {
+      if (mp->bad) return;
       seen.clear();
       for (const auto& [kf, idx] : mp->observations)
         if (const auto it = index.find(kf); it != index.end()) seen.push_back({kf, it->second, idx});
-      if (seen.empty()) continue;
+      if (seen.empty()) return;
       const int p = variable_of(mp, m);
       for (const Seen& s : seen) {
         const FrameData& f = *s.kf->data;
@@ -70,7 +70,7 @@ void GlobalBa::snapshot(const std::vector<Map*>& maps,
         o.inv_sigma2 = f.pyramid->inv_sigma2[f.features.keypoints[s.keypoint].octave];
         problem_.observations.push_back(o);
       }
-    }
+    });
 }
 
 BaResult GlobalBa::solve(int iterations, const std::atomic<bool>* abort, bool keep_progress) const {

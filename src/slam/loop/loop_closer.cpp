@@ -167,13 +167,13 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
       if (r.converged) k->T_cam_world = r.S_world_node[i].to_se3().inverse();
     }
     if (r.converged) {
-      for (const auto& mp : map_->map_points()) {
-        KeyFrame* ref = mp->reference;
+      map_->for_each_map_point([&](MapPoint& mp) {
+        KeyFrame* ref = mp.reference;
         auto it = pre_opt.find(ref);
-        if (!ref || it == pre_opt.end()) continue;
-        mp->position = ref->T_world_cam() * (it->second * mp->position);
-      }
-      for (const auto& mp : map_->map_points()) map_->update_map_point(mp.get());
+        if (!ref || it == pre_opt.end()) return;
+        mp.position = ref->T_world_cam() * (it->second * mp.position);
+      });
+      map_->for_each_map_point([&](MapPoint& mp) { map_->update_map_point(&mp); });
     }
     map_->note_big_change();
     map_->note_loop_closed();

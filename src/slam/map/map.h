@@ -67,7 +67,12 @@ class Map {
   void for_each_map_point(F&& f) const {
     for (const auto& entry : map_points_) f(*entry.second);
   }
-  // The same, stopping as soon as f returns false; false if it stopped.
+  // The same, handing f the owning pointer itself (a reader that keeps some of them copies only those).
+  template <class F>
+  void for_each_map_point_ptr(F&& f) const {
+    for (const auto& entry : map_points_) f(entry.second);
+  }
+  // The same as for_each_map_point, stopping as soon as f returns false; false if it stopped.
   template <class F>
   bool for_each_map_point_while(F&& f) const {
     for (const auto& entry : map_points_)
