@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "dense/edge_vertex_table.h"
 #include "dense/marching_cubes.h"
 
 namespace cslam {
@@ -138,7 +139,7 @@ TsdfIntegrateStats TsdfVolume::integrate(const cv::Mat& bgr, const cv::Mat& dept
 TriangleMesh TsdfVolume::extract_mesh() const {
   TriangleMesh mesh;
   // Vertex per (global voxel of the edge's first corner, axis): shared by the four cubes around the edge.
-  std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_edge;
+  EdgeVertexTable vertex_of_edge(blocks_.size() * 64);
   auto edge_key = [](const Eigen::Vector3i& g, int axis) {
     return (std::uint64_t(g.x() + (1 << 19)) & 0xFFFFF) | ((std::uint64_t(g.y() + (1 << 19)) & 0xFFFFF) << 20) |
            ((std::uint64_t(g.z() + (1 << 19)) & 0xFFFFF) << 40) | (std::uint64_t(axis) << 60);
@@ -185,7 +186,7 @@ TriangleMesh TsdfVolume::extract_mesh() const {
               const int e = tri[size_t(k)];
               const int ca = mc_edge_corner(e, 0), cb = mc_edge_corner(e, 1), axis = mc_edge_axis(e);
               const Eigen::Vector3i ga = g + Eigen::Vector3i(ca & 1, (ca >> 1) & 1, (ca >> 2) & 1);
-              const auto [it, inserted] =
+              const auto [vertex, inserted] =
                   vertex_of_edge.try_emplace(edge_key(ga, axis), std::uint32_t(mesh.vertices.size()));
               if (inserted) {
                 const TsdfVoxel& a = *c[size_t(ca)];
@@ -199,7 +200,7 @@ TriangleMesh TsdfVolume::extract_mesh() const {
                 };
                 mesh.colors.push_back({mix(a.r, b.r), mix(a.g, b.g), mix(a.b, b.b)});
               }
-              idx[size_t(k)] = it->second;
+              idx[size_t(k)] = vertex;
             }
             if (idx[0] != idx[1] && idx[1] != idx[2] && idx[0] != idx[2]) mesh.triangles.push_back(idx);
           }
