@@ -1,17 +1,15 @@
 // Pose-only optimisation: fixed-size Levenberg-Marquardt with analytic Jacobians. It minimises
 // the cost of the Ceres reference (optimize_pose_ceres: 0.5 sum rho(chi2), Huber rho in the
 // robust rounds) in the same parameters with the same step control (lm_driver.h), so it ends
-// where Ceres ends, without building a Ceres problem per round. The only heap allocation per
-// call is the result's inlier vector.
+// where Ceres ends, without building a Ceres problem per round (the LM plumbing:
+// small_lm_problem.h). The only heap allocation per call is the result's inlier vector.
 #include "optimize/pose_optimizer.h"
 
 #include <array>
 #include <cmath>
-#include <limits>
-
-#include <Eigen/Cholesky>
 
 #include "optimize/lm_driver.h"
+#include "optimize/small_lm_problem.h"
 #include "optimize/pose_param.h"
 #include "optimize/reprojection_chi2.h"
 #include "optimize/se3_projection.h"
@@ -20,51 +18,18 @@ namespace cslam {
 
 namespace {
 
-struct Linearization {
-  Matrix6d H;  // J^T W J with the kernel's IRLS weights
-  Vector6d g;  // J^T W r
-  double cost = 0;
-};
-
-class PoseProblem {
+class PoseProblem : public SmallLmProblem<6, PoseProblem> {
  public:
   PoseProblem(const std::vector<PoseObservation>& obs, const std::vector<char>& inlier, const StereoIntrinsics& k,
               bool robust, const PoseOptimizationConfig& cfg, std::array<double, 6>& x)
-      : obs_(obs),
+      : SmallLmProblem(x, 6),
+        obs_(obs),
         inlier_(inlier),
         k_(k),
         robust_(robust),
         delta_mono_(std::sqrt(cfg.chi2_mono)),
-        delta_stereo_(std::sqrt(cfg.chi2_stereo)),
-        x_(x) {}
+        delta_stereo_(std::sqrt(cfg.chi2_stereo)) {}
 
-  bool linearize() { return linearize_at(x_.data(), cur_); }
-  double cost() const { return cur_.cost; }
-  double gradient_max_norm() const { return cur_.g.lpNorm<Eigen::Infinity>(); }
-  double x_norm() const { return Eigen::Map<const Vector6d>(x_.data()).norm(); }
-
-  bool solve(double radius, double& step_norm, double& model_cost_change) {
-    Matrix6d A = cur_.H;
-    for (int d = 0; d < 6; ++d) A(d, d) += lm_damping(cur_.H(d, d), radius);
-    step_ = -A.ldlt().solve(cur_.g);
-    step_norm = step_.norm();
-    model_cost_change = -(cur_.g.dot(step_) + 0.5 * step_.dot(cur_.H * step_));
-    return step_.allFinite();
-  }
-  double try_step() {
-    for (int d = 0; d < 6; ++d) candidate_x_[d] = x_[d] + step_(d);
-    const double c = cost_at(candidate_x_.data());
-    return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
-  }
-  bool accept() {
-    if (!linearize_at(candidate_x_.data(), next_)) return false;
-    x_ = candidate_x_;
-    std::swap(cur_, next_);
-    return true;
-  }
-  void commit() { x_ = candidate_x_; }  // cur_ still describes the previous x: the solve ends here
-
- private:
   // The cost linearize_at computes, summed in the same order, without derivatives.
   double cost_at(const double* x) const {
     PoseLinearizationPoint T;
@@ -80,7 +45,7 @@ class PoseProblem {
     return 0.5 * cost;
   }
 
-  bool linearize_at(const double* x, Linearization& lin) const {
+  bool linearize_at(const double* x, SmallLinearization<6>& lin) const {
     PoseLinearizationPoint T;
     T.set(x);
     lin.H.setZero();
@@ -112,15 +77,12 @@ class PoseProblem {
     return std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
   }
 
+ private:
   const std::vector<PoseObservation>& obs_;
   const std::vector<char>& inlier_;
   const StereoIntrinsics& k_;
   const bool robust_;
   const double delta_mono_, delta_stereo_;
-  std::array<double, 6>& x_;
-  std::array<double, 6> candidate_x_{};
-  Vector6d step_ = Vector6d::Zero();
-  Linearization cur_, next_;
 };
 
 double chi2_at(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const PoseObservation& o,

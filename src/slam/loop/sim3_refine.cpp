@@ -1,18 +1,16 @@
 // Sim3 refinement by Levenberg-Marquardt with analytic Jacobians (sim3_projection.h). It minimises
 // the cost of the Ceres reference (refine_sim3_ceres: 0.5 sum rho(|r|^2) over both images'
 // whitened residuals, Cauchy then Huber) in the same parameters with the same step control
-// (optimize/lm_driver.h), so it ends where Ceres ends, without building a Ceres problem (with
-// autodiff cost functions and a dense QR) per stage.
+// (optimize/lm_driver.h, optimize/small_lm_problem.h), so it ends where Ceres ends, without
+// building a Ceres problem (with autodiff cost functions and a dense QR) per stage.
 #include "slam/loop/sim3_refine.h"
 
 #include <array>
 #include <cmath>
-#include <limits>
-
-#include <Eigen/Cholesky>
 
 #include "core/error.h"
 #include "optimize/lm_driver.h"
+#include "optimize/small_lm_problem.h"
 #include "slam/loop/sim3_costs.h"
 #include "slam/loop/sim3_projection.h"
 
@@ -23,9 +21,6 @@ namespace {
 constexpr int kIterationsPerStage = 10;
 
 enum class Kernel { kCauchy, kHuber };
-
-using Vector7d = Eigen::Matrix<double, 7, 1>;
-using Matrix7d = Eigen::Matrix<double, 7, 7>;
 
 // rho and rho' of Ceres' CauchyLoss(delta) / HuberLoss(delta) at the squared norm s. Both have
 // rho'' <= 0, for which Ceres' residual correction is plain IRLS with weight rho'.
@@ -41,51 +36,18 @@ KernelValue apply_kernel(Kernel kernel, double s, double delta2) {
   return {h.rho, h.weight};
 }
 
-struct Linearization {
-  Matrix7d H = Matrix7d::Zero();  // J^T W J
-  Vector7d g = Vector7d::Zero();  // J^T W r
-  double cost = 0;
-};
-
-class Sim3Problem {
+class Sim3Problem : public SmallLmProblem<7, Sim3Problem> {
  public:
+  // fix_scale holds the log-scale (the last parameter), as Ceres holds a constant block.
   Sim3Problem(const std::vector<Sim3Correspondence>& matches, const std::vector<char>& use, const StereoIntrinsics& k1,
               const StereoIntrinsics& k2, double chi2, Kernel kernel, bool fix_scale, std::array<double, 7>& x)
-      : matches_(matches), use_(use), k1_(k1), k2_(k2), delta2_(chi2), kernel_(kernel), n_(fix_scale ? 6 : 7), x_(x) {}
-
-  bool linearize() { return linearize_at(x_.data(), cur_); }
-  double cost() const { return cur_.cost; }
-  // Over the free parameters only: Ceres leaves a constant block out of its parameter vector.
-  double gradient_max_norm() const { return cur_.g.head(n_).lpNorm<Eigen::Infinity>(); }
-  double x_norm() const { return Eigen::Map<const Vector7d>(x_.data()).head(n_).norm(); }
-
-  bool solve(double radius, double& step_norm, double& model_cost_change) {
-    step_.setZero();
-    if (n_ == 6) {
-      Eigen::Matrix<double, 6, 6> A = cur_.H.topLeftCorner<6, 6>();
-      for (int d = 0; d < 6; ++d) A(d, d) += lm_damping(cur_.H(d, d), radius);
-      step_.head<6>() = -A.ldlt().solve(cur_.g.head<6>());
-    } else {
-      Matrix7d A = cur_.H;
-      for (int d = 0; d < 7; ++d) A(d, d) += lm_damping(cur_.H(d, d), radius);
-      step_ = -A.ldlt().solve(cur_.g);
-    }
-    step_norm = step_.norm();
-    model_cost_change = -(cur_.g.dot(step_) + 0.5 * step_.dot(cur_.H * step_));
-    return step_.allFinite();
-  }
-  double try_step() {
-    for (int d = 0; d < 7; ++d) candidate_x_[d] = x_[d] + step_(d);
-    const double c = cost_at(candidate_x_.data());
-    return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
-  }
-  bool accept() {
-    if (!linearize_at(candidate_x_.data(), next_)) return false;
-    x_ = candidate_x_;
-    std::swap(cur_, next_);
-    return true;
-  }
-  void commit() { x_ = candidate_x_; }
+      : SmallLmProblem(x, fix_scale ? 6 : 7),
+        matches_(matches),
+        use_(use),
+        k1_(k1),
+        k2_(k2),
+        delta2_(chi2),
+        kernel_(kernel) {}
 
   // The cost linearize_at computes, summed in the same order, without derivatives.
   double cost_at(const double* x) const {
@@ -105,8 +67,7 @@ class Sim3Problem {
     return 0.5 * cost;
   }
 
- private:
-  bool linearize_at(const double* x, Linearization& lin) const {
+  bool linearize_at(const double* x, SmallLinearization<7>& lin) const {
     Sim3LinearizationPoint S;
     S.set(x);
     lin.H.setZero();
@@ -129,16 +90,12 @@ class Sim3Problem {
     return std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
   }
 
+ private:
   const std::vector<Sim3Correspondence>& matches_;
   const std::vector<char>& use_;
   const StereoIntrinsics &k1_, &k2_;
   const double delta2_;
   const Kernel kernel_;
-  const int n_;  // free parameters: 6 with a fixed scale, else 7
-  std::array<double, 7>& x_;
-  std::array<double, 7> candidate_x_{};
-  Vector7d step_ = Vector7d::Zero();
-  Linearization cur_, next_;
 };
 
 std::array<double, 7> to_x(const Sim3& S) {
