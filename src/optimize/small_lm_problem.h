@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <utility>
 
 #include <Eigen/Cholesky>
@@ -34,7 +35,10 @@ class SmallLmProblem {
   using Vector = Eigen::Matrix<double, N, 1>;
   using Matrix = Eigen::Matrix<double, N, N>;
 
-  SmallLmProblem(std::array<double, N>& x, int free) : x_(x), free_(free) {}
+  // Throws std::invalid_argument unless 1 <= free <= N.
+  SmallLmProblem(std::array<double, N>& x, int free) : x_(x), free_(free) {
+    if (free < 1 || free > N) throw std::invalid_argument("SmallLmProblem: free parameters outside [1, N]");
+  }
 
   bool linearize() { return derived().linearize_at(x_.data(), cur_); }
   double cost() const { return cur_.cost; }

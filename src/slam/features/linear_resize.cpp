@@ -97,7 +97,7 @@ void horizontal(const std::uint8_t* s, const AxisTable& x, int width, std::int32
   for (; d < width; ++d) out[d] = s[index[d]] * kCoefScale;
 }
 
-// OpenCV's vector rounding for columns [0, end), end a multiple of 8.
+// OpenCV's vector rounding for columns [0, end).
 void vertical_vector(const std::int32_t* r0, const std::int32_t* r1, int b0, int b1, int end, std::uint8_t* out) {
   int x = 0;
 #if defined(__SSSE3__)
@@ -129,7 +129,8 @@ void vertical_scalar(const std::int32_t* r0, const std::int32_t* r1, int b0, int
 
 }  // namespace
 
-void resize_linear(const cv::Mat& src, cv::Mat& dst, cv::Size size, const LinearResize& rule) {
+void resize_linear(const cv::Mat& source, cv::Mat& dst, cv::Size size, const LinearResize& rule) {
+  const cv::Mat src = source;  // holds the pixels if dst is the same matrix (create() reallocates it)
   if (src.type() != CV_8UC1) throw std::invalid_argument("resize_linear: image must be CV_8UC1");
   if (src.empty() || size.width < 1 || size.height < 1) throw std::invalid_argument("resize_linear: empty size");
   if (size.width > src.cols || size.height > src.rows)
@@ -183,9 +184,10 @@ std::unique_ptr<LinearResize> probe_opencv_linear_resize() {
     cases.emplace_back(from, cv::Size(1 + side(rng) % from.width, 1 + side(rng) % from.height));
   }
   std::vector<cv::Mat> images, expected;
+  cv::RNG noise(7);  // not OpenCV's shared generator: other code may depend on its sequence
   for (const auto& [from, to] : cases) {
     cv::Mat image(from, CV_8UC1), out;
-    cv::randu(image, 0, 256);
+    noise.fill(image, cv::RNG::UNIFORM, 0, 256);
     cv::resize(image, out, to, 0, 0, cv::INTER_LINEAR);
     images.push_back(image);
     expected.push_back(out);

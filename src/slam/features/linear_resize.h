@@ -34,7 +34,8 @@ const LinearResize* opencv_linear_resize();
 std::unique_ptr<LinearResize> probe_opencv_linear_resize();
 
 // `src` (CV_8UC1, not empty) shrunk to `size` (at most src's size on each axis) into `dst`
-// (reallocated if needed). Throws std::invalid_argument on another type, an empty or a larger size.
+// (reallocated if needed; it may be src itself). Throws std::invalid_argument on another type, an
+// empty or a larger size.
 void resize_linear(const cv::Mat& src, cv::Mat& dst, cv::Size size, const LinearResize& rule);
 
 }  // namespace cslam

@@ -85,6 +85,11 @@ TEST(LinearResize, ViewIntoALargerImageAndExtremeValues) {
     for (int x = 0; x < extremes.cols; ++x) extremes.at<std::uint8_t>(y, x) = ((x + y) % 3 == 0) ? 255 : 0;
   EXPECT_EQ(differing_pixels(extremes, cv::Size(169, 84), *rule), 0);
   EXPECT_EQ(differing_pixels(cv::Mat(50, 60, CV_8UC1, cv::Scalar(255)), cv::Size(41, 33), *rule), 0);
+  // The output may be the input matrix itself.
+  cv::Mat same = noise(cv::Size(640, 480), 5), expected;
+  cv::resize(same, expected, cv::Size(533, 400), 0, 0, cv::INTER_LINEAR);
+  resize_linear(same, same, cv::Size(533, 400), *rule);
+  EXPECT_EQ(cv::countNonZero(same != expected), 0);
 }
 
 TEST(LinearResize, TheRoundingRuleMatters) {
