@@ -19,8 +19,7 @@
 #include "system/loop_stats_json.h"
 #include "system/pose_latency_json.h"
 #include "system/client_pipeline.h"
-#include "slam/features/linear_resize.h"
-#include "slam/features/orb_descriptor.h"
+#include "slam/features/orb_extractor.h"
 #include "system/system_state.h"
 
 namespace cslam {
@@ -69,11 +68,10 @@ CollaborativeSystem::CollaborativeSystem(SystemConfig config) : impl_(std::make_
     impl_->vocabulary = std::make_shared<const Vocabulary>(Vocabulary::load(path));
     logger("system")->info("vocabulary {} loaded ({} words)", path, impl_->vocabulary->num_words());
     impl_->fusion = std::make_unique<FusionManager>(impl_->config.fusion, impl_->vocabulary);
-    // The ORB descriptor pattern and cv::resize's rounding are read from OpenCV once per process
-    // (~10 ms): here, so that a client's registration (on the server's receiving thread) does not
-    // pay for it.
-    opencv_orb_pattern();
-    opencv_linear_resize();
+    // An extractor reads what it takes from OpenCV (descriptor pattern, cv::resize's rounding)
+    // once per process (~10 ms): made here first, so that a client's registration (on the
+    // server's receiving thread) does not pay for it.
+    OrbExtractor{};
   }
 }
 

@@ -48,6 +48,8 @@ struct OrbFeatures {
 class OrbExtractor {
  public:
   // Throws ConfigError on impossible values (non-positive counts, scale factor <= 1, thresholds).
+  // The first one made in a process reads the descriptor pattern and cv::resize's rounding from
+  // OpenCV (orb_descriptor.h, linear_resize.h; ~10 ms).
   explicit OrbExtractor(const OrbConfig& config = {});
 
   // gray: CV_8UC1 (CV_8UC3 BGR is converted). Thread-safe (const; no mutable scratch).
