@@ -40,6 +40,7 @@ one_scene() {
     name="${v%%=*}"
     read -r -a opts <<< "${v#*=}"
     dir="$OUT/${name}_$seed"
+    rm -rf "$dir"  # a failed run must not leave an earlier run's figures to be summed
     "$BIN/cslam-slam" --datasets "$scene/robot_1" "$scene/robot_2" "$scene/robot_3" --sync --out-dir "$dir" \
       --quiet --log-level warn "${opts[@]}" > "$dir.log" 2>&1
     for k in 1 2 3; do
