@@ -34,9 +34,9 @@ const char* to_string(RgbCodec codec);
 const char* to_string(DepthCodec codec);
 // A stream's full frames' colour codec unless one is chosen ("auto" in the programs): in a stream
 // with light frames (a lean or adaptive one), standalone H.264 pictures, smaller than JPEG q75
-// with more ORB features kept (JPEG q75 full frames cost the lean stream 1.17x the default pair's
-// ATE over six demo scenes, these 0.97x: docs/results/bandwidth.md); JPEG when every frame is full
-// (a picture costs the server 4x a JPEG's decoding, and the robot 4x its encoding, on every frame).
+// with more ORB features kept (the lean stream's ATE over 24 demo scenes: 1.085x the default
+// pair's with these; the full frames' colour sets it, docs/results/bandwidth.md); JPEG when every
+// frame is full (a picture costs the server 4x a JPEG's decoding, and the robot 4x its encoding).
 RgbCodec auto_rgb_codec(bool light_frames);
 // "raw" | "jpeg" | "png" | "h264-intra"; throws ConfigError otherwise. "jpeg90" sets quality too (see parse_codecs).
 RgbCodec parse_rgb_codec(const std::string& name);
