@@ -96,13 +96,7 @@ bool apply_reencounter(Map& query_map, ReencounterPlan& plan) {
   std::unordered_set<const KeyFrame*> planned;  // keyframes created since the plan are not in it
   for (const auto& k : plan.keyframes) planned.insert(k.get());
   for (const auto& [k, T_old] : carry_new_keyframes(query_map, before, planned)) pre_opt[k] = T_old;
-  query_map.for_each_map_point([&](MapPoint& mp) {
-    if (moved.count(&mp)) return;
-    auto it = pre_opt.find(mp.reference);
-    if (!mp.reference || it == pre_opt.end()) return;
-    mp.position = mp.reference->T_world_cam() * (it->second * mp.position);
-  });
-  query_map.for_each_map_point([&](MapPoint& mp) { query_map.update_map_point(&mp); });
+  points_follow_references(query_map, pre_opt, moved);
   query_map.note_big_change();
   return true;
 }

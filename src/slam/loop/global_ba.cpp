@@ -150,6 +150,17 @@ std::map<KeyFrame*, SE3, ById> carry_new_keyframes(const Map& map, const std::ma
   return carried;
 }
 
+void points_follow_references(Map& map, const std::map<KeyFrame*, SE3, ById>& old_pose,
+                              const std::unordered_set<MapPoint*>& skip) {
+  map.for_each_map_point([&](MapPoint& mp) {
+    if (!mp.reference || skip.count(&mp)) return;
+    const auto it = old_pose.find(mp.reference);
+    if (it == old_pose.end()) return;
+    mp.position = mp.reference->T_world_cam() * (it->second * mp.position);
+  });
+  map.for_each_map_point([&](MapPoint& mp) { map.update_map_point(&mp); });
+}
+
 bool run_global_ba_once(Map& map, int iterations) {
   GlobalBa gba;
   {

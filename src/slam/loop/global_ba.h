@@ -66,6 +66,13 @@ class GlobalBa {
 std::map<KeyFrame*, SE3, ById> carry_new_keyframes(const Map& map, const std::map<KeyFrame*, SE3, ById>& old_pose,
                                                    const std::unordered_set<const KeyFrame*>& known = {});
 
+// [unique lock on `map`] After a correction moved keyframes (`old_pose`: each moved keyframe's pose
+// before), every point whose reference keyframe moved, less those in `skip` (placed otherwise),
+// keeps its position in that keyframe's frame; then every point's normal and distance bounds are
+// brought up to date (Map::update_map_point).
+void points_follow_references(Map& map, const std::map<KeyFrame*, SE3, ById>& old_pose,
+                              const std::unordered_set<MapPoint*>& skip = {});
+
 // One global BA over `map` on the calling thread (snapshot under the shared lock, solve without
 // it, apply under the unique lock): the refinement at the end of a session. False if the map has
 // fewer than 3 keyframes or moved meanwhile.

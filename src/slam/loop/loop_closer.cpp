@@ -166,15 +166,7 @@ void LoopCloser::correct(const KeyFramePtr& kf, const KeyFramePtr& candidate, co
       pre_opt[k] = k->T_cam_world;
       if (r.converged) k->T_cam_world = r.S_world_node[i].to_se3().inverse();
     }
-    if (r.converged) {
-      map_->for_each_map_point([&](MapPoint& mp) {
-        KeyFrame* ref = mp.reference;
-        auto it = pre_opt.find(ref);
-        if (!ref || it == pre_opt.end()) return;
-        mp.position = ref->T_world_cam() * (it->second * mp.position);
-      });
-      map_->for_each_map_point([&](MapPoint& mp) { map_->update_map_point(&mp); });
-    }
+    if (r.converged) points_follow_references(*map_, pre_opt);
     map_->note_big_change();
     map_->note_loop_closed();
     last_loop_seq_ = kf->id.seq;
