@@ -15,7 +15,8 @@ FrameSender::FrameSender(SenderConfig config)
     : config_(std::move(config)),
       context_(1),
       full_images_(config_.codecs, cv::Size(config_.info.camera.width, config_.info.camera.height)),
-      rate_(config_.adapt, std::max(config_.depth_every, 1)) {
+      rate_(config_.adapt, std::max(config_.depth_every, 1)),
+      budget_(config_.budget) {
   config_.info.camera.validate();  // the camera model alone (cslam_camera): no calib3d
   if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");
   if (config_.light_depth_subsample < 0 || config_.light_depth_subsample == 1 ||
@@ -82,7 +83,12 @@ void FrameSender::reconnect() {
 
 wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) {
   wire::RgbdFrame out;
-  wire::to_wire_frame(frame, full_images_, &out);
+  const RgbCodec own = config_.codecs.rgb;
+  // The budget spends room only while the link is calm: a rate controller that stepped down
+  // (full frames less often) would otherwise see the bytes it saved spent again.
+  const bool calm = !config_.adapt.enabled || rate_.level() == 0;
+  const int quality = wire::to_wire_frame(frame, full_images_, &out, calm ? &budget_ : nullptr);
+  if (quality > 0 && !(own == RgbCodec::kJpeg && quality == config_.codecs.jpeg_quality)) ++stats_.frames_finer;
   return out;
 }
 
@@ -147,6 +153,7 @@ std::size_t FrameSender::send_now(wire::RgbdFrame& frame, Clock::time_point capt
   send_body(body);
   ++stats_.frames_sent;
   stats_.bytes_sent += body.size();
+  budget_.add(body.size());
   if (frame.rgb().encoding() == wire::RGB_H264) stats_.bytes_light += body.size();
   captured_at_[seq_] = captured;
   if (!frame.live() && config_.resend_buffer_bytes > 0) {

@@ -25,6 +25,7 @@
 
 #include <zmq.hpp>
 
+#include "codec/byte_budget.h"
 #include "codec/image_codec.h"
 #include "client/rate_control.h"
 #include "codec/video_codec.h"
@@ -63,6 +64,11 @@ struct SenderConfig {
   // Adaptive rate (client/rate_control.h): depth_every becomes the finest step of a ladder the
   // sender moves along as the acks' latency says the link queues or is calm.
   RateControlConfig adapt;
+  // Byte budget (codec/byte_budget.h): the full frames' colour is the finest JPEG quality that
+  // keeps the stream within budget.bytes_per_s, else `codecs`' own; 0: always `codecs`' own.
+  // Set budget.frame_rate to the stream's nominal rate. With `adapt`, only while the rate
+  // controller is at its finest step (the link calm).
+  ByteBudgetConfig budget;
   // Whether frames may be light (a colour stream exists): a lean stream or an adaptive one.
   bool colour_stream_on() const { return depth_every > 1 || adapt.enabled; }
 };
@@ -86,6 +92,8 @@ struct SenderStats {
   // Adaptive rate: steps down (full frames less often) and back up; the current depth_every.
   std::uint64_t rate_steps_down = 0, rate_steps_up = 0;
   int depth_every = 1;
+  // Byte budget: full frames whose colour the budget made finer than the stream's codec.
+  std::uint64_t frames_finer = 0;
 };
 
 // The server refused us or stopped answering.
@@ -188,6 +196,7 @@ class FrameSender {
   ImageEncoder full_images_;  // full frames' images (config.codecs)
   std::unique_ptr<video::H264Encoder> colour_encoder_;
   RateController rate_;
+  ByteBudget budget_;  // config.budget; every sent frame's message is added
   FullFrameClock full_clock_;
   bool depth_wanted_ = true;             // the first frame carries depth
   bool key_wanted_ = true;               // the first colour packet, and the first after a gap or reconnect, is a key

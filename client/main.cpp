@@ -23,6 +23,14 @@
 
 namespace {
 
+// The stream's frames per second for the byte budget: the dataset's own when live, --rate
+// otherwise (30 with --rate max, the cameras' usual rate).
+double nominal_rate(bool live, double rate, const std::vector<cslam::RgbdPair>& pairs) {
+  if (!live) return rate > 0 ? rate : 30.0;
+  const double span = pairs.size() > 1 ? pairs.back().rgb_time - pairs.front().rgb_time : 0.0;
+  return span > 0 ? std::min(1000.0, double(pairs.size() - 1) / span) : 30.0;
+}
+
 int run(int argc, char** argv) {
   cslam::CliArgs cli("cslam-client", "Replays a TUM-layout RGB-D dataset to cslam-server as one client robot.");
   cli.option("server", "server endpoint", "tcp://127.0.0.1:5555")
@@ -65,6 +73,11 @@ int run(int argc, char** argv) {
             "adapt the stream to the link: when acks come back later than the link's base latency (a queue builds) or "
             "a live frame is dropped, send full frames less often (lean stream, depth every --depth-every .. 30 "
             "frames); back up when the link is calm")
+      .option("byte-budget",
+              "MB/s the stream may take: full frames' colour becomes the finest JPEG (q95, q90, q85) that keeps every "
+              "2 s of frames within it, else --rgb-codec's (never coarser; counted at --rate, the dataset's rate when "
+              "--live, 30 with --rate max); 0: off",
+              "1.0")
       .flag("new-session",
             "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload",
@@ -105,6 +118,8 @@ int run(int argc, char** argv) {
   config.light_depth_subsample = cli.get_int("light-depth");
   config.adapt.enabled = cli.flag_set("adapt");
   config.codecs.rgb = cslam::parse_rgb_codec(cli.get("rgb-codec"), config.colour_stream_on());
+  config.budget.bytes_per_s = cli.get_double("byte-budget") * 1e6;
+  config.budget.frame_rate = nominal_rate(cli.flag_set("live"), rate, pairs);
   config.reply_timeout_s = cli.get_double("reply-timeout");
   {
     const double mb = cli.get_double("resend-buffer");
@@ -187,6 +202,9 @@ int run(int argc, char** argv) {
     if (config.colour_stream_on() && used > 0)
       used += std::snprintf(extra + used, sizeof extra - std::size_t(used), ", %llu light, %llu depth requests",
                             (unsigned long long)s.frames_light, (unsigned long long)s.depth_requests);
+    if (config.budget.bytes_per_s > 0 && used > 0 && std::size_t(used) < sizeof extra)
+      used += std::snprintf(extra + used, sizeof extra - std::size_t(used), ", %llu finer (budget)",
+                            (unsigned long long)s.frames_finer);
     if (config.adapt.enabled && used > 0 && std::size_t(used) < sizeof extra)
       std::snprintf(extra + used, sizeof extra - std::size_t(used), ", depth every %d (%llu down, %llu up)",
                     s.depth_every, (unsigned long long)s.rate_steps_down, (unsigned long long)s.rate_steps_up);
@@ -218,6 +236,10 @@ int run(int argc, char** argv) {
             ? double(s.bytes_sent - s.bytes_light) / double(s.frames_sent - s.frames_light) / 1e3
             : 0.0,
         s.depth_requests, s.colour_key_packets, s.stream_gaps);
+  if (config.budget.bytes_per_s > 0)
+    log->info("client {}: byte budget {:.2f} MB/s at {:.1f} Hz: {} full frames' colour finer than {}", id,
+              config.budget.bytes_per_s / 1e6, config.budget.frame_rate, s.frames_finer,
+              cslam::to_string(config.codecs.rgb));
   if (config.adapt.enabled)
     log->info("client {}: adaptive rate: {} steps down, {} up, depth every {} at the end", id, s.rate_steps_down,
               s.rate_steps_up, s.depth_every);

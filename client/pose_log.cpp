@@ -65,6 +65,7 @@ nlohmann::json PoseLog::summary(const SenderStats& stats, double wall_s, std::si
           {"rate_steps_down", stats.rate_steps_down},
           {"rate_steps_up", stats.rate_steps_up},
           {"depth_every_last", stats.depth_every},
+          {"frames_finer", stats.frames_finer},
           {"wall_s", wall_s},
           {"processed_fps", wall_s > 0 ? double(processed) / wall_s : 0.0},
           {"latency_ms",

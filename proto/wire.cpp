@@ -67,25 +67,30 @@ Hello to_hello(const ClientInfo& info) {
   return h;
 }
 
-void to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out) {
+int to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out, const ByteBudget* budget) {
   const CodecOptions& options = images.options();
   out->set_client_id(frame.client);
   out->set_seq(frame.seq);
   out->set_timestamp(frame.timestamp);
   out->set_depth_time_offset(frame.depth_time_offset);
   out->set_live(frame.live);
-  const Bytes rgb = images.rgb(frame.bgr);
   const Bytes depth = images.depth(frame.depth);
+  EncodedRgb rgb;
+  if (budget && budget->enabled())
+    rgb = images.rgb_within(frame.bgr, budget->image_allowance(depth.size()), budget->config().jpeg_qualities);
+  else
+    rgb = {options.rgb, options.jpeg_quality, images.rgb(frame.bgr)};
   Image* r = out->mutable_rgb();
   r->set_width(std::uint32_t(frame.bgr.cols));
   r->set_height(std::uint32_t(frame.bgr.rows));
-  r->set_encoding(to_wire(options.rgb));
-  r->set_data(rgb.data(), rgb.size());
+  r->set_encoding(to_wire(rgb.codec));
+  r->set_data(rgb.bytes.data(), rgb.bytes.size());
   Image* d = out->mutable_depth();
   d->set_width(std::uint32_t(frame.depth.cols));
   d->set_height(std::uint32_t(frame.depth.rows));
   d->set_encoding(to_wire(options.depth));
   d->set_data(depth.data(), depth.size());
+  return rgb.codec == RgbCodec::kJpeg ? rgb.jpeg_quality : 0;
 }
 
 void to_wire_light_frame(const cslam::RgbdFrame& frame, const Bytes& colour_packet, int depth_subsample,

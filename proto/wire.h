@@ -9,6 +9,7 @@
 
 #include "cslam.pb.h"
 #include "codec/image_codec.h"
+#include "codec/byte_budget.h"
 #include "codec/image_encoder.h"
 #include "core/error.h"
 #include "frame/rgbd_frame.h"
@@ -41,8 +42,11 @@ constexpr std::uint64_t kDefaultMaxPixels = 1920ull * 1080ull;
 Hello to_hello(const ClientInfo& info);
 
 // Encodes a full frame's images with the stream's encoder into `out` (reused to avoid
-// reallocations).
-void to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out);
+// reallocations). With an enabled budget the colour is the finest its allowance takes
+// (ImageEncoder::rgb_within, codec/byte_budget.h); the caller adds the sent message to it.
+// Returns the colour's JPEG quality, 0 when it is not JPEG.
+int to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out,
+                  const ByteBudget* budget = nullptr);
 // A light frame: `colour_packet` is the next packet of the robot's colour stream
 // (video::H264Encoder), sent as RGB_H264; with depth_subsample >= 2 the frame's depth goes
 // along at every S-th pixel of every S-th row (options.depth, lossless), else no depth.

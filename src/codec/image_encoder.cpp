@@ -24,4 +24,19 @@ Bytes ImageEncoder::rgb(const cv::Mat& bgr) {
   return intra_->encode(bgr);
 }
 
+EncodedRgb ImageEncoder::rgb_within(const cv::Mat& bgr, std::size_t allowance, const std::vector<int>& jpeg_qualities) {
+  const bool lossless = options_.rgb == RgbCodec::kRaw || options_.rgb == RgbCodec::kPng;
+  if (!lossless && allowance > 0) {
+    CodecOptions jpeg = options_;
+    jpeg.rgb = RgbCodec::kJpeg;
+    for (int quality : jpeg_qualities) {
+      if (options_.rgb == RgbCodec::kJpeg && quality <= options_.jpeg_quality) break;
+      jpeg.jpeg_quality = quality;
+      Bytes bytes = encode_rgb(bgr, jpeg);
+      if (bytes.size() <= allowance) return {RgbCodec::kJpeg, quality, std::move(bytes)};
+    }
+  }
+  return {options_.rgb, options_.rgb == RgbCodec::kJpeg ? options_.jpeg_quality : 0, rgb(bgr)};
+}
+
 }  // namespace cslam

@@ -7,7 +7,9 @@
 // each one as a stream's first (on fr1/desk at CRF 15: 84 KB at 41 dB and 9 ms instead of 30 KB
 // at 38 dB and 4.5 ms). So a picture's bytes depend on the pictures encoded before it by this
 // object; a client that sends them in order (C++ or Python) sends the same bytes.
+#include <cstddef>
 #include <memory>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -18,6 +20,12 @@ namespace cslam {
 namespace video {
 class H264Encoder;
 }
+
+struct EncodedRgb {
+  RgbCodec codec = RgbCodec::kRaw;
+  int jpeg_quality = 0;  // with kJpeg: the quality used
+  Bytes bytes;
+};
 
 class ImageEncoder {
  public:
@@ -32,6 +40,11 @@ class ImageEncoder {
   // bgr: CV_8UC3, else std::invalid_argument; with kH264Intra of the first picture's size (even
   // sides) on every call, else std::invalid_argument (ConfigError for odd sides).
   Bytes rgb(const cv::Mat& bgr);
+  // A full frame's colour within a byte budget (codec/byte_budget.h): the first of
+  // `jpeg_qualities` (finest first) finer than the options' own JPEG quality whose picture takes
+  // at most `allowance` bytes, else rgb() with the options' codec. Lossless codecs (raw, PNG) are
+  // never replaced. Same argument checks as rgb().
+  EncodedRgb rgb_within(const cv::Mat& bgr, std::size_t allowance, const std::vector<int>& jpeg_qualities);
   // depth: CV_16UC1, else std::invalid_argument.
   Bytes depth(const cv::Mat& depth) const { return encode_depth(depth, options_); }
   const CodecOptions& options() const { return options_; }

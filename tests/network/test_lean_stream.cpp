@@ -4,6 +4,7 @@
 // and the robot's next packet is a key packet, after which every frame is taken again. An
 // adaptive robot (SenderConfig::adapt) turns lean when the server falls behind and full again
 // when it keeps up.
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <map>
@@ -222,6 +223,51 @@ TEST(LeanStream, AFrameWithDepthMustCarryStandaloneColour) {
   EXPECT_EQ(sender.stats().errors.at("ERROR_MALFORMED"), 1u);
   EXPECT_EQ(sender.stats().acks, 1u);
   srv.stop();
+}
+
+// A robot with a byte budget (SenderConfig::budget) sends the full frames' colour as the finest
+// JPEG its budget leaves room for; the server takes JPEG and H.264 pictures in one stream; the
+// stream stays within the budget; and a budget below what the stream sends anyway
+// changes nothing, byte for byte.
+TEST(LeanStream, ABudgetedRobotSpendsItsRoomOnFinerFullFrames) {
+  SystemConfig sc;
+  sc.run_slam = false;
+  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  auto run = [&](ClientId id, double bytes_per_s, std::vector<std::size_t>* sizes) {
+    client::SenderConfig cc = lean_config(srv.endpoint(), id, 4);
+    cc.codecs.rgb = RgbCodec::kH264Intra;
+    cc.budget.bytes_per_s = bytes_per_s;
+    cc.budget.frame_rate = 30;
+    cc.budget.burst_s = 0.5;
+    client::FrameSender sender(cc);
+    sender.connect();
+    for (int i = 0; i < 60; ++i) sizes->push_back(sender.send_frame(moving_frame(i, small_camera())));
+    EXPECT_TRUE(sender.goodbye());
+    EXPECT_EQ(sender.stats().frames_refused, 0u);
+    EXPECT_EQ(sender.stats().acks, 60u);
+    return sender.stats();
+  };
+  std::vector<std::size_t> plain, tight, roomy;
+  const client::SenderStats s0 = run(7, 0, &plain);
+  EXPECT_EQ(s0.frames_finer, 0u);
+  const double rate = double(s0.bytes_sent) / 60.0 * 30.0;  // B/s without a budget
+
+  const client::SenderStats s1 = run(8, 0.5 * rate, &tight);  // below the stream: no room
+  EXPECT_EQ(s1.frames_finer, 0u);
+  EXPECT_EQ(tight, plain);
+
+  const double budget = 2.0 * rate;
+  const client::SenderStats s2 = run(9, budget, &roomy);
+  EXPECT_GT(s2.frames_finer, 0u);
+  EXPECT_LE(s2.frames_finer, 15u);  // full frames only
+  EXPECT_GT(s2.bytes_sent, s0.bytes_sent);
+  // Within the budget but for what the light frames after the last full frame may owe.
+  std::size_t light_max = 0;  // full frames: 0, 4, 8, ...
+  for (std::size_t i = 0; i < roomy.size(); ++i)
+    if (i % 4 != 0) light_max = std::max(light_max, roomy[i]);
+  EXPECT_LE(double(s2.bytes_sent), budget * 60 / 30 + 3.0 * double(light_max));
+  srv.stop();
+  EXPECT_EQ(srv.stats().clients().at(9).frames_light, 45u);
 }
 
 }  // namespace

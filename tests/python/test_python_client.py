@@ -40,7 +40,8 @@ class PythonClientEndToEnd(unittest.TestCase):
         self.addCleanup(server.stop)  # a failed check must not leave the server waiting for a goodbye
         with open(os.path.join(self.dir, name, "client.log"), "w") as log:
             rc = subprocess.run([harness.program("cslam-client"), "--server", server.endpoint, "--id", "1", "--dataset",
-                                 self.robot, "--rate", "max"], stdout=log, stderr=subprocess.STDOUT).returncode
+                                 self.robot, "--rate", "max", "--byte-budget", "0"],  # as FrameSender's default
+                                stdout=log, stderr=subprocess.STDOUT).returncode
         self.assertEqual(rc, 0, f"see {self.dir}/{name}/client.log")
         self.assertEqual(server.wait(), 0, f"see {server.log_path}")
         return server
@@ -93,6 +94,73 @@ class PythonClientEndToEnd(unittest.TestCase):
         except Exception:
             type(self).ok = False
             raise
+
+
+class BudgetedLeanStreamEqualsCpp(unittest.TestCase):
+    """A lean stream with a byte budget (cslam-client --depth-every 5 --byte-budget) from both
+    clients: the same full frames made finer, the same bytes. The servers run without SLAM, so no
+    depth request makes the full frames depend on timing."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = harness.scratch("pybudget")
+        cls.scene = harness.synth_scene(os.path.join(cls.dir, "scene"), frames=40)
+        cls.robot = os.path.join(cls.scene, "robot_1")
+        cls.ok = True
+
+    @classmethod
+    def tearDownClass(cls):
+        harness.cleanup(cls.dir, cls.ok)
+
+    BUDGET_MB_S = 0.4  # the synthetic lean stream sends ~0.3 MB/s: room for some finer full frames
+
+    def test_budgeted_lean_stream_is_the_cpp_stream(self):
+        try:
+            cpp = harness.Server(os.path.join(self.dir, "cpp"), extra=["--no-slam"])
+            self.addCleanup(cpp.stop)
+            summary = os.path.join(self.dir, "cpp", "summary.json")
+            with open(os.path.join(self.dir, "cpp", "client.log"), "w") as log:
+                rc = subprocess.run([harness.program("cslam-client"), "--server", cpp.endpoint, "--id", "1", "--dataset",
+                                     self.robot, "--rate", "max", "--depth-every", "5", "--byte-budget",
+                                     str(self.BUDGET_MB_S), "--summary-out", summary],
+                                    stdout=log, stderr=subprocess.STDOUT).returncode
+            self.assertEqual(rc, 0, f"see {self.dir}/cpp/client.log")
+            self.assertEqual(cpp.wait(), 0, f"see {cpp.log_path}")
+            with open(summary) as f:
+                cpp_finer = json.load(f)["frames_finer"]
+
+            py = harness.Server(os.path.join(self.dir, "python"), extra=["--no-slam"])
+            self.addCleanup(py.stop)
+            cam = camera.load(os.path.join(self.robot, "camera.yaml"))
+            budget = codecs.ByteBudget(self.BUDGET_MB_S * 1e6, frame_rate=30)
+            sender = FrameSender(py.endpoint, 1, cam, depth_every=5, byte_budget=budget)
+            sender.connect()
+            pairs = dataset.open_tum(self.robot)
+            for pair in pairs:
+                bgr, depth = dataset.load_pair(pair)
+                sender.send(bgr, depth, pair.rgb_time, pair.depth_time - pair.rgb_time)
+            self.assertTrue(sender.goodbye())
+            self.assertEqual(py.wait(), 0, f"see {py.log_path}")
+
+            # Full frames (8 of the 40) got finer colour, the same in both, within the budget.
+            self.assertGreater(sender.stats.frames_finer, 0)
+            self.assertEqual(sender.stats.frames_finer, cpp_finer)
+            cpp_stats = harness.client_stats(cpp.network_stats(), 1)
+            py_stats = harness.client_stats(py.network_stats(), 1)
+            for key in ("frames_accepted", "frames_light", "dropped_total"):
+                self.assertEqual(py_stats[key], cpp_stats[key], key)
+            self.assertEqual(py_stats["frames_accepted"], 40)
+            self.assertEqual(py_stats["bytes_received"], cpp_stats["bytes_received"])
+        except Exception:
+            type(self).ok = False
+            raise
+
+    def test_budget_options_are_checked(self):
+        for bad in ({"bytes_per_s": -1}, {"bytes_per_s": float("nan")}, {"frame_rate": 0}, {"burst_s": 0},
+                    {"jpeg_qualities": (90, 95)}, {"jpeg_qualities": (101,)}):
+            with self.assertRaises(ValueError, msg=str(bad)):
+                codecs.ByteBudget(**bad)
+        self.assertFalse(codecs.ByteBudget().enabled)
 
 
 class SmallSceneCase(unittest.TestCase):

@@ -7,11 +7,13 @@
 
 namespace cslam {
 
-LeanStreamSim::LeanStreamSim(LeanStreamConfig config) : config_(config), full_images_(config_.full_colour) {
+LeanStreamSim::LeanStreamSim(LeanStreamConfig config)
+    : config_(config), full_images_(config_.full_colour), budget_(config_.budget) {
   if (config_.depth_every < 1 || config_.request_delay < 0)
     throw ConfigError("--depth-every must be >= 1 and --depth-request-delay >= 0");
   if (config_.light_depth < 0 || config_.light_depth > kMaxDepthSubsample)
     throw ConfigError("--light-depth must be 0.." + std::to_string(kMaxDepthSubsample));
+  if (budget_.enabled() && !config_.coded_colour) throw ConfigError("--byte-budget needs --coded-colour");
   config_.light_colour.validate();
 }
 
@@ -20,35 +22,55 @@ void LeanStreamSim::apply(RgbdFrame& frame, int n) {
   const bool requested = n == 0 || (requested_at_ >= 0 && n > requested_at_ + config_.request_delay);
   if (clock_.next(requested, config_.depth_every)) {
     requested_at_ = -1;
-    code_colour(frame, true);
+    code_full(frame);
     return;
   }
-  code_colour(frame, false);
-  if (config_.light_depth > 1) {  // what the server makes of a light frame's depth
-    frame.depth = expand_depth(subsample_depth(frame.depth, config_.light_depth), config_.light_depth, frame.depth.cols,
-                               frame.depth.rows);
-    frame.depth_subsample = config_.light_depth;
-  } else {
-    frame.depth = cv::Mat();
-  }
+  light_bytes_ = 0;
+  code_light_colour(frame);
+  make_light_depth(frame);
+  if (budget_.enabled()) budget_.add(light_bytes_ + ByteBudget::kHeaderBytes);
   ++light_frames_;
 }
 
-void LeanStreamSim::code_colour(RgbdFrame& frame, bool full) {
+void LeanStreamSim::code_full(RgbdFrame& frame) {
   if (!config_.coded_colour) return;
-  const int w = frame.bgr.cols, h = frame.bgr.rows;
   const std::string source = "coded colour, frame " + std::to_string(frame.seq);
-  if (full) {
+  if (!budget_.enabled()) {
     const Bytes bytes = full_images_.rgb(frame.bgr);
-    frame.bgr = decode_rgb(config_.full_colour.rgb, bytes.data(), bytes.size(), w, h, source);
+    frame.bgr = decode_rgb(config_.full_colour.rgb, bytes.data(), bytes.size(), frame.bgr.cols, frame.bgr.rows, source);
     return;
   }
+  const std::size_t depth_bytes = full_images_.depth(frame.depth).size();
+  const EncodedRgb rgb =
+      full_images_.rgb_within(frame.bgr, budget_.image_allowance(depth_bytes), config_.budget.jpeg_qualities);
+  const CodecOptions& own = config_.full_colour;
+  if (rgb.codec != own.rgb || (rgb.codec == RgbCodec::kJpeg && rgb.jpeg_quality != own.jpeg_quality)) ++frames_finer_;
+  budget_.add(rgb.bytes.size() + depth_bytes + ByteBudget::kHeaderBytes);
+  frame.bgr = decode_rgb(rgb.codec, rgb.bytes.data(), rgb.bytes.size(), frame.bgr.cols, frame.bgr.rows, source);
+}
+
+void LeanStreamSim::code_light_colour(RgbdFrame& frame) {
+  if (!config_.coded_colour) return;
+  const int w = frame.bgr.cols, h = frame.bgr.rows;
   if (!encoder_) {
     encoder_ = std::make_unique<video::H264Encoder>(w, h, config_.light_colour);
     decoder_ = std::make_unique<video::H264Decoder>(w, h);
   }
   const Bytes packet = encoder_->encode(frame.bgr);
-  frame.bgr = decoder_->decode(packet.data(), packet.size(), source);
+  light_bytes_ += packet.size();
+  frame.bgr = decoder_->decode(packet.data(), packet.size(), "coded colour, frame " + std::to_string(frame.seq));
+}
+
+// What the server makes of a light frame's depth.
+void LeanStreamSim::make_light_depth(RgbdFrame& frame) {
+  if (config_.light_depth <= 1) {
+    frame.depth = cv::Mat();
+    return;
+  }
+  const cv::Mat coarse = subsample_depth(frame.depth, config_.light_depth);
+  if (budget_.enabled()) light_bytes_ += encode_depth(coarse, config_.full_colour).size();
+  frame.depth = expand_depth(coarse, config_.light_depth, frame.depth.cols, frame.depth.rows);
+  frame.depth_subsample = config_.light_depth;
 }
 
 void LeanStreamSim::requested(int n) {
@@ -59,6 +81,11 @@ void LeanStreamSim::requested(int n) {
 int LeanStreamSim::light_frames() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return light_frames_;
+}
+
+int LeanStreamSim::frames_finer() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return frames_finer_;
 }
 
 }  // namespace cslam

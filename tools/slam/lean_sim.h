@@ -14,6 +14,7 @@
 #include <memory>
 #include <mutex>
 
+#include "codec/byte_budget.h"
 #include "codec/image_encoder.h"
 #include "codec/video_codec.h"
 #include "frame/full_frame_clock.h"
@@ -28,6 +29,10 @@ struct LeanStreamConfig {
   bool coded_colour = false;
   CodecOptions full_colour;  // full frames' colour with coded_colour (only the RGB fields are used)
   video::H264Options light_colour = video::light_colour_stream();  // light frames' stream, as the client's
+  // With coded_colour: the robot's byte budget (cslam-client --byte-budget), spent on the full
+  // frames' colour as the sender does; a frame counts its images' bytes and
+  // ByteBudget::kHeaderBytes (the sender counts its wire messages).
+  ByteBudgetConfig budget;
 };
 
 class LeanStreamSim {
@@ -41,9 +46,12 @@ class LeanStreamSim {
   // Tracking of frame n asked for full depth (FrameDone::wants_depth). Thread-safe with apply().
   void requested(int n);
   int light_frames() const;
+  int frames_finer() const;  // full frames whose colour the budget made finer
 
  private:
-  void code_colour(RgbdFrame& frame, bool full);
+  void code_full(RgbdFrame& frame);
+  void code_light_colour(RgbdFrame& frame);
+  void make_light_depth(RgbdFrame& frame);
 
   const LeanStreamConfig config_;
   ImageEncoder full_images_;  // the full frames' colour (one encoder per client, as the client's)
@@ -52,7 +60,9 @@ class LeanStreamSim {
   mutable std::mutex mutex_;
   int requested_at_ = -1;
   FullFrameClock clock_;
-  int light_frames_ = 0;
+  ByteBudget budget_;
+  std::size_t light_bytes_ = 0;  // the light frame being made: its images' bytes so far
+  int light_frames_ = 0, frames_finer_ = 0;
 };
 
 }  // namespace cslam

@@ -115,6 +115,11 @@ int run(int argc, char** argv) {
       .option("colour-crf",
               "with --coded-colour and --depth-every: the light frames' H.264 CRF (cslam-client --colour-crf)",
               std::to_string(video::light_colour_stream().crf))
+      .option("byte-budget",
+              "with --coded-colour: the robot's byte budget in MB/s, spent on the full frames' colour as cslam-client "
+              "--byte-budget does; 0: none",
+              "1.0")
+      .option("stream-rate", "with --byte-budget: the robot's frames per second (cslam-client --rate)", "30")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");
   if (!args.parse(argc, argv)) return 0;
@@ -251,6 +256,7 @@ int run(int argc, char** argv) {
       {"frames_lost", lost},
       {"frames_rejected", rejected},
       {"frames_light", lean.light_frames()},
+      {"frames_finer", lean.frames_finer()},
       {"frames_flow", snap.frames_flow},
       {"trajectory_poses", traj.size()},
       {"maps", snap.maps},
@@ -280,9 +286,11 @@ int run(int argc, char** argv) {
                 l.T_correction.rotation_angle() * 180.0 / M_PI, l.correction_ms);
   if (args.has("stats")) std::ofstream(args.get("stats")) << stats.dump(2) << "\n";
   if (lean.light_frames() > 0)
-    std::printf("light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d)\n",
-                lean.light_frames(), n, args.get_int("depth-every"), args.get_int("depth-request-delay"),
-                args.get_int("light-depth"));
+    std::printf(
+        "light frames %d of %d (full depth every %d, requests after %d, light depth 1/%d, %d full frames finer "
+        "within the byte budget)\n",
+        lean.light_frames(), n, args.get_int("depth-every"), args.get_int("depth-request-delay"),
+        args.get_int("light-depth"), lean.frames_finer());
   std::printf(
       "frames %d tracked %llu (flow %llu) lost %d rejected %d | keyframes %d map points %d maps %d | wall %.2f s | "
       "extract+track median %.1f ms | local BA median %.1f ms | peak RSS %.0f MB\n",

@@ -55,6 +55,8 @@ LeanStreamConfig lean_stream_config(const CliArgs& args) {
   c.full_colour.jpeg_quality = args.get_int("jpeg-quality");
   c.full_colour.h264_intra_crf = args.get_int("h264-intra-crf");
   c.light_colour.crf = args.get_int("colour-crf");
+  if (c.coded_colour) c.budget.bytes_per_s = args.get_double("byte-budget") * 1e6;
+  c.budget.frame_rate = args.get_double("stream-rate");
   return c;
 }
 
@@ -162,7 +164,8 @@ int run_multi_client(const CliArgs& args) {
   std::printf("SLAM time %.2f s for %zu clients\n", slam_time, jobs.size());
   for (const auto& j : jobs)
     if (j.lean->light_frames() > 0)
-      std::printf("client %u: light frames %d of %zu\n", j.info.id, j.lean->light_frames(), j.pairs.size());
+      std::printf("client %u: light frames %d of %zu, %d full frames finer within the byte budget\n", j.info.id,
+                  j.lean->light_frames(), j.pairs.size(), j.lean->frames_finer());
   for (const auto& e : snap.events)
     std::printf(
         "fusion: client %u + client %u -> group %d at %.2f s (frame time %.3f), %d inliers, %d + %d keyframes, "

@@ -7,14 +7,14 @@ See README.md ("Python client") for an example robot loop.
 """
 from . import camera, dataset, video
 from .camera import Camera
-from .codecs import Codecs, auto_rgb_codec
+from .codecs import ByteBudget, Codecs, auto_rgb_codec
 from .errors import (ConnectionFailed, CslamError, FrameRejected, HelloRejected, NotAuthorized, ProtocolVersionError,
                      ServerError, ServerShuttingDown, SessionBusy, TooManyClients)
 from .progress import Progress
 from .sender import AckInfo, CurveKeys, FrameSender, SenderStats
 from .video import H264Encoder, H264Options
 
-__all__ = ["AckInfo", "Camera", "Codecs", "ConnectionFailed", "CslamError", "CurveKeys", "FrameRejected", "FrameSender",
+__all__ = ["AckInfo", "ByteBudget", "Camera", "Codecs", "ConnectionFailed", "CslamError", "CurveKeys", "FrameRejected", "FrameSender",
            "H264Encoder", "H264Options", "HelloRejected", "NotAuthorized", "Progress", "ProtocolVersionError",
            "SenderStats", "ServerError", "ServerShuttingDown", "SessionBusy", "TooManyClients", "camera", "dataset",
            "video", "auto_rgb_codec"]

@@ -105,6 +105,70 @@ class ImageEncoder:
     def depth(self, depth):
         return encode_depth(depth, self.codecs)
 
+    def rgb_within(self, bgr, allowance, jpeg_qualities):
+        """A full frame's colour within a byte budget, as ImageEncoder::rgb_within: the first of
+        `jpeg_qualities` (finest first) finer than the codecs' own JPEG quality whose picture takes
+        at most `allowance` bytes, else rgb(). Raw and PNG are never replaced. Returns (wire
+        encoding name, bytes, JPEG quality or 0)."""
+        import cv2
+        if self.codecs.rgb not in ("raw", "png") and allowance > 0:
+            if not isinstance(bgr, np.ndarray) or bgr.dtype != np.uint8 or bgr.ndim != 3 or bgr.shape[2] != 3:
+                raise TypeError("rgb_within: expected an HxWx3 uint8 BGR image")
+            for quality in jpeg_qualities:
+                if self.codecs.rgb == "jpeg" and quality <= self.codecs.jpeg_quality:
+                    break
+                data = _imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
+                if len(data) <= allowance:
+                    return "RGB_JPEG", data, quality
+        enc, data = self.rgb(bgr)
+        return enc, data, self.codecs.jpeg_quality if enc == "RGB_JPEG" else 0
+
+
+class ByteBudget:
+    """A robot's byte budget, as ByteBudget in src/codec/byte_budget.h (the same choices from the
+    same bytes): a token bucket counted in frames. Every frame earns ``bytes_per_s / frame_rate``
+    bytes, the bucket holds at most ``burst_s`` seconds of budget and starts empty, every frame
+    sent spends its bytes (a frame never waits: the bucket may owe), and a full frame's colour is
+    the finest of ``jpeg_qualities`` that fits (ImageEncoder.rgb_within). 0 bytes/s: no budget."""
+    HEADER_BYTES = 64  # a wire frame's bytes beside its images, as ByteBudget::kHeaderBytes
+
+    def __init__(self, bytes_per_s=0.0, frame_rate=30.0, burst_s=2.0, jpeg_qualities=(95, 90, 85)):
+        import math
+        bytes_per_s, frame_rate, burst_s = float(bytes_per_s), float(frame_rate), float(burst_s)
+        if not (bytes_per_s >= 0 and math.isfinite(bytes_per_s)):
+            raise ValueError(f"byte budget {bytes_per_s} B/s must be >= 0 (0: none)")
+        if not 0 < frame_rate <= 1000:
+            raise ValueError(f"byte budget frame rate {frame_rate} must be in (0, 1000]")
+        if not 0 < burst_s <= 1000:
+            raise ValueError(f"byte budget burst {burst_s} s must be in (0, 1000]")
+        qualities = tuple(int(q) for q in jpeg_qualities)
+        if any(not 1 <= q <= 100 for q in qualities) or any(b >= a for a, b in zip(qualities, qualities[1:])):
+            raise ValueError("byte budget JPEG qualities must be in 1..100, strictly decreasing (finest first)")
+        self.bytes_per_s, self.frame_rate, self.burst_s, self.jpeg_qualities = bytes_per_s, frame_rate, burst_s, qualities
+        self._share = bytes_per_s / frame_rate
+        self._capacity = max(self._share, bytes_per_s * burst_s)
+        self._bucket = 0.0
+
+    @property
+    def enabled(self):
+        return self.bytes_per_s > 0
+
+    def _filled(self):
+        return min(self._capacity, self._bucket + self._share)
+
+    def allowance(self):
+        """Bytes the next frame may take: the bucket with the frame's own share (0 when it owes)."""
+        room = self._filled()
+        return int(room) if room > 0 else 0
+
+    def image_allowance(self, other_image_bytes):
+        """What one image may take beside the frame's other image bytes and HEADER_BYTES."""
+        return max(0, self.allowance() - other_image_bytes - self.HEADER_BYTES)
+
+    def add(self, nbytes):
+        """Every frame sent, in order: its wire message's bytes."""
+        self._bucket = self._filled() - float(nbytes)
+
 
 def encode_depth(depth, codecs):
     """depth: HxW uint16 raw units (camera.depth_factor per metre). Returns (encoding name, bytes)."""

@@ -72,3 +72,4 @@ class SenderStats:
     depth_request_lag_sum: int = 0
     depth_request_lag_max: int = 0
     stream_gaps: int = 0
+    frames_finer: int = 0  # full frames whose colour the byte budget made finer than the codecs' own

@@ -37,7 +37,7 @@ from typing import Callable, Optional
 import zmq
 
 from . import errors, video
-from .codecs import RGB_H264, Codecs, ImageEncoder, auto_rgb_codec, encode_depth
+from .codecs import RGB_H264, ByteBudget, Codecs, ImageEncoder, auto_rgb_codec, encode_depth
 from .feedback import AckInfo, SenderStats, ack_info
 from .keys import CurveKeys
 from .wire import pb
@@ -53,7 +53,7 @@ class FrameSender:
                  max_reconnects=3, live=False, strict=False, curve: Optional[CurveKeys] = None,
                  on_ack: Optional[Callable[[AckInfo], None]] = None, context=None, protocol_version=None,
                  resend_buffer_bytes=128 << 20, depth_every=1, light_depth_subsample=4,
-                 colour_stream: Optional[video.H264Options] = None):
+                 colour_stream: Optional[video.H264Options] = None, byte_budget: Optional[ByteBudget] = None):
         if not 0 <= int(client_id) <= 65535:
             raise ValueError("client id must be in 0..65535")
         self.server = server
@@ -64,6 +64,9 @@ class FrameSender:
             raise ValueError(f"depth_every {depth_every} must be >= 1 (1: every frame full)")
         self.codecs = codecs or Codecs(rgb=auto_rgb_codec(depth_every > 1))
         self._images = ImageEncoder(self.codecs)  # full frames' images (validates the codecs)
+        # Byte budget (cslam-client --byte-budget): the full frames' colour is the finest JPEG
+        # that keeps the stream within it, else the codecs' own. None: no budget.
+        self.budget = byte_budget or ByteBudget()
         camera.validate()
         # Lean stream: light frames between full ones. The default colour stream is coarser than
         # H264Options' (light frames are only tracked): video.light_colour_stream().
@@ -178,9 +181,16 @@ class FrameSender:
         self._check_images(bgr, depth, depth_time_offset)
         h, w = depth.shape[:2]
         frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
-        enc, data = self._images.rgb(bgr)
+        depth_enc, depth_data = self._images.depth(depth)
+        if self.budget.enabled:
+            enc, data, quality = self._images.rgb_within(bgr, self.budget.image_allowance(len(depth_data)),
+                                                         self.budget.jpeg_qualities)
+            own = self.codecs.rgb == "jpeg" and quality == self.codecs.jpeg_quality
+            self.stats.frames_finer += int(quality > 0 and not own)
+        else:
+            enc, data = self._images.rgb(bgr)
         frame.rgb.width, frame.rgb.height, frame.rgb.encoding, frame.rgb.data = w, h, pb.Encoding.Value(enc), data
-        enc, data = self._images.depth(depth)
+        enc, data = depth_enc, depth_data
         frame.depth.width, frame.depth.height, frame.depth.encoding, frame.depth.data = w, h, pb.Encoding.Value(enc), data
         return frame
 
@@ -303,6 +313,7 @@ class FrameSender:
         self.in_flight += 1
         self.stats.frames_sent += 1
         self.stats.bytes_sent += len(body)
+        self.budget.add(len(body))
         if frame.rgb.encoding == pb.Encoding.Value(RGB_H264):
             self.stats.bytes_light += len(body)
         return len(body)
