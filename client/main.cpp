@@ -74,10 +74,11 @@ int run(int argc, char** argv) {
             "a live frame is dropped, send full frames less often (lean stream, depth every --depth-every .. 30 "
             "frames); back up when the link is calm")
       .option("byte-budget",
-              "MB/s the stream may take: full frames' colour becomes the finest JPEG (q95, q90, q85) that keeps every "
-              "2 s of frames within it, else --rgb-codec's (never coarser; counted at --rate, the dataset's rate when "
-              "--live, 30 with --rate max); 0: off",
-              "1.0")
+              "MB/s this robot's stream may take (its share of the link): full frames' colour becomes the finest JPEG "
+              "(q95, q90, q85) the budget has room for, else --rgb-codec's (never coarser; counted at --rate, the "
+              "dataset's rate with --live, 30 with --rate max); 0: off. Leave the link headroom: robots that fill a "
+              "shared link queue behind each other",
+              "0")
       .flag("new-session",
             "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload",

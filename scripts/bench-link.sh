@@ -10,7 +10,8 @@
 # A mode may end in @sS: the server runs with --tracking-slots S (e.g. "lean lean@s2"), and in @pP:
 # the robots encode the colour stream with x264 preset P (e.g. "lean lean@pveryfast"), and in @fF:
 # the server's flow frames (--flow F, e.g. "lean lean@falways"), and in @xPATH: that cslam-server
-# binary (e.g. the previous build's copied aside: "lean@x/tmp/cslam-server.before lean").
+# binary (e.g. the previous build's copied aside: "lean@x/tmp/cslam-server.before lean"), and in
+# @bB: the robots' byte budget in MB/s (cslam-client --byte-budget, e.g. "lean@b0 lean").
 # Needs root (ip netns, tc). Usage:
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
@@ -52,6 +53,7 @@ run_case() {
       s*) server_extra+=(--tracking-slots "${opt#s}") ;;
       f*) server_extra+=(--flow "${opt#f}") ;;
       p*) client_extra+=(--colour-preset "${opt#p}") ;;
+      b*) client_extra+=(--byte-budget "${opt#b}") ;;
       x*) server_bin="${opt#x}" ;;
       *) echo "bench-link.sh: unknown mode suffix @$opt in $2" >&2; exit 2 ;;
     esac

@@ -8,6 +8,7 @@
 #          --depth-every K  lean stream: full frames every K-th frame and on request, light frames
 #                   (H.264 colour, 1/4 depth) between (default 1: every frame full, the default pair)
 #          --adapt  the robots adapt their stream to the link (cslam-client --adapt; use with --rate 30)
+#          --byte-budget MB  each robot's byte budget, spent on finer full frames (cslam-client --byte-budget)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=build/bin
@@ -15,6 +16,7 @@ OUT="${CSLAM_DEMO_OUT:-demo_out}"
 RATE=max
 DEPTH_EVERY=1
 ADAPT=()
+BUDGET=0
 EXIT=0
 FUSED=""
 HTTP_PORT="${CSLAM_HTTP_PORT:-8080}"
@@ -24,7 +26,8 @@ while [ $# -gt 0 ]; do
     --rate) RATE="$2"; shift 2 ;;
     --depth-every) DEPTH_EVERY="$2"; shift 2 ;;
     --adapt) ADAPT=(--adapt); shift ;;
-    *) echo "run-demo.sh: unknown option $1 (use --exit, --rate R, --depth-every K, --adapt)" >&2; exit 2 ;;
+    --byte-budget) BUDGET="$2"; shift 2 ;;
+    *) echo "run-demo.sh: unknown option $1 (use --exit, --rate R, --depth-every K, --adapt, --byte-budget MB)" >&2; exit 2 ;;
   esac
 done
 SCENE="$OUT/scene"
@@ -52,7 +55,7 @@ ENDPOINT=$(cat "$RUN/endpoint")
 CLIENTS=()
 for k in 1 2 3; do
   "$BIN/cslam-client" --server "$ENDPOINT" --id "$k" --name "robot$k" --dataset "$SCENE/robot_$k" --rate "$RATE" \
-    --depth-every "$DEPTH_EVERY" "${ADAPT[@]}" --summary-out "$RUN/client_${k}_summary.json" --progress-interval 5 > "$RUN/client_$k.log" 2>&1 &
+    --depth-every "$DEPTH_EVERY" "${ADAPT[@]}" --byte-budget "$BUDGET" --summary-out "$RUN/client_${k}_summary.json" --progress-interval 5 > "$RUN/client_$k.log" 2>&1 &
   CLIENTS+=($!)
 done
 for pid in "${CLIENTS[@]}"; do wait "$pid" || { echo "a client failed; see $RUN/client_*.log" >&2; exit 1; }; done
@@ -95,7 +98,7 @@ else
   echo "== bandwidth (every frame full: JPEG q75 + lossless depth)"
 fi
 for k in 1 2 3; do
-  python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); n=max(1,s["frames_sent"]); print("client %s: %.1f KB/frame, %.2f MB/s at 30 Hz, %d of %d frames light, %d depth requests%s" % (sys.argv[2], s["bytes_sent"]/n/1e3, s["bytes_sent"]/n*30/1e6, s["frames_light"], n, s["depth_requests"], ", adaptive rate: %d steps down, %d up, depth every %d at the end" % (s["rate_steps_down"], s["rate_steps_up"], s["depth_every_last"]) if s["rate_steps_down"] else ""))' "$RUN/client_${k}_summary.json" "$k" || true
+  python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); n=max(1,s["frames_sent"]); print("client %s: %.1f KB/frame, %.2f MB/s at 30 Hz, %d of %d frames light, %d depth requests, %d full frames finer within the byte budget%s" % (sys.argv[2], s["bytes_sent"]/n/1e3, s["bytes_sent"]/n*30/1e6, s["frames_light"], n, s["depth_requests"], s["frames_finer"], ", adaptive rate: %d steps down, %d up, depth every %d at the end" % (s["rate_steps_down"], s["rate_steps_up"], s["depth_every_last"]) if s["rate_steps_down"] else ""))' "$RUN/client_${k}_summary.json" "$k" || true
 done
 
 echo "== server load (a worker behind its live frames tracks flow frames instead of skipping more: cslam-server --flow)"

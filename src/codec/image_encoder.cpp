@@ -31,8 +31,13 @@ EncodedRgb ImageEncoder::rgb_within(const cv::Mat& bgr, std::size_t allowance, c
     jpeg.rgb = RgbCodec::kJpeg;
     for (int quality : jpeg_qualities) {
       if (options_.rgb == RgbCodec::kJpeg && quality <= options_.jpeg_quality) break;
+      // A quality whose last picture was far over is not tried: a robot's pictures change
+      // little from one full frame to the next, and each trial costs a JPEG encoding.
+      const auto last = jpeg_sizes_.find(quality);
+      if (last != jpeg_sizes_.end() && double(last->second) > kSkipFactor * double(allowance)) continue;
       jpeg.jpeg_quality = quality;
       Bytes bytes = encode_rgb(bgr, jpeg);
+      jpeg_sizes_[quality] = bytes.size();
       if (bytes.size() <= allowance) return {RgbCodec::kJpeg, quality, std::move(bytes)};
     }
   }

@@ -8,6 +8,7 @@
 // at 38 dB and 4.5 ms). So a picture's bytes depend on the pictures encoded before it by this
 // object; a client that sends them in order (C++ or Python) sends the same bytes.
 #include <cstddef>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -43,7 +44,9 @@ class ImageEncoder {
   // A full frame's colour within a byte budget (codec/byte_budget.h): the first of
   // `jpeg_qualities` (finest first) finer than the options' own JPEG quality whose picture takes
   // at most `allowance` bytes, else rgb() with the options' codec. Lossless codecs (raw, PNG) are
-  // never replaced. Same argument checks as rgb().
+  // never replaced. A quality whose picture was over kSkipFactor x the allowance the last time
+  // it was tried is skipped (one JPEG encoding per full frame instead of up to three). Same
+  // argument checks as rgb().
   EncodedRgb rgb_within(const cv::Mat& bgr, std::size_t allowance, const std::vector<int>& jpeg_qualities);
   // depth: CV_16UC1, else std::invalid_argument.
   Bytes depth(const cv::Mat& depth) const { return encode_depth(depth, options_); }
@@ -52,6 +55,8 @@ class ImageEncoder {
  private:
   CodecOptions options_;
   std::unique_ptr<video::H264Encoder> intra_;  // kH264Intra: made at the first picture
+  std::map<int, std::size_t> jpeg_sizes_;      // rgb_within: JPEG quality -> its last picture's bytes
+  static constexpr double kSkipFactor = 1.25;
 };
 
 }  // namespace cslam

@@ -128,5 +128,44 @@ TEST(RgbWithin, TakesTheFinestJpegThatFitsElseTheStreamsOwnCodec) {
   EXPECT_THROW(images.rgb_within(cv::Mat(120, 160, CV_8UC1), 1u << 30, ladder), std::invalid_argument);
 }
 
+// A quality whose last picture was far over its allowance is not tried again on the next frame
+// (pictures change little between a robot's full frames; each trial is a JPEG encoding).
+TEST(RgbWithin, SkipsAQualityThatWasFarOverTheLastTime) {
+  CodecOptions q95, q90;
+  q95.jpeg_quality = 95;
+  q90.jpeg_quality = 90;
+  cv::Mat calm;
+  cv::GaussianBlur(textured_bgr(160, 120, 5), calm, cv::Size(9, 9), 4);
+  const std::size_t calm95 = encode_rgb(calm, q95).size(), calm90 = encode_rgb(calm, q90).size();
+  // A busier picture whose q95 is far over what fits the calm one's q95, and its q90 is not.
+  cv::Mat busy;
+  bool found = false;
+  for (int noise = 1; noise <= 40 && !found; ++noise) {
+    cv::Mat grain(calm.size(), CV_16SC3);
+    cv::RNG(11).fill(grain, cv::RNG::NORMAL, 0, noise);
+    calm.convertTo(busy, CV_16SC3);
+    busy += grain;
+    busy.convertTo(busy, CV_8UC3);
+    const double b95 = double(encode_rgb(busy, q95).size()), b90 = double(encode_rgb(busy, q90).size());
+    found = b95 > 1.25 * double(calm95) && b90 <= 1.25 * double(calm95);
+  }
+  ASSERT_TRUE(found);
+
+  CodecOptions intra;
+  intra.rgb = RgbCodec::kH264Intra;
+  const std::vector<int> ladder = {95, 90};
+  ImageEncoder fresh(intra, calm.size());
+  EXPECT_EQ(fresh.rgb_within(calm, calm95, ladder).jpeg_quality, 95);  // nothing known: tried
+  ImageEncoder seen(intra, calm.size());
+  EXPECT_EQ(seen.rgb_within(busy, 1, ladder).codec, RgbCodec::kH264Intra);  // both tried, both over
+  const EncodedRgb r = seen.rgb_within(calm, calm95, ladder);               // q95 skipped
+  EXPECT_EQ(r.jpeg_quality, 90);
+  EXPECT_EQ(r.bytes.size(), calm90);
+  EXPECT_EQ(seen.rgb_within(calm, calm95, ladder).jpeg_quality, 90);  // still known as far over
+  // With room near the last size it is tried again, and then known as it is now.
+  EXPECT_EQ(seen.rgb_within(calm, 10 * calm95, ladder).jpeg_quality, 95);
+  EXPECT_EQ(seen.rgb_within(calm, calm95, ladder).jpeg_quality, 95);
+}
+
 }  // namespace
 }  // namespace cslam

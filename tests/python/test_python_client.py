@@ -40,8 +40,7 @@ class PythonClientEndToEnd(unittest.TestCase):
         self.addCleanup(server.stop)  # a failed check must not leave the server waiting for a goodbye
         with open(os.path.join(self.dir, name, "client.log"), "w") as log:
             rc = subprocess.run([harness.program("cslam-client"), "--server", server.endpoint, "--id", "1", "--dataset",
-                                 self.robot, "--rate", "max", "--byte-budget", "0"],  # as FrameSender's default
-                                stdout=log, stderr=subprocess.STDOUT).returncode
+                                 self.robot, "--rate", "max"], stdout=log, stderr=subprocess.STDOUT).returncode
         self.assertEqual(rc, 0, f"see {self.dir}/{name}/client.log")
         self.assertEqual(server.wait(), 0, f"see {server.log_path}")
         return server

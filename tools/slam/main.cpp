@@ -118,7 +118,7 @@ int run(int argc, char** argv) {
       .option("byte-budget",
               "with --coded-colour: the robot's byte budget in MB/s, spent on the full frames' colour as cslam-client "
               "--byte-budget does; 0: none",
-              "1.0")
+              "0")
       .option("stream-rate", "with --byte-budget: the robot's frames per second (cslam-client --rate)", "30")
       .flag("quiet", "no progress output")
       .option("log-level", "trace, debug, info, warn, error, off", "info");

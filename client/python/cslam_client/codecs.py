@@ -85,11 +85,13 @@ class ImageEncoder:
     stateless codecs through encode_rgb / encode_depth; h264-intra through one H.264 encoder with
     video.intra_image() (key interval 1), made at the first picture, whose rate control carries
     over between pictures. Encode the frames in sending order."""
+    SKIP_FACTOR = 1.25  # rgb_within skips a quality whose last picture was over this x the allowance
 
     def __init__(self, codecs):
         codecs.validate()
         self.codecs = codecs
         self._intra = None
+        self._jpeg_sizes = {}  # rgb_within: JPEG quality -> its last picture's bytes
 
     def rgb(self, bgr):
         """Returns (wire encoding name, bytes)."""
@@ -117,7 +119,11 @@ class ImageEncoder:
             for quality in jpeg_qualities:
                 if self.codecs.rgb == "jpeg" and quality <= self.codecs.jpeg_quality:
                     break
+                last = self._jpeg_sizes.get(quality)
+                if last is not None and float(last) > self.SKIP_FACTOR * float(allowance):
+                    continue  # far over the last time: not tried (as the C++ encoder)
                 data = _imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
+                self._jpeg_sizes[quality] = len(data)
                 if len(data) <= allowance:
                     return "RGB_JPEG", data, quality
         enc, data = self.rgb(bgr)
