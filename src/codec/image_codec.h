@@ -35,7 +35,8 @@ const char* to_string(DepthCodec codec);
 // A stream's full frames' colour codec unless one is chosen ("auto" in the programs): in a stream
 // with light frames (a lean or adaptive one), standalone H.264 pictures, smaller than JPEG q75
 // with more ORB features kept (the lean stream's ATE over 24 demo scenes: 1.085x the default
-// pair's with these; the full frames' colour sets it, docs/results/bandwidth.md); JPEG when every
+// pair's with these; the full frames' colour sets it, docs/results/bandwidth.md, and a byte budget
+// makes it finer where the robot's link share has room, codec/byte_budget.h); JPEG when every
 // frame is full (a picture costs the server 4x a JPEG's decoding, and the robot 4x its encoding).
 RgbCodec auto_rgb_codec(bool light_frames);
 // "raw" | "jpeg" | "png" | "h264-intra"; throws ConfigError otherwise. "jpeg90" sets quality too (see parse_codecs).
