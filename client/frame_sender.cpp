@@ -83,12 +83,10 @@ void FrameSender::reconnect() {
 
 wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) {
   wire::RgbdFrame out;
-  const RgbCodec own = config_.codecs.rgb;
   // The budget spends room only while the link is calm: a rate controller that stepped down
   // (full frames less often) would otherwise see the bytes it saved spent again.
   const bool calm = !config_.adapt.enabled || rate_.level() == 0;
-  const int quality = wire::to_wire_frame(frame, full_images_, &out, calm ? &budget_ : nullptr);
-  if (quality > 0 && !(own == RgbCodec::kJpeg && quality == config_.codecs.jpeg_quality)) ++stats_.frames_finer;
+  if (wire::to_wire_frame(frame, full_images_, &out, calm ? &budget_ : nullptr)) ++stats_.frames_finer;
   return out;
 }
 

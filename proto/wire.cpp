@@ -67,7 +67,7 @@ Hello to_hello(const ClientInfo& info) {
   return h;
 }
 
-int to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out, const ByteBudget* budget) {
+bool to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out, const ByteBudget* budget) {
   const CodecOptions& options = images.options();
   out->set_client_id(frame.client);
   out->set_seq(frame.seq);
@@ -76,10 +76,12 @@ int to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame
   out->set_live(frame.live);
   const Bytes depth = images.depth(frame.depth);
   EncodedRgb rgb;
-  if (budget && budget->enabled())
+  if (budget && budget->enabled()) {
     rgb = images.rgb_within(frame.bgr, budget->image_allowance(depth.size()), budget->config().jpeg_qualities);
-  else
-    rgb = {options.rgb, options.jpeg_quality, images.rgb(frame.bgr)};
+  } else {
+    rgb.codec = options.rgb;
+    rgb.bytes = images.rgb(frame.bgr);
+  }
   Image* r = out->mutable_rgb();
   r->set_width(std::uint32_t(frame.bgr.cols));
   r->set_height(std::uint32_t(frame.bgr.rows));
@@ -90,7 +92,7 @@ int to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame
   d->set_height(std::uint32_t(frame.depth.rows));
   d->set_encoding(to_wire(options.depth));
   d->set_data(depth.data(), depth.size());
-  return rgb.codec == RgbCodec::kJpeg ? rgb.jpeg_quality : 0;
+  return rgb.finer;
 }
 
 void to_wire_light_frame(const cslam::RgbdFrame& frame, const Bytes& colour_packet, int depth_subsample,

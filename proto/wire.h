@@ -44,9 +44,9 @@ Hello to_hello(const ClientInfo& info);
 // Encodes a full frame's images with the stream's encoder into `out` (reused to avoid
 // reallocations). With an enabled budget the colour is the finest its allowance takes
 // (ImageEncoder::rgb_within, codec/byte_budget.h); the caller adds the sent message to it.
-// Returns the colour's JPEG quality, 0 when it is not JPEG.
-int to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out,
-                  const ByteBudget* budget = nullptr);
+// Returns whether the budget made the colour finer than the stream's codec.
+bool to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFrame* out,
+                   const ByteBudget* budget = nullptr);
 // A light frame: `colour_packet` is the next packet of the robot's colour stream
 // (video::H264Encoder), sent as RGB_H264; with depth_subsample >= 2 the frame's depth goes
 // along at every S-th pixel of every S-th row (options.depth, lossless), else no depth.

@@ -38,10 +38,10 @@ EncodedRgb ImageEncoder::rgb_within(const cv::Mat& bgr, std::size_t allowance, c
       jpeg.jpeg_quality = quality;
       Bytes bytes = encode_rgb(bgr, jpeg);
       jpeg_sizes_[quality] = bytes.size();
-      if (bytes.size() <= allowance) return {RgbCodec::kJpeg, quality, std::move(bytes)};
+      if (bytes.size() <= allowance) return {RgbCodec::kJpeg, std::move(bytes), quality, true};
     }
   }
-  return {options_.rgb, options_.rgb == RgbCodec::kJpeg ? options_.jpeg_quality : 0, rgb(bgr)};
+  return {options_.rgb, rgb(bgr), options_.rgb == RgbCodec::kJpeg ? options_.jpeg_quality : 0, false};
 }
 
 }  // namespace cslam

@@ -24,8 +24,9 @@ class H264Encoder;
 
 struct EncodedRgb {
   RgbCodec codec = RgbCodec::kRaw;
-  int jpeg_quality = 0;  // with kJpeg: the quality used
   Bytes bytes;
+  int jpeg_quality = 0;  // with kJpeg: the quality used
+  bool finer = false;    // rgb_within chose a JPEG finer than the options' own codec
 };
 
 class ImageEncoder {

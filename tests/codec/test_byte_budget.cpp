@@ -102,6 +102,7 @@ TEST(RgbWithin, TakesTheFinestJpegThatFitsElseTheStreamsOwnCodec) {
   EncodedRgb r = images.rgb_within(bgr, q95, ladder);
   EXPECT_EQ(r.codec, RgbCodec::kJpeg);
   EXPECT_EQ(r.jpeg_quality, 95);
+  EXPECT_TRUE(r.finer);
   EXPECT_EQ(r.bytes, encode_rgb(bgr, jpeg95));
   r = images.rgb_within(bgr, q85, ladder);
   EXPECT_EQ(r.jpeg_quality, 85);
@@ -109,6 +110,7 @@ TEST(RgbWithin, TakesTheFinestJpegThatFitsElseTheStreamsOwnCodec) {
   r = images.rgb_within(bgr, q85 - 1, ladder);
   EXPECT_EQ(r.codec, RgbCodec::kH264Intra);
   EXPECT_EQ(r.jpeg_quality, 0);
+  EXPECT_FALSE(r.finer);
   EXPECT_FALSE(r.bytes.empty());
   const cv::Mat back = decode_rgb(r.codec, r.bytes.data(), r.bytes.size(), bgr.cols, bgr.rows, "test");
   EXPECT_EQ(back.size(), bgr.size());
@@ -119,12 +121,14 @@ TEST(RgbWithin, TakesTheFinestJpegThatFitsElseTheStreamsOwnCodec) {
   ImageEncoder jpeg_images(jpeg90);
   r = jpeg_images.rgb_within(bgr, q85, ladder);
   EXPECT_EQ(r.jpeg_quality, 90);
+  EXPECT_FALSE(r.finer);  // the stream's own
   EXPECT_EQ(r.bytes, encode_rgb(bgr, jpeg90));
   CodecOptions png;
   png.rgb = RgbCodec::kPng;
   ImageEncoder png_images(png);
   r = png_images.rgb_within(bgr, 1u << 30, ladder);
   EXPECT_EQ(r.codec, RgbCodec::kPng);
+  EXPECT_FALSE(r.finer);
   EXPECT_THROW(images.rgb_within(cv::Mat(120, 160, CV_8UC1), 1u << 30, ladder), std::invalid_argument);
 }
 

@@ -43,8 +43,7 @@ void LeanStreamSim::code_full(RgbdFrame& frame) {
   const std::size_t depth_bytes = full_images_.depth(frame.depth).size();
   const EncodedRgb rgb =
       full_images_.rgb_within(frame.bgr, budget_.image_allowance(depth_bytes), config_.budget.jpeg_qualities);
-  const CodecOptions& own = config_.full_colour;
-  if (rgb.codec != own.rgb || (rgb.codec == RgbCodec::kJpeg && rgb.jpeg_quality != own.jpeg_quality)) ++frames_finer_;
+  if (rgb.finer) ++frames_finer_;
   budget_.add(rgb.bytes.size() + depth_bytes + ByteBudget::kHeaderBytes);
   frame.bgr = decode_rgb(rgb.codec, rgb.bytes.data(), rgb.bytes.size(), frame.bgr.cols, frame.bgr.rows, source);
 }

@@ -111,7 +111,7 @@ class ImageEncoder:
         """A full frame's colour within a byte budget, as ImageEncoder::rgb_within: the first of
         `jpeg_qualities` (finest first) finer than the codecs' own JPEG quality whose picture takes
         at most `allowance` bytes, else rgb(). Raw and PNG are never replaced. Returns (wire
-        encoding name, bytes, JPEG quality or 0)."""
+        encoding name, bytes, finer: whether a finer JPEG was chosen)."""
         import cv2
         if self.codecs.rgb not in ("raw", "png") and allowance > 0:
             if not isinstance(bgr, np.ndarray) or bgr.dtype != np.uint8 or bgr.ndim != 3 or bgr.shape[2] != 3:
@@ -125,9 +125,9 @@ class ImageEncoder:
                 data = _imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
                 self._jpeg_sizes[quality] = len(data)
                 if len(data) <= allowance:
-                    return "RGB_JPEG", data, quality
+                    return "RGB_JPEG", data, True
         enc, data = self.rgb(bgr)
-        return enc, data, self.codecs.jpeg_quality if enc == "RGB_JPEG" else 0
+        return enc, data, False
 
 
 class ByteBudget:

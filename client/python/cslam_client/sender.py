@@ -183,10 +183,9 @@ class FrameSender:
         frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
         depth_enc, depth_data = self._images.depth(depth)
         if self.budget.enabled:
-            enc, data, quality = self._images.rgb_within(bgr, self.budget.image_allowance(len(depth_data)),
-                                                         self.budget.jpeg_qualities)
-            own = self.codecs.rgb == "jpeg" and quality == self.codecs.jpeg_quality
-            self.stats.frames_finer += int(quality > 0 and not own)
+            enc, data, finer = self._images.rgb_within(bgr, self.budget.image_allowance(len(depth_data)),
+                                                       self.budget.jpeg_qualities)
+            self.stats.frames_finer += int(finer)
         else:
             enc, data = self._images.rgb(bgr)
         frame.rgb.width, frame.rgb.height, frame.rgb.encoding, frame.rgb.data = w, h, pb.Encoding.Value(enc), data
