@@ -8,18 +8,13 @@
 
 #include "codec/byte_budget.h"
 #include "codec/image_encoder.h"
+#include "common/test_images.h"
 #include "core/error.h"
 
 namespace cslam {
 namespace {
 
-cv::Mat textured_bgr(int w, int h, unsigned seed) {
-  cv::Mat im(h, w, CV_8UC3);
-  cv::RNG rng(seed);
-  rng.fill(im, cv::RNG::UNIFORM, 0, 256);
-  cv::GaussianBlur(im, im, cv::Size(5, 5), 1.2);
-  return im;
-}
+cv::Mat textured_bgr(int w, int h, unsigned seed) { return test::blurred_noise_bgr(w, h, seed, 1.2); }
 
 ByteBudgetConfig budget_of(double bytes_per_s, double frame_rate = 10, double burst_s = 1) {
   ByteBudgetConfig c;

@@ -9,18 +9,13 @@
 #include "codec/image_codec.h"
 #include "codec/image_encoder.h"
 #include "codec/video_codec.h"
+#include "common/test_images.h"
 #include "core/error.h"
 
 namespace cslam {
 namespace {
 
-cv::Mat random_bgr(int w, int h, unsigned seed) {
-  cv::Mat im(h, w, CV_8UC3);
-  cv::RNG rng(seed);
-  rng.fill(im, cv::RNG::UNIFORM, 0, 256);
-  cv::GaussianBlur(im, im, cv::Size(5, 5), 1.5);  // some structure, like a real image
-  return im;
-}
+cv::Mat random_bgr(int w, int h, unsigned seed) { return test::blurred_noise_bgr(w, h, seed, 1.5); }
 
 // Smooth depth ramps with holes (0) and a few far outliers: what Kinect depth looks like.
 cv::Mat random_depth(int w, int h, unsigned seed) {

@@ -23,6 +23,18 @@ from cslam_client.sender import CurveKeys, FrameSender
 from cslam_client.wire import pb
 
 
+def stream_robot(sender, robot):
+    """Connects, sends every frame of the robot's dataset, says goodbye (all acked); returns the pairs."""
+    sender.connect()
+    pairs = dataset.open_tum(robot)
+    for pair in pairs:
+        bgr, depth = dataset.load_pair(pair)
+        sender.send(bgr, depth, pair.rgb_time, pair.depth_time - pair.rgb_time)
+    if not sender.goodbye():
+        raise AssertionError("goodbye: not every frame was acknowledged")
+    return pairs
+
+
 class PythonClientEndToEnd(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -51,12 +63,7 @@ class PythonClientEndToEnd(unittest.TestCase):
         cam = camera.load(os.path.join(self.robot, "camera.yaml"))
         acks = []
         sender = FrameSender(server.endpoint, 1, cam, on_ack=acks.append)
-        sender.connect()
-        pairs = dataset.open_tum(self.robot)
-        for pair in pairs:
-            bgr, depth = dataset.load_pair(pair)
-            sender.send(bgr, depth, pair.rgb_time, pair.depth_time - pair.rgb_time)
-        self.assertTrue(sender.goodbye())
+        pairs = stream_robot(sender, self.robot)
         self.assertEqual(sender.stats.frames_sent, len(pairs))
         self.assertEqual(sender.stats.acks, len(pairs))
         self.assertEqual(sorted(a.seq for a in acks), list(range(1, len(pairs) + 1)))
@@ -133,12 +140,7 @@ class BudgetedLeanStreamEqualsCpp(unittest.TestCase):
             cam = camera.load(os.path.join(self.robot, "camera.yaml"))
             budget = codecs.ByteBudget(self.BUDGET_MB_S * 1e6, frame_rate=30)
             sender = FrameSender(py.endpoint, 1, cam, depth_every=5, byte_budget=budget)
-            sender.connect()
-            pairs = dataset.open_tum(self.robot)
-            for pair in pairs:
-                bgr, depth = dataset.load_pair(pair)
-                sender.send(bgr, depth, pair.rgb_time, pair.depth_time - pair.rgb_time)
-            self.assertTrue(sender.goodbye())
+            stream_robot(sender, self.robot)
             self.assertEqual(py.wait(), 0, f"see {py.log_path}")
 
             # Full frames (8 of the 40) got finer colour, the same in both, within the budget.
