@@ -75,13 +75,7 @@ bool to_wire_frame(const cslam::RgbdFrame& frame, ImageEncoder& images, RgbdFram
   out->set_depth_time_offset(frame.depth_time_offset);
   out->set_live(frame.live);
   const Bytes depth = images.depth(frame.depth);
-  EncodedRgb rgb;
-  if (budget && budget->enabled()) {
-    rgb = images.rgb_within(frame.bgr, budget->image_allowance(depth.size()), budget->config().jpeg_qualities);
-  } else {
-    rgb.codec = options.rgb;
-    rgb.bytes = images.rgb(frame.bgr);
-  }
+  const EncodedRgb rgb = images.full_colour(frame.bgr, budget, depth.size());
   Image* r = out->mutable_rgb();
   r->set_width(std::uint32_t(frame.bgr.cols));
   r->set_height(std::uint32_t(frame.bgr.rows));

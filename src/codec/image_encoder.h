@@ -14,6 +14,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "codec/byte_budget.h"
 #include "codec/image_codec.h"
 
 namespace cslam {
@@ -49,6 +50,10 @@ class ImageEncoder {
   // it was tried is skipped (one JPEG encoding per full frame instead of up to three). Same
   // argument checks as rgb().
   EncodedRgb rgb_within(const cv::Mat& bgr, std::size_t allowance, const std::vector<int>& jpeg_qualities);
+  // A full frame's colour: rgb_within the room an enabled `budget` leaves beside the frame's
+  // `other_image_bytes` (its depth), else rgb() with the options' codec. The sender's wire frames
+  // and the offline simulation both take their colour from here.
+  EncodedRgb full_colour(const cv::Mat& bgr, const ByteBudget* budget, std::size_t other_image_bytes);
   // depth: CV_16UC1, else std::invalid_argument.
   Bytes depth(const cv::Mat& depth) const { return encode_depth(depth, options_); }
   const CodecOptions& options() const { return options_; }

@@ -25,51 +25,44 @@ void LeanStreamSim::apply(RgbdFrame& frame, int n) {
     code_full(frame);
     return;
   }
-  light_bytes_ = 0;
-  code_light_colour(frame);
-  make_light_depth(frame);
-  if (budget_.enabled()) budget_.add(light_bytes_ + ByteBudget::kHeaderBytes);
+  const std::size_t bytes = code_light_colour(frame) + make_light_depth(frame);
+  if (budget_.enabled()) budget_.add(bytes + ByteBudget::kHeaderBytes);
   ++light_frames_;
 }
 
 void LeanStreamSim::code_full(RgbdFrame& frame) {
   if (!config_.coded_colour) return;
-  const std::string source = "coded colour, frame " + std::to_string(frame.seq);
-  if (!budget_.enabled()) {
-    const Bytes bytes = full_images_.rgb(frame.bgr);
-    frame.bgr = decode_rgb(config_.full_colour.rgb, bytes.data(), bytes.size(), frame.bgr.cols, frame.bgr.rows, source);
-    return;
-  }
-  const std::size_t depth_bytes = full_images_.depth(frame.depth).size();
-  const EncodedRgb rgb =
-      full_images_.rgb_within(frame.bgr, budget_.image_allowance(depth_bytes), config_.budget.jpeg_qualities);
+  const std::size_t depth_bytes = budget_.enabled() ? full_images_.depth(frame.depth).size() : 0;
+  const EncodedRgb rgb = full_images_.full_colour(frame.bgr, &budget_, depth_bytes);
   if (rgb.finer) ++frames_finer_;
-  budget_.add(rgb.bytes.size() + depth_bytes + ByteBudget::kHeaderBytes);
-  frame.bgr = decode_rgb(rgb.codec, rgb.bytes.data(), rgb.bytes.size(), frame.bgr.cols, frame.bgr.rows, source);
+  if (budget_.enabled()) budget_.add(rgb.bytes.size() + depth_bytes + ByteBudget::kHeaderBytes);
+  frame.bgr = decode_rgb(rgb.codec, rgb.bytes.data(), rgb.bytes.size(), frame.bgr.cols, frame.bgr.rows,
+                         "coded colour, frame " + std::to_string(frame.seq));
 }
 
-void LeanStreamSim::code_light_colour(RgbdFrame& frame) {
-  if (!config_.coded_colour) return;
+std::size_t LeanStreamSim::code_light_colour(RgbdFrame& frame) {
+  if (!config_.coded_colour) return 0;
   const int w = frame.bgr.cols, h = frame.bgr.rows;
   if (!encoder_) {
     encoder_ = std::make_unique<video::H264Encoder>(w, h, config_.light_colour);
     decoder_ = std::make_unique<video::H264Decoder>(w, h);
   }
   const Bytes packet = encoder_->encode(frame.bgr);
-  light_bytes_ += packet.size();
   frame.bgr = decoder_->decode(packet.data(), packet.size(), "coded colour, frame " + std::to_string(frame.seq));
+  return packet.size();
 }
 
-// What the server makes of a light frame's depth.
-void LeanStreamSim::make_light_depth(RgbdFrame& frame) {
+// What the server makes of a light frame's depth; its coded bytes when they count (a budget).
+std::size_t LeanStreamSim::make_light_depth(RgbdFrame& frame) {
   if (config_.light_depth <= 1) {
     frame.depth = cv::Mat();
-    return;
+    return 0;
   }
   const cv::Mat coarse = subsample_depth(frame.depth, config_.light_depth);
-  if (budget_.enabled()) light_bytes_ += encode_depth(coarse, config_.full_colour).size();
+  const std::size_t bytes = budget_.enabled() ? encode_depth(coarse, config_.full_colour).size() : 0;
   frame.depth = expand_depth(coarse, config_.light_depth, frame.depth.cols, frame.depth.rows);
   frame.depth_subsample = config_.light_depth;
+  return bytes;
 }
 
 void LeanStreamSim::requested(int n) {

@@ -50,8 +50,9 @@ class LeanStreamSim {
 
  private:
   void code_full(RgbdFrame& frame);
-  void code_light_colour(RgbdFrame& frame);
-  void make_light_depth(RgbdFrame& frame);
+  // Each returns the bytes it made (the budget counts them).
+  std::size_t code_light_colour(RgbdFrame& frame);
+  std::size_t make_light_depth(RgbdFrame& frame);
 
   const LeanStreamConfig config_;
   ImageEncoder full_images_;  // the full frames' colour (one encoder per client, as the client's)
@@ -61,7 +62,6 @@ class LeanStreamSim {
   int requested_at_ = -1;
   FullFrameClock clock_;
   ByteBudget budget_;
-  std::size_t light_bytes_ = 0;  // the light frame being made: its images' bytes so far
   int light_frames_ = 0, frames_finer_ = 0;
 };
 
