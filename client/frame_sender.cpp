@@ -81,18 +81,21 @@ void FrameSender::reconnect() {
   }
 }
 
-wire::RgbdFrame FrameSender::encode(const RgbdFrame& frame) {
+wire::RgbdFrame FrameSender::encode_full(const RgbdFrame& frame, bool spend) {
   wire::RgbdFrame out;
   // The budget spends room only while the link is calm: a rate controller that stepped down
   // (full frames less often) would otherwise see the bytes it saved spent again.
   const bool calm = !config_.adapt.enabled || rate_.level() == 0;
-  if (wire::to_wire_frame(frame, full_images_, &out, calm ? &budget_ : nullptr)) ++stats_.frames_finer;
+  if (wire::to_wire_frame(frame, full_images_, &out, calm && spend ? &budget_ : nullptr)) ++stats_.frames_finer;
   return out;
 }
 
 wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
   const bool with_depth = !colour_encoder_ || full_clock_.next(depth_wanted_, rate_.depth_every());
   if (with_depth) {
+    const std::uint64_t seq = seq_ + 1;  // encode_next runs right before the frame is sent with the next seq
+    const bool spend = keyframe_hint_.expects_keyframe(seq, depth_wanted_);
+    keyframe_hint_.on_full_frame(seq, depth_wanted_);
     if (depth_request_seq_ > 0) {  // answers a request: how many frames after the asking one
       const std::uint64_t lag = seq_ + 1 - depth_request_seq_;
       stats_.depth_request_lag_sum += lag;
@@ -101,8 +104,8 @@ wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
     }
     depth_request_seq_ = 0;
     depth_wanted_ = false;
-    last_full_seq_ = seq_ + 1;  // encode_next runs right before the frame is sent with the next seq
-    return encode(frame);
+    last_full_seq_ = seq;
+    return encode_full(frame, spend);
   }
   wire::RgbdFrame out;
   const bool key = key_wanted_;
@@ -254,6 +257,7 @@ void FrameSender::on_ack(const wire::Ack& ack) {
     depth_wanted_ = true;
     ++stats_.depth_requests;
   }
+  keyframe_hint_.on_ack(ack.seq(), f.keyframe_due_in);
   latest_pose_ = f;
   if (pose_callback_) {
     pose_callback_(f);

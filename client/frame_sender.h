@@ -26,6 +26,7 @@
 #include <zmq.hpp>
 
 #include "codec/byte_budget.h"
+#include "codec/keyframe_hint.h"
 #include "codec/image_codec.h"
 #include "client/rate_control.h"
 #include "codec/video_codec.h"
@@ -67,7 +68,8 @@ struct SenderConfig {
   // Byte budget (codec/byte_budget.h): the full frames' colour is the finest JPEG quality that
   // keeps the stream within budget.bytes_per_s, else `codecs`' own; 0: always `codecs`' own.
   // Set budget.frame_rate to the stream's nominal rate. With `adapt`, only while the rate
-  // controller is at its finest step (the link calm).
+  // controller is at its finest step (the link calm). In a lean stream, only on the full frames
+  // the server's acks expect to become keyframes (codec/keyframe_hint.h).
   ByteBudgetConfig budget;
   // Whether frames may be light (a colour stream exists): a lean stream or an adaptive one.
   bool colour_stream_on() const { return depth_every > 1 || adapt.enabled; }
@@ -117,7 +119,7 @@ class FrameSender {
   // Encodes the frame's images with config.codecs (the frame's client/seq are ignored: the
   // sender stamps its own id and the next sequence number). Always with depth. With
   // --rgb-codec h264-intra the pictures come from one encoder: encode frames in sending order.
-  wire::RgbdFrame encode(const RgbdFrame& frame);
+  wire::RgbdFrame encode(const RgbdFrame& frame) { return encode_full(frame, true); }
   // The next frame of the stream: with depth (encode()) or, in a lean stream, colour only as the
   // colour stream's next packet. Call it only for a frame that is sent right away.
   wire::RgbdFrame encode_next(const RgbdFrame& frame);
@@ -198,6 +200,7 @@ class FrameSender {
   RateController rate_;
   ByteBudget budget_;  // config.budget; every sent frame's message is added
   FullFrameClock full_clock_;
+  KeyframeHint keyframe_hint_;           // lean stream: which full frames the budget is for
   bool depth_wanted_ = true;             // the first frame carries depth
   bool key_wanted_ = true;               // the first colour packet, and the first after a gap or reconnect, is a key
   std::uint64_t last_key_seq_ = 0;       // seq of the last key packet sent (a gap before it is healed)
@@ -211,6 +214,9 @@ class FrameSender {
   std::size_t kept_bytes_ = 0;
   std::deque<std::pair<std::uint64_t, std::string>> resend_;  // queued by plan_resend, oldest first
   std::optional<wire::PoseFeedback> latest_pose_;
+
+  // encode() with the budget (if any, and the link calm) only when `spend`.
+  wire::RgbdFrame encode_full(const RgbdFrame& frame, bool spend);
 };
 
 }  // namespace cslam::client

@@ -1,5 +1,8 @@
 #include "proto/pose_feedback.h"
 
+#include <algorithm>
+#include <limits>
+
 namespace cslam::wire {
 
 Pose to_wire_pose(const SE3& T) {
@@ -66,6 +69,7 @@ void to_wire_ack(const FrameDone& done, std::uint32_t credits, Ack* out) {
   out->set_frames_skipped(done.frames_skipped);
   out->set_server_ms(done.server_ms);
   out->set_want_depth(done.wants_depth);
+  out->set_keyframe_due_in(std::uint32_t(std::max(0, done.keyframe_due_in)));
 }
 
 PoseFeedback from_wire_ack(const Ack& ack) {
@@ -83,6 +87,8 @@ PoseFeedback from_wire_ack(const Ack& ack) {
   f.frames_skipped = ack.frames_skipped();
   f.server_ms = ack.server_ms();
   f.want_depth = ack.want_depth();
+  const std::uint32_t due_in = ack.keyframe_due_in();
+  f.keyframe_due_in = due_in <= std::uint32_t(std::numeric_limits<int>::max()) ? int(due_in) : 0;
   return f;
 }
 

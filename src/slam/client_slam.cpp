@@ -83,7 +83,7 @@ void ClientSlam::publish_early_pose(const Tracker::TrackedPose& tracked) {
     pose = {ref.T_world_cam(), map.index()};
     epoch = map_epoch_locked(ptrs);
   }
-  early_pose_listener_(pose, epoch);
+  early_pose_listener_(pose, epoch, tracked.keyframe_due_in);
 }
 
 std::uint64_t ClientSlam::map_epoch_locked(const std::vector<Map*>& maps) {
@@ -188,6 +188,7 @@ ProcessResult ClientSlam::process(const RgbdFrame& frame, WorkerLoad load) {
   r.new_keyframe = t.new_keyframe;
   r.flow = t.flow;
   r.wants_depth = t.wants_depth;
+  r.keyframe_due_in = t.keyframe_due_in;
   r.keyframe = t.keyframe;
   if (T_depthcam_motion) r.T_cam_depthcam = T_depthcam_motion->inverse();
   r.inliers = t.inliers;

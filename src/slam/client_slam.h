@@ -26,6 +26,7 @@ struct ProcessResult {
   // A light frame (no full depth) on which tracking needed full depth (a keyframe deferred, or no map yet): the
   // robot's next frame should carry depth.
   bool wants_depth = false;
+  int keyframe_due_in = 0;  // TrackResult::keyframe_due_in: when the robot's next keyframe falls due
   // Where the camera was when the depth image was taken (frame.depth_time_offset away), relative
   // to the colour image's pose, as the motion model predicts it (identity without one).
   SE3 T_cam_depthcam;
@@ -113,9 +114,10 @@ class ClientSlam {
   // when that is well before process() returns: a frame that becomes a keyframe, before the
   // keyframe is made and local mapping is waited for. The pose is the frame's trajectory() entry,
   // which exists from then on; `map_epoch`: the sum of the client's maps' big-change indices, read
-  // with it. Not called if the map moved after the frame was tracked (process() then ends with the
-  // pose in the moved map). Set before the first frame.
-  using EarlyPoseListener = std::function<void(const FramePose& pose, std::uint64_t map_epoch)>;
+  // with it; `keyframe_due_in`: TrackResult::keyframe_due_in once the frame is a keyframe. Not
+  // called if the map moved after the frame was tracked (process() then ends with the pose in the
+  // moved map). Set before the first frame.
+  using EarlyPoseListener = std::function<void(const FramePose& pose, std::uint64_t map_epoch, int keyframe_due_in)>;
   void set_early_pose_listener(EarlyPoseListener listener);
   // The sum of the client's maps' big-change indices: it grows whenever a fusion, group BA or loop
   // correction may have moved a map (FrameDone::map_epoch).

@@ -57,8 +57,8 @@ ClientPipeline::ClientPipeline(const ClientInfo& info, const SystemConfig& confi
                                       mapping_wait_ms_ += ms_since(mapping_wait_start_);
                                     }});
   if (slam_)
-    slam_->set_early_pose_listener(
-        [this](const ClientSlam::FramePose& pose, std::uint64_t map_epoch) { on_early_pose(pose, map_epoch); });
+    slam_->set_early_pose_listener([this](const ClientSlam::FramePose& pose, std::uint64_t map_epoch,
+                                          int keyframe_due_in) { on_early_pose(pose, map_epoch, keyframe_due_in); });
   counters_.id = info_.id;
   counters_.name = info_.name;
   counters_.group = GroupId::from_value(info_.id);  // until the first frame reports its group
@@ -165,6 +165,7 @@ FrameDone ClientPipeline::process(const RgbdFrame& frame, WorkerLoad load) {
   mapping_wait_ms_ = 0;
   const ProcessResult r = slam_->process(frame, load);
   done.wants_depth = r.wants_depth;
+  done.keyframe_due_in = r.keyframe_due_in;
   if (r.keyframe && config_.on_keyframe) config_.on_keyframe(info_, *r.keyframe, frame, r.T_cam_depthcam);
   if (r.fate == FrameFate::kRejected)
     logger("system")->warn("client {} frame {} rejected: {}", info_.id, frame.seq, r.reject_reason);
@@ -201,7 +202,7 @@ void ClientPipeline::report(FrameDone done, const RgbdFrame& frame, Clock::time_
   publish(done, frame, started, slot_ms, skipped ? 0 : mapping_wait_ms_, skipped ? 0 : done_cpu_ms_);
 }
 
-void ClientPipeline::on_early_pose(const ClientSlam::FramePose& pose, std::uint64_t map_epoch) {
+void ClientPipeline::on_early_pose(const ClientSlam::FramePose& pose, std::uint64_t map_epoch, int keyframe_due_in) {
   if (!current_.frame) return;
   FrameDone done;
   done.fate = FrameFate::kTracked;
@@ -210,6 +211,7 @@ void ClientPipeline::on_early_pose(const ClientSlam::FramePose& pose, std::uint6
   done.map = pose.map_index;
   done.map_epoch = map_epoch;
   done.group = group_of_map(slam_->maps(), pose.map_index);
+  done.keyframe_due_in = keyframe_due_in;
   if (latency_log_->should_log(spdlog::level::trace))
     done_runqueue_ms_ = thread_runqueue_ms() - current_.runqueue_started_ms;  // so far (the trace line)
   publish(done, *current_.frame, current_.started, current_.slot_ms, mapping_wait_ms_,

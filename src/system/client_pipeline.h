@@ -58,7 +58,7 @@ class ClientPipeline {
   // Nothing more goes out for a frame whose pose on_early_pose sent.
   void report(FrameDone done, const RgbdFrame& frame, Clock::time_point started = {}, double slot_ms = 0);
   // ClientSlam's early pose of the current frame (a new keyframe's, before local mapping's wait).
-  void on_early_pose(const ClientSlam::FramePose& pose, std::uint64_t map_epoch);
+  void on_early_pose(const ClientSlam::FramePose& pose, std::uint64_t map_epoch, int keyframe_due_in);
   // The frame's latency and parts recorded, then config_.on_frame_done.
   void publish(FrameDone& done, const RgbdFrame& frame, Clock::time_point started, double slot_ms,
                double mapping_wait_ms, double work_cpu_ms);

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -18,6 +19,7 @@
 #include "geometry/camera_io.h"
 #include "io/tum_dataset.h"
 #include "net_test_util.h"
+#include "slam/tracking/tracker.h"
 
 namespace cslam {
 namespace {
@@ -268,6 +270,81 @@ TEST(LeanStream, ABudgetedRobotSpendsItsRoomOnFinerFullFrames) {
   EXPECT_LE(double(s2.bytes_sent), budget * 60 / 30 + 3.0 * double(light_max));
   srv.stop();
   EXPECT_EQ(srv.stats().clients().at(9).frames_light, 45u);
+}
+
+// With SLAM every ack says when tracking expects its next keyframe (Ack::keyframe_due_in: the
+// periodic rule's countdown), and a budgeted robot spends its budget on the full frames due then
+// and on those answering a depth request: every full frame made finer becomes a keyframe, and the
+// full frames that do not keep the stream's own codec. The robot sends each frame once the
+// previous one is acknowledged, so every hint is in before the next frame leaves.
+TEST(LeanStream, ABudgetedRobotSpendsItOnTheFullFramesTrackingExpectsAsKeyframes) {
+  test::TempDir dir("cslam_lean_hint");
+  const std::string data = test::render_small_scene(dir / "scene");
+  const TumDataset dataset = open_tum_dataset(data);
+  ASSERT_GE(dataset.pairs.size(), 50u);
+  SystemConfig sc;
+  sc.slam.threaded = false;
+  std::mutex mutex;
+  std::map<std::uint64_t, FrameDone> done;
+  std::set<std::uint64_t> keyframes;
+  sc.on_frame_done = [&](const FrameDone& d) {
+    std::lock_guard<std::mutex> lock(mutex);
+    done[d.seq] = d;
+  };
+  sc.on_keyframe = [&](const ClientInfo&, const KeyFrameId&, const RgbdFrame& frame, const SE3&) {
+    std::lock_guard<std::mutex> lock(mutex);
+    keyframes.insert(frame.seq);
+  };
+  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  client::SenderConfig cc = lean_config(srv.endpoint(), 1, 5);
+  cc.info.camera = load_camera_file(data + "/camera.yaml");
+  cc.codecs.rgb = RgbCodec::kH264Intra;
+  cc.budget.bytes_per_s = 100e6;  // room for q95 on every frame it is spent on
+  cc.budget.frame_rate = 30;
+  client::FrameSender sender(cc);
+  std::vector<int> hints;  // as the robot reads them
+  sender.set_pose_callback([&](const wire::PoseFeedback& f) { hints.push_back(f.keyframe_due_in); });
+  sender.connect();
+  for (const auto& pair : dataset.pairs) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (sender.in_flight() > 0 && std::chrono::steady_clock::now() < deadline)
+      sender.service_until(std::chrono::steady_clock::now() + std::chrono::milliseconds(2));
+    const RgbdImages images = load_rgbd(pair);
+    RgbdFrame f;
+    f.timestamp = pair.rgb_time;
+    f.bgr = images.bgr;
+    f.depth = images.depth;
+    sender.send_frame(f);
+  }
+  ASSERT_TRUE(sender.goodbye(120));
+  srv.stop();
+  const auto& s = sender.stats();
+  EXPECT_EQ(s.frames_refused, 0u);
+  std::lock_guard<std::mutex> lock(mutex);
+  ASSERT_EQ(done.size(), dataset.pairs.size());
+  ASSERT_EQ(hints.size(), dataset.pairs.size());
+  // The countdown: keyframe_every_frames (10) on a keyframe, one less every frame after, never
+  // below 1 while tracking is healthy; 0 while a keyframe waits for depth.
+  const int every = TrackerConfig().keyframe_every_frames;
+  int counted = 0;
+  for (auto it = std::next(done.begin()); it != done.end(); ++it) {
+    const FrameDone& d = it->second;
+    EXPECT_EQ(hints[d.seq - 1], d.keyframe_due_in) << "frame " << d.seq << ": the ack's hint as the robot read it";
+    if (d.fate != FrameFate::kTracked) continue;
+    if (d.wants_depth) {
+      EXPECT_EQ(d.keyframe_due_in, 0) << "frame " << d.seq;
+    } else if (keyframes.count(d.seq)) {
+      EXPECT_EQ(d.keyframe_due_in, every) << "frame " << d.seq;
+    } else if (const FrameDone& prev = std::prev(it)->second; prev.keyframe_due_in > 0 && !prev.wants_depth) {
+      EXPECT_EQ(d.keyframe_due_in, std::max(1, prev.keyframe_due_in - 1)) << "frame " << d.seq;
+      ++counted;
+    }
+  }
+  EXPECT_GT(counted, 20);
+  const std::uint64_t full = dataset.pairs.size() - s.frames_light;
+  EXPECT_GT(s.frames_finer, 2u);
+  EXPECT_LE(s.frames_finer, keyframes.size()) << "a finer full frame that did not become a keyframe";
+  EXPECT_LT(s.frames_finer, full) << "every full frame was made finer";
 }
 
 }  // namespace

@@ -224,6 +224,47 @@ class LeanStreamCodecsMatchCpp(unittest.TestCase):
                                      codecs.encode_depth(np.ascontiguousarray(theirs), codecs.Codecs())[1])
 
 
+class KeyframeHintMatchesCpp(unittest.TestCase):
+    """LeanStream's keyframe hints (which full frames a byte budget is for) make the choices of
+    KeyframeHint in src/codec/keyframe_hint.h: the scripts of tests/codec/test_keyframe_hint.cpp.
+    ("full", seq, requested) sends a full frame, ("ack", seq, due_in) an ack's hint, ("want", seq)
+    an ack asking for depth, ("expect", seq, requested, answer) checks a full frame's choice."""
+
+    SCRIPTS = {
+        "no hint": [("expect", 1, True, True), ("full", 1, True), ("ack", 1, 0), ("ack", 2, 0),
+                    ("expect", 6, False, True), ("full", 6, False), ("expect", 11, False, True)],
+        "first full frame at or after": [
+            ("full", 1, True), ("ack", 1, 10), ("ack", 2, 9), ("ack", 5, 6), ("expect", 6, False, False),
+            ("full", 6, False), ("ack", 6, 5), ("ack", 9, 2), ("expect", 10, False, False),
+            ("expect", 11, False, True), ("expect", 12, False, True), ("full", 12, False),
+            ("expect", 16, False, False)],
+        "stale": [("full", 1, True), ("ack", 1, 10), ("full", 11, False), ("ack", 10, 1),
+                  ("expect", 16, False, False), ("ack", 11, 10), ("expect", 16, False, False),
+                  ("expect", 21, False, True)],
+        "depth request": [("full", 1, True), ("ack", 1, 10), ("ack", 3, 0), ("expect", 6, False, False),
+                          ("want", 3), ("expect", 4, True, True), ("full", 4, True), ("ack", 3, 0),
+                          ("expect", 9, False, False), ("ack", 4, 10), ("expect", 14, False, True)],
+        "none expected": [("full", 1, True), ("ack", 1, 10), ("ack", 5, 0), ("expect", 11, False, False),
+                          ("expect", 100, False, False), ("ack", 20, 3), ("expect", 23, False, True)],
+    }
+
+    def test_scripts(self):
+        for name, script in self.SCRIPTS.items():
+            lean = video.LeanStream(64, 48, 5)
+            for step in script:
+                kind, seq = step[0], step[1]
+                if kind == "ack":
+                    lean.on_keyframe_hint(seq, step[2])
+                elif kind == "want":
+                    self.assertTrue(lean.on_want_depth(seq), name)
+                elif kind == "full":
+                    self.assertEqual(lean._depth_wanted, step[2], f"{name}: {step}")
+                    lean.full_sent(seq)
+                else:
+                    self.assertEqual(lean._depth_wanted, step[2], f"{name}: {step}")
+                    self.assertEqual(lean.expects_keyframe(seq), step[3], f"{name}: {step}")
+
+
 class CodecOptions(unittest.TestCase):
     def test_rejects_bad_options_and_images(self):
         with self.assertRaises(ValueError):

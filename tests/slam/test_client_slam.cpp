@@ -210,9 +210,10 @@ TEST_F(ClientSlamTest, AKeyframesPoseComesBeforeTheKeyframeIsMade) {
   std::vector<double> early;
   double worst_gap = 0;
   std::uint64_t last_epoch = 0;
-  slam.set_early_pose_listener([&](const ClientSlam::FramePose& pose, std::uint64_t epoch) {
+  slam.set_early_pose_listener([&](const ClientSlam::FramePose& pose, std::uint64_t epoch, int keyframe_due_in) {
     early.push_back(current);
     last_epoch = epoch;
+    EXPECT_EQ(keyframe_due_in, cfg.tracker.keyframe_every_frames);  // the countdown restarts with the keyframe
     EXPECT_EQ(pose.map_index, 0);
     const Trajectory trajectory = slam.trajectory();
     ASSERT_FALSE(trajectory.empty());

@@ -22,7 +22,9 @@ void LeanStreamSim::apply(RgbdFrame& frame, int n) {
   const bool requested = n == 0 || (requested_at_ >= 0 && n > requested_at_ + config_.request_delay);
   if (clock_.next(requested, config_.depth_every)) {
     requested_at_ = -1;
-    code_full(frame);
+    const bool spend = hint_.expects_keyframe(std::uint64_t(n), requested);
+    hint_.on_full_frame(std::uint64_t(n), requested);
+    code_full(frame, spend);
     return;
   }
   const std::size_t bytes = code_light_colour(frame) + make_light_depth(frame);
@@ -30,10 +32,10 @@ void LeanStreamSim::apply(RgbdFrame& frame, int n) {
   ++light_frames_;
 }
 
-void LeanStreamSim::code_full(RgbdFrame& frame) {
+void LeanStreamSim::code_full(RgbdFrame& frame, bool spend) {
   if (!config_.coded_colour) return;
   const std::size_t depth_bytes = budget_.enabled() ? full_images_.depth(frame.depth).size() : 0;
-  const EncodedRgb rgb = full_images_.full_colour(frame.bgr, &budget_, depth_bytes);
+  const EncodedRgb rgb = full_images_.full_colour(frame.bgr, spend ? &budget_ : nullptr, depth_bytes);
   if (rgb.finer) ++frames_finer_;
   if (budget_.enabled()) budget_.add(rgb.bytes.size() + depth_bytes + ByteBudget::kHeaderBytes);
   frame.bgr = decode_rgb(rgb.codec, rgb.bytes.data(), rgb.bytes.size(), frame.bgr.cols, frame.bgr.rows,
@@ -68,6 +70,11 @@ std::size_t LeanStreamSim::make_light_depth(RgbdFrame& frame) {
 void LeanStreamSim::requested(int n) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (requested_at_ < 0) requested_at_ = n;
+}
+
+void LeanStreamSim::keyframe_hint(int n, int due_in) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  hint_.on_ack(std::uint64_t(n), due_in);
 }
 
 int LeanStreamSim::light_frames() const {

@@ -16,6 +16,7 @@
 
 #include "codec/byte_budget.h"
 #include "codec/image_encoder.h"
+#include "codec/keyframe_hint.h"
 #include "codec/video_codec.h"
 #include "frame/full_frame_clock.h"
 #include "frame/rgbd_frame.h"
@@ -45,11 +46,14 @@ class LeanStreamSim {
   void apply(RgbdFrame& frame, int n);
   // Tracking of frame n asked for full depth (FrameDone::wants_depth). Thread-safe with apply().
   void requested(int n);
+  // Tracking of frame n expects its next keyframe `due_in` frames later (FrameDone::keyframe_due_in;
+  // 0: none expected). Thread-safe with apply().
+  void keyframe_hint(int n, int due_in);
   int light_frames() const;
   int frames_finer() const;  // full frames whose colour the budget made finer
 
  private:
-  void code_full(RgbdFrame& frame);
+  void code_full(RgbdFrame& frame, bool spend);
   // Each returns the bytes it made (the budget counts them).
   std::size_t code_light_colour(RgbdFrame& frame);
   std::size_t make_light_depth(RgbdFrame& frame);
@@ -60,6 +64,7 @@ class LeanStreamSim {
   std::unique_ptr<video::H264Decoder> decoder_;
   mutable std::mutex mutex_;
   int requested_at_ = -1;
+  KeyframeHint hint_;
   FullFrameClock clock_;
   ByteBudget budget_;
   int light_frames_ = 0, frames_finer_ = 0;

@@ -202,6 +202,7 @@ int run(int argc, char** argv) {
                        "frame " + std::to_string(n) + ": " + why + " (does --camera match the dataset?)");
     lean.apply(frame, n);
     const ProcessResult r = slam.process(frame);
+    lean.keyframe_hint(n, r.keyframe_due_in);
     if (r.wants_depth) lean.requested(n);
     inliers.push_back(r.inliers);
     features.push_back(r.features);

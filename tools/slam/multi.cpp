@@ -98,9 +98,11 @@ int run_multi_client(const CliArgs& args) {
   // Tracking wanted full depth on a light frame: that client's robot sends it once the request
   // has come back (LeanStreamSim's delay stands for the acks in flight).
   config.on_frame_done = [&jobs](const FrameDone& done) {
-    if (!done.wants_depth) return;
-    for (auto& j : jobs)
-      if (j.info.id == done.client) j.lean->requested(int(done.seq));
+    for (auto& j : jobs) {
+      if (j.info.id != done.client) continue;
+      j.lean->keyframe_hint(int(done.seq), done.keyframe_due_in);
+      if (done.wants_depth) j.lean->requested(int(done.seq));
+    }
   };
   config.vocabulary_path = args.get("vocab");
   // --sync: one thread steps every client frame by frame (round robin, as robots streaming at

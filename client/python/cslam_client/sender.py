@@ -65,7 +65,8 @@ class FrameSender:
         self.codecs = codecs or Codecs(rgb=auto_rgb_codec(depth_every > 1))
         self._images = ImageEncoder(self.codecs)  # full frames' images (validates the codecs)
         # Byte budget (cslam-client --byte-budget): the full frames' colour is the finest JPEG
-        # that keeps the stream within it, else the codecs' own. None: no budget.
+        # that keeps the stream within it, else the codecs' own; in a lean stream only on the full
+        # frames the acks expect to become keyframes (LeanStream.expects_keyframe). None: no budget.
         self.budget = byte_budget or ByteBudget()
         camera.validate()
         # Lean stream: light frames between full ones. The default colour stream is coarser than
@@ -178,11 +179,15 @@ class FrameSender:
         the colour image's capture time; `depth_time_offset` the depth image's, relative to it (s).
         Always a full frame (with depth), also in a lean stream. With h264-intra colour the pictures
         come from one encoder: encode the frames in sending order."""
+        return self._encode_full(bgr, depth, timestamp, depth_time_offset, True)
+
+    def _encode_full(self, bgr, depth, timestamp, depth_time_offset, spend):
+        """encode(), with the byte budget (if any) only when `spend`."""
         self._check_images(bgr, depth, depth_time_offset)
         h, w = depth.shape[:2]
         frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
         depth_enc, depth_data = self._images.depth(depth)
-        if self.budget.enabled:
+        if self.budget.enabled and spend:
             enc, data, finer = self._images.rgb_within(bgr, self.budget.image_allowance(len(depth_data)),
                                                        self.budget.jpeg_qualities)
             self.stats.frames_finer += int(finer)
@@ -208,7 +213,8 @@ class FrameSender:
         the stream."""
         seq = self.last_seq + 1
         if self.lean is None or self.lean.next_is_full():
-            frame = self.encode(bgr, depth, timestamp, depth_time_offset)
+            spend = self.lean is None or self.lean.expects_keyframe(seq)
+            frame = self._encode_full(bgr, depth, timestamp, depth_time_offset, spend)
             lag = self.lean.full_sent(seq) if self.lean else None
             if lag is not None:
                 self.stats.depth_requests_met += 1
@@ -432,6 +438,8 @@ class FrameSender:
             # The acks of the frames in flight may all ask; a full frame sent since meets them.
             if self.lean and info.fields.get("want_depth") and self.lean.on_want_depth(a.seq):
                 self.stats.depth_requests += 1
+            if self.lean:
+                self.lean.on_keyframe_hint(a.seq, info.fields.get("keyframe_due_in", 0))
             self.last_ack = info
             self._acks.append(info)
             if self.on_ack:

@@ -226,16 +226,38 @@ class LeanStream:
         self._last_key_seq = 0      # a gap reported before it is healed by it
         self._last_full_seq = 0     # a depth request before it is met by it
         self._request_seq = 0       # the frame whose ack asked for the pending full depth (0: none)
+        # Which full frames a byte budget is for, as KeyframeHint (src/codec/keyframe_hint.h).
+        self._hint_heard = False    # an ack carried a keyframe hint
+        self._hint_due_seq = 0      # the frame the latest hint names; 0: none expected
+        self._hint_met_at = 0       # the last full frame that met a hint
 
     def next_is_full(self):
         if not self._depth_wanted:
             self._since_full += 1
         return self._depth_wanted or self._since_full >= self.depth_every
 
+    def expects_keyframe(self, seq):
+        """Whether the full frame about to be sent as `seq` may spend a byte budget: it answers a
+        depth request, or the latest ack's keyframe hint names it or an earlier frame, or no ack
+        has carried a hint yet. Call it before full_sent(seq)."""
+        return self._depth_wanted or not self._hint_heard or 0 < self._hint_due_seq <= seq
+
+    def on_keyframe_hint(self, acked_seq, due_in):
+        """An ack said tracking expects its next keyframe `due_in` frames after `acked_seq` (0: none)."""
+        if acked_seq < self._hint_met_at:  # sent before the full frame that met the hint
+            return
+        if due_in > 0:
+            self._hint_heard = True
+        self._hint_due_seq = acked_seq + due_in if due_in > 0 else 0
+
     def full_sent(self, seq):
         """Frames from the asking frame to this one if it answers a depth request (1: the next
         frame), else None."""
         lag = seq - self._request_seq if self._request_seq > 0 else None
+        if self.expects_keyframe(seq):  # the hint is used up
+            self._hint_met_at = seq
+            if self._hint_heard:
+                self._hint_due_seq = 0
         self._request_seq = 0
         self._since_full = 0
         self._depth_wanted = False

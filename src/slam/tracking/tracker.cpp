@@ -86,6 +86,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       for (size_t i = 0; i < frame.map_points.size(); ++i)
         if (frame.map_points[i] && frame.data->is_close(int(i))) ++full_close_;
       decide_keyframe(frame, result);
+      result.keyframe_due_in = keyframe_due_in();
     } else {
       has_velocity_ = false;
     }
@@ -347,11 +348,17 @@ void Tracker::decide_keyframe(Frame& frame, TrackResult& result) {
   }
   keyframe_deferred_ = false;
   if (pose_listener_ && frame.reference)
-    pose_listener_({frame.data->timestamp, frame.reference, frame.T_cam_ref, tracked_change_index_});
+    pose_listener_({frame.data->timestamp, frame.reference, frame.T_cam_ref, tracked_change_index_,
+                    std::max(0, config_.keyframe_every_frames)});
   if (const KeyFramePtr kf = create_keyframe(frame)) {
     result.new_keyframe = true;
     result.keyframe = kf->id;
   }
+}
+
+int Tracker::keyframe_due_in() const {
+  if (config_.keyframe_every_frames <= 0 || keyframe_deferred_) return 0;
+  return std::max(1, config_.keyframe_every_frames - int(frames_since_keyframe_));
 }
 
 bool Tracker::need_new_keyframe(const Frame& frame) const {

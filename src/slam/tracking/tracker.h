@@ -68,6 +68,10 @@ struct TrackResult {
   // The frame had no depth image and tracking needs one: a keyframe is due (deferred to the next
   // frame with depth) or the map is not initialised yet. The server asks the robot for depth.
   bool wants_depth = false;
+  // Frames after this one at which the periodic keyframe rule (keyframe_every_frames) falls due
+  // unless the ratio rule makes a keyframe first; 0: no such keyframe expected (tracking is not
+  // healthy, the rule is off, or a keyframe is already waiting for depth: wants_depth).
+  int keyframe_due_in = 0;
   // The keyframe this frame became (new_keyframe or initialized_map).
   std::optional<KeyFrameId> keyframe;
   int inliers = 0;
@@ -104,6 +108,7 @@ class Tracker {
     KeyFramePtr reference;  // the frame's reference keyframe before it becomes one itself
     SE3 T_cam_ref;
     std::uint64_t change_index = 0;  // the map's big-change index the pose was tracked under
+    int keyframe_due_in = 0;         // TrackResult::keyframe_due_in once the frame is a keyframe
   };
   using PoseListener = std::function<void(const TrackedPose&)>;
   void set_pose_listener(PoseListener listener) { pose_listener_ = std::move(listener); }
@@ -129,6 +134,7 @@ class Tracker {
   // The constant-velocity model's pose at `timestamp`, from the last frame's (needs last_).
   SE3 motion_model_pose(double timestamp) const;
   bool need_new_keyframe(const Frame& frame) const;
+  int keyframe_due_in() const;  // TrackResult::keyframe_due_in after the keyframe decision
   // A flow frame's counts do not rule out the keyframe rule firing (map lock held shared).
   bool keyframe_may_be_due(const Frame& frame, int inliers);
   // On a full frame after a flow estimate: records actual / estimated local-map inliers.

@@ -180,6 +180,7 @@ std::optional<TrackResult> Tracker::track_flow(const FlowFrame& flow) {
   result.reference = frame.reference;
   result.T_cam_ref = frame.T_cam_ref;
   result.flow = true;
+  result.keyframe_due_in = keyframe_due_in();
   last_is_keyframe_ = false;
   if (!last_full_) last_full_ = std::move(last_);
   last_ = std::make_unique<Frame>(std::move(frame));
