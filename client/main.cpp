@@ -73,12 +73,14 @@ int run(int argc, char** argv) {
             "adapt the stream to the link: when acks come back later than the link's base latency (a queue builds) or "
             "a live frame is dropped, send full frames less often (lean stream, depth every --depth-every .. 30 "
             "frames); back up when the link is calm")
-      .option("byte-budget",
-              "MB/s this robot's stream may take (its share of the link): full frames' colour becomes the finest JPEG "
-              "(q95, q90, q85) the budget has room for, else --rgb-codec's (never coarser; counted at --rate, the "
-              "dataset's rate with --live, 30 with --rate max); 0: off. Leave the link headroom: robots that fill a "
-              "shared link queue behind each other",
-              "0")
+      .option(
+          "byte-budget",
+          "MB/s this robot's stream may take (its share of the link): full frames' colour becomes the finest JPEG "
+          "(q95, q90, q85) the budget has room for, else --rgb-codec's (never coarser; in a lean stream only on the "
+          "full frames the server's acks expect to become keyframes; counted at --rate, the "
+          "dataset's rate with --live, 30 with --rate max); 0: off. Leave the link headroom: robots that fill a "
+          "shared link queue behind each other",
+          "0")
       .flag("new-session",
             "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload",

@@ -29,7 +29,7 @@ struct PoseFeedback {
   std::uint64_t map_epoch = 0, frames_skipped = 0;
   double server_ms = 0;     // receipt to pose on the server
   bool want_depth = false;  // the server asks for depth (and standalone colour) with the next frame
-  int keyframe_due_in = 0;  // frames after this one at which tracking expects its next keyframe; 0: none
+  int keyframe_due_in = 0;  // frames after this one at which tracking expects its next keyframe; 0: no hint
   double latency_ms = 0;    // client side: frame captured (offered) to ack received
 };
 PoseFeedback from_wire_ack(const Ack& ack);

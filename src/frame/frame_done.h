@@ -24,7 +24,7 @@ struct FrameDone {
   // A light frame on which tracking needed full depth: the robot's next frame should carry it.
   bool wants_depth = false;
   // Frames after this one at which tracking expects its next keyframe (TrackResult::keyframe_due_in;
-  // 0: none expected): a lean robot spends its byte budget on the full frame due then.
+  // 0: no hint): a lean robot spends its byte budget on the full frame due then.
   int keyframe_due_in = 0;
 };
 

@@ -53,7 +53,7 @@ TEST(KeyframeHint, ADepthRequestAlwaysSpendsAndUsesTheHintUp) {
   KeyframeHint h;
   h.on_full_frame(1, true);
   h.on_ack(1, 10);
-  h.on_ack(3, 0);  // a keyframe waits for depth on light frame 3: no periodic one expected now
+  h.on_ack(3, 0);  // a keyframe waits for depth on light frame 3 (no hint; the request says it)
   EXPECT_FALSE(h.expects_keyframe(6, false));
   EXPECT_TRUE(h.expects_keyframe(4, true));
   h.on_full_frame(4, true);
@@ -63,12 +63,16 @@ TEST(KeyframeHint, ADepthRequestAlwaysSpendsAndUsesTheHintUp) {
   EXPECT_TRUE(h.expects_keyframe(14, false));
 }
 
-TEST(KeyframeHint, NoneExpectedWhileTrackingSaysNone) {
+TEST(KeyframeHint, AnAckWithoutAHintLeavesTheLatestOneStanding) {
   KeyframeHint h;
   h.on_full_frame(1, true);
   h.on_ack(1, 10);
-  h.on_ack(5, 0);  // lost: no keyframe expected
-  EXPECT_FALSE(h.expects_keyframe(11, false));
+  h.on_ack(5, 0);  // a skipped or lost frame says nothing about keyframes
+  EXPECT_FALSE(h.expects_keyframe(6, false));
+  EXPECT_TRUE(h.expects_keyframe(11, false));
+  h.on_full_frame(11, false);
+  h.on_ack(12, 0);
+  EXPECT_FALSE(h.expects_keyframe(16, false));  // used up, and no fresh hint
   EXPECT_FALSE(h.expects_keyframe(100, false));
   h.on_ack(20, 3);
   EXPECT_TRUE(h.expects_keyframe(23, false));

@@ -231,8 +231,8 @@ class KeyframeHintMatchesCpp(unittest.TestCase):
     an ack asking for depth, ("expect", seq, requested, answer) checks a full frame's choice."""
 
     SCRIPTS = {
-        "no hint": [("expect", 1, True, True), ("full", 1, True), ("ack", 1, 0), ("ack", 2, 0),
-                    ("expect", 6, False, True), ("full", 6, False), ("expect", 11, False, True)],
+        "no hint yet": [("expect", 1, True, True), ("full", 1, True), ("ack", 1, 0), ("ack", 2, 0),
+                        ("expect", 6, False, True), ("full", 6, False), ("expect", 11, False, True)],
         "first full frame at or after": [
             ("full", 1, True), ("ack", 1, 10), ("ack", 2, 9), ("ack", 5, 6), ("expect", 6, False, False),
             ("full", 6, False), ("ack", 6, 5), ("ack", 9, 2), ("expect", 10, False, False),
@@ -244,8 +244,10 @@ class KeyframeHintMatchesCpp(unittest.TestCase):
         "depth request": [("full", 1, True), ("ack", 1, 10), ("ack", 3, 0), ("expect", 6, False, False),
                           ("want", 3), ("expect", 4, True, True), ("full", 4, True), ("ack", 3, 0),
                           ("expect", 9, False, False), ("ack", 4, 10), ("expect", 14, False, True)],
-        "none expected": [("full", 1, True), ("ack", 1, 10), ("ack", 5, 0), ("expect", 11, False, False),
-                          ("expect", 100, False, False), ("ack", 20, 3), ("expect", 23, False, True)],
+        "an ack without a hint": [
+            ("full", 1, True), ("ack", 1, 10), ("ack", 5, 0), ("expect", 6, False, False), ("expect", 11, False, True),
+            ("full", 11, False), ("ack", 12, 0), ("expect", 16, False, False), ("expect", 100, False, False),
+            ("ack", 20, 3), ("expect", 23, False, True)],
     }
 
     def test_scripts(self):

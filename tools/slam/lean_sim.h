@@ -47,7 +47,7 @@ class LeanStreamSim {
   // Tracking of frame n asked for full depth (FrameDone::wants_depth). Thread-safe with apply().
   void requested(int n);
   // Tracking of frame n expects its next keyframe `due_in` frames later (FrameDone::keyframe_due_in;
-  // 0: none expected). Thread-safe with apply().
+  // 0: no hint). Thread-safe with apply().
   void keyframe_hint(int n, int due_in);
   int light_frames() const;
   int frames_finer() const;  // full frames whose colour the budget made finer

@@ -228,7 +228,7 @@ class LeanStream:
         self._request_seq = 0       # the frame whose ack asked for the pending full depth (0: none)
         # Which full frames a byte budget is for, as KeyframeHint (src/codec/keyframe_hint.h).
         self._hint_heard = False    # an ack carried a keyframe hint
-        self._hint_due_seq = 0      # the frame the latest hint names; 0: none expected
+        self._hint_due_seq = 0      # the frame the latest hint names; 0: used up
         self._hint_met_at = 0       # the last full frame that met a hint
 
     def next_is_full(self):
@@ -243,12 +243,11 @@ class LeanStream:
         return self._depth_wanted or not self._hint_heard or 0 < self._hint_due_seq <= seq
 
     def on_keyframe_hint(self, acked_seq, due_in):
-        """An ack said tracking expects its next keyframe `due_in` frames after `acked_seq` (0: none)."""
-        if acked_seq < self._hint_met_at:  # sent before the full frame that met the hint
+        """An ack said tracking expects its next keyframe `due_in` frames after `acked_seq` (0: no hint)."""
+        if due_in <= 0 or acked_seq < self._hint_met_at:  # no hint, or sent before the full frame that met one
             return
-        if due_in > 0:
-            self._hint_heard = True
-        self._hint_due_seq = acked_seq + due_in if due_in > 0 else 0
+        self._hint_heard = True
+        self._hint_due_seq = acked_seq + due_in
 
     def full_sent(self, seq):
         """Frames from the asking frame to this one if it answers a depth request (1: the next

@@ -69,8 +69,8 @@ struct TrackResult {
   // frame with depth) or the map is not initialised yet. The server asks the robot for depth.
   bool wants_depth = false;
   // Frames after this one at which the periodic keyframe rule (keyframe_every_frames) falls due
-  // unless the ratio rule makes a keyframe first; 0: no such keyframe expected (tracking is not
-  // healthy, the rule is off, or a keyframe is already waiting for depth: wants_depth).
+  // unless the ratio rule makes a keyframe first; 0: no hint (tracking is not healthy, the rule
+  // is off, or a keyframe is already waiting for depth: wants_depth).
   int keyframe_due_in = 0;
   // The keyframe this frame became (new_keyframe or initialized_map).
   std::optional<KeyFrameId> keyframe;
