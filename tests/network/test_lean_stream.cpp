@@ -53,6 +53,22 @@ client::SenderConfig lean_config(const std::string& endpoint, ClientId id, int d
   return cc;
 }
 
+// Sends every frame of the dataset, each once the previous one is acknowledged (so every request
+// and hint in an ack is in before the next frame leaves).
+void send_each_after_the_last_ack(client::FrameSender& sender, const TumDataset& dataset) {
+  for (const auto& pair : dataset.pairs) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (sender.in_flight() > 0 && std::chrono::steady_clock::now() < deadline)
+      sender.service_until(std::chrono::steady_clock::now() + std::chrono::milliseconds(2));
+    const RgbdImages images = load_rgbd(pair);
+    RgbdFrame f;
+    f.timestamp = pair.rgb_time;
+    f.bgr = images.bgr;
+    f.depth = images.depth;
+    sender.send_frame(f);
+  }
+}
+
 TEST(LeanStream, LightFramesBetweenFullFramesAreAllTaken) {
   SystemConfig sc;
   sc.run_slam = false;
@@ -101,17 +117,7 @@ TEST(LeanStream, ARobotAnswersTheServersDepthRequestWithItsNextFrame) {
   cc.info.camera = load_camera_file(data + "/camera.yaml");
   client::FrameSender sender(cc);
   sender.connect();
-  for (const auto& pair : dataset.pairs) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while (sender.in_flight() > 0 && std::chrono::steady_clock::now() < deadline)
-      sender.service_until(std::chrono::steady_clock::now() + std::chrono::milliseconds(2));
-    const RgbdImages images = load_rgbd(pair);
-    RgbdFrame f;
-    f.timestamp = pair.rgb_time;
-    f.bgr = images.bgr;
-    f.depth = images.depth;
-    sender.send_frame(f);
-  }
+  send_each_after_the_last_ack(sender, dataset);
   ASSERT_TRUE(sender.goodbye(120));
   srv.stop();
   const auto& s = sender.stats();
@@ -305,17 +311,7 @@ TEST(LeanStream, ABudgetedRobotSpendsItOnTheFullFramesTrackingExpectsAsKeyframes
   std::vector<int> hints;  // as the robot reads them
   sender.set_pose_callback([&](const wire::PoseFeedback& f) { hints.push_back(f.keyframe_due_in); });
   sender.connect();
-  for (const auto& pair : dataset.pairs) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while (sender.in_flight() > 0 && std::chrono::steady_clock::now() < deadline)
-      sender.service_until(std::chrono::steady_clock::now() + std::chrono::milliseconds(2));
-    const RgbdImages images = load_rgbd(pair);
-    RgbdFrame f;
-    f.timestamp = pair.rgb_time;
-    f.bgr = images.bgr;
-    f.depth = images.depth;
-    sender.send_frame(f);
-  }
+  send_each_after_the_last_ack(sender, dataset);
   ASSERT_TRUE(sender.goodbye(120));
   srv.stop();
   const auto& s = sender.stats();
