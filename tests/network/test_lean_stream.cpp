@@ -54,6 +54,25 @@ client::SenderConfig lean_config(const std::string& endpoint, ClientId id, int d
   return cc;
 }
 
+// A robot of the small synthetic scene, and a stepped SLAM server's config that records every
+// frame's FrameDone by seq (under `mutex`).
+struct SmallSceneSlam {
+  explicit SmallSceneSlam(const std::string& name)
+      : dir(name), data(test::render_small_scene(dir / "scene")), dataset(open_tum_dataset(data)) {
+    sc.slam.threaded = false;
+    sc.on_frame_done = [this](const FrameDone& d) {
+      std::lock_guard<std::mutex> lock(mutex);
+      done[d.seq] = d;
+    };
+  }
+  test::TempDir dir;
+  std::string data;
+  TumDataset dataset;
+  SystemConfig sc;
+  std::mutex mutex;
+  std::map<std::uint64_t, FrameDone> done;
+};
+
 // Sends every frame of the dataset, each once the previous one is acknowledged (so every request
 // and hint in an ack is in before the next frame leaves); `sent(i)` after frame i (0-based) left.
 void send_each_after_the_last_ack(client::FrameSender& sender, const TumDataset& dataset,
@@ -104,24 +123,14 @@ TEST(LeanStream, ARobotAnswersTheServersDepthRequestWithItsNextFrame) {
   // SLAM on a synthetic scene: tracking defers a keyframe that falls due on a light frame and
   // asks for full depth in that frame's ack. The robot sends each frame once the previous one is
   // acknowledged, so every request is answered by the very next frame (lag 1).
-  test::TempDir dir("cslam_lean_request");
-  const std::string data = test::render_small_scene(dir / "scene");
-  const TumDataset dataset = open_tum_dataset(data);
-  ASSERT_GE(dataset.pairs.size(), 50u);
-  SystemConfig sc;
-  sc.slam.threaded = false;
-  std::mutex mutex;
-  std::map<std::uint64_t, FrameDone> done;
-  sc.on_frame_done = [&](const FrameDone& d) {
-    std::lock_guard<std::mutex> lock(mutex);
-    done[d.seq] = d;
-  };
-  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  SmallSceneSlam scene("cslam_lean_request");
+  ASSERT_GE(scene.dataset.pairs.size(), 50u);
+  test::InProcessServer srv(server::ReceiverConfig{}, scene.sc);
   client::SenderConfig cc = lean_config(srv.endpoint(), 1, 5);
-  cc.info.camera = load_camera_file(data + "/camera.yaml");
+  cc.info.camera = load_camera_file(scene.data + "/camera.yaml");
   client::FrameSender sender(cc);
   sender.connect();
-  send_each_after_the_last_ack(sender, dataset);
+  send_each_after_the_last_ack(sender, scene.dataset);
   ASSERT_TRUE(sender.goodbye(120));
   srv.stop();
   const auto& s = sender.stats();
@@ -130,10 +139,10 @@ TEST(LeanStream, ARobotAnswersTheServersDepthRequestWithItsNextFrame) {
   EXPECT_GE(s.depth_requests_met + 1, s.depth_requests);  // the last frame's request may stay open
   EXPECT_EQ(s.depth_request_lag_max, 1u);
   EXPECT_EQ(s.depth_request_lag_sum, s.depth_requests_met);
-  std::lock_guard<std::mutex> lock(mutex);
+  std::lock_guard<std::mutex> lock(scene.mutex);
   int asked = 0;
-  for (const auto& [seq, d] : done)
-    if (d.wants_depth && done.count(seq + 1)) ++asked;
+  for (const auto& [seq, d] : scene.done)
+    if (d.wants_depth && scene.done.count(seq + 1)) ++asked;
   EXPECT_EQ(std::uint64_t(asked), s.depth_requests_met);
 }
 
@@ -288,26 +297,16 @@ TEST(LeanStream, ABudgetedRobotSpendsItsRoomOnFinerFullFrames) {
 // some full frames keep the stream's own codec. The robot sends each frame once the
 // previous one is acknowledged, so every hint is in before the next frame leaves.
 TEST(LeanStream, ABudgetedRobotSpendsItOnTheFullFramesTrackingExpectsAsKeyframes) {
-  test::TempDir dir("cslam_lean_hint");
-  const std::string data = test::render_small_scene(dir / "scene");
-  const TumDataset dataset = open_tum_dataset(data);
-  ASSERT_GE(dataset.pairs.size(), 50u);
-  SystemConfig sc;
-  sc.slam.threaded = false;
-  std::mutex mutex;
-  std::map<std::uint64_t, FrameDone> done;
+  SmallSceneSlam scene("cslam_lean_hint");
+  ASSERT_GE(scene.dataset.pairs.size(), 50u);
   std::set<std::uint64_t> keyframes;
-  sc.on_frame_done = [&](const FrameDone& d) {
-    std::lock_guard<std::mutex> lock(mutex);
-    done[d.seq] = d;
-  };
-  sc.on_keyframe = [&](const ClientInfo&, const KeyFrameId&, const RgbdFrame& frame, const SE3&) {
-    std::lock_guard<std::mutex> lock(mutex);
+  scene.sc.on_keyframe = [&](const ClientInfo&, const KeyFrameId&, const RgbdFrame& frame, const SE3&) {
+    std::lock_guard<std::mutex> lock(scene.mutex);
     keyframes.insert(frame.seq);
   };
-  test::InProcessServer srv(server::ReceiverConfig{}, sc);
+  test::InProcessServer srv(server::ReceiverConfig{}, scene.sc);
   client::SenderConfig cc = lean_config(srv.endpoint(), 1, 5);
-  cc.info.camera = load_camera_file(data + "/camera.yaml");
+  cc.info.camera = load_camera_file(scene.data + "/camera.yaml");
   cc.codecs.rgb = RgbCodec::kH264Intra;
   cc.budget.bytes_per_s = 100e6;  // room for q95 on every frame it is spent on
   cc.budget.frame_rate = 30;
@@ -316,22 +315,22 @@ TEST(LeanStream, ABudgetedRobotSpendsItOnTheFullFramesTrackingExpectsAsKeyframes
   sender.set_pose_callback([&](const wire::PoseFeedback& f) { hints.push_back(f.keyframe_due_in); });
   sender.connect();
   std::vector<std::uint64_t> finer;  // seqs of the full frames made finer (frame i goes as seq i + 1)
-  send_each_after_the_last_ack(sender, dataset, [&](std::size_t i) {
+  send_each_after_the_last_ack(sender, scene.dataset, [&](std::size_t i) {
     if (sender.stats().frames_finer > finer.size()) finer.push_back(i + 1);
   });
   ASSERT_TRUE(sender.goodbye(120));
   srv.stop();
   const auto& s = sender.stats();
   EXPECT_EQ(s.frames_refused, 0u);
-  std::lock_guard<std::mutex> lock(mutex);
-  ASSERT_EQ(done.size(), dataset.pairs.size());
+  std::lock_guard<std::mutex> lock(scene.mutex);
+  ASSERT_EQ(scene.done.size(), scene.dataset.pairs.size());
   for (const std::uint64_t seq : finer) EXPECT_TRUE(keyframes.count(seq)) << "finer frame " << seq << " is no keyframe";
-  ASSERT_EQ(hints.size(), dataset.pairs.size());
+  ASSERT_EQ(hints.size(), scene.dataset.pairs.size());
   // The countdown: keyframe_every_frames (10) on a keyframe, one less every frame after, never
   // below 1 while tracking is healthy; 0 while a keyframe waits for depth.
   const int every = TrackerConfig().keyframe_every_frames;
   int counted = 0;
-  for (auto it = std::next(done.begin()); it != done.end(); ++it) {
+  for (auto it = std::next(scene.done.begin()); it != scene.done.end(); ++it) {
     const FrameDone& d = it->second;
     EXPECT_EQ(hints[d.seq - 1], d.keyframe_due_in) << "frame " << d.seq << ": the ack's hint as the robot read it";
     if (d.fate != FrameFate::kTracked) continue;
@@ -345,7 +344,7 @@ TEST(LeanStream, ABudgetedRobotSpendsItOnTheFullFramesTrackingExpectsAsKeyframes
     }
   }
   EXPECT_GT(counted, 20);
-  const std::uint64_t full = dataset.pairs.size() - s.frames_light;
+  const std::uint64_t full = scene.dataset.pairs.size() - s.frames_light;
   EXPECT_EQ(finer.size(), s.frames_finer);
   EXPECT_GT(s.frames_finer, 2u);
   EXPECT_LT(s.frames_finer, full) << "every full frame was made finer";
