@@ -94,8 +94,7 @@ wire::RgbdFrame FrameSender::encode_next(const RgbdFrame& frame) {
   const bool with_depth = !colour_encoder_ || full_clock_.next(depth_wanted_, rate_.depth_every());
   if (with_depth) {
     const std::uint64_t seq = seq_ + 1;  // encode_next runs right before the frame is sent with the next seq
-    const bool spend = keyframe_hint_.expects_keyframe(seq, depth_wanted_);
-    keyframe_hint_.on_full_frame(seq, depth_wanted_);
+    const bool spend = keyframe_hint_.on_full_frame(seq, depth_wanted_);
     if (depth_request_seq_ > 0) {  // answers a request: how many frames after the asking one
       const std::uint64_t lag = seq_ + 1 - depth_request_seq_;
       stats_.depth_request_lag_sum += lag;

@@ -45,9 +45,8 @@ EncodedRgb ImageEncoder::rgb_within(const cv::Mat& bgr, std::size_t allowance, c
 }
 
 EncodedRgb ImageEncoder::full_colour(const cv::Mat& bgr, const ByteBudget* budget, std::size_t other_image_bytes) {
-  if (budget && budget->enabled())
-    return rgb_within(bgr, budget->image_allowance(other_image_bytes), budget->config().jpeg_qualities);
-  return {options_.rgb, rgb(bgr), options_.rgb == RgbCodec::kJpeg ? options_.jpeg_quality : 0, false};
+  if (!budget || !budget->enabled()) return rgb_within(bgr, 0, {});  // no room: the options' own codec
+  return rgb_within(bgr, budget->image_allowance(other_image_bytes), budget->config().jpeg_qualities);
 }
 
 }  // namespace cslam

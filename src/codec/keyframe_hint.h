@@ -31,10 +31,12 @@ class KeyframeHint {
     return requested || !heard_ || (due_seq_ > 0 && seq >= due_seq_);
   }
   // Full frame `seq` is sent; if it was expected to become a keyframe, the hint is used up.
-  void on_full_frame(std::uint64_t seq, bool requested) {
-    if (!expects_keyframe(seq, requested)) return;
+  // Returns expects_keyframe(seq, requested) as it was: whether the frame may spend the budget.
+  bool on_full_frame(std::uint64_t seq, bool requested) {
+    if (!expects_keyframe(seq, requested)) return false;
     met_at_ = seq;
     if (heard_) due_seq_ = 0;
+    return true;
   }
 
  private:

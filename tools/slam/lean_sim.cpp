@@ -22,9 +22,7 @@ void LeanStreamSim::apply(RgbdFrame& frame, int n) {
   const bool requested = n == 0 || (requested_at_ >= 0 && n > requested_at_ + config_.request_delay);
   if (clock_.next(requested, config_.depth_every)) {
     requested_at_ = -1;
-    const bool spend = hint_.expects_keyframe(std::uint64_t(n), requested);
-    hint_.on_full_frame(std::uint64_t(n), requested);
-    code_full(frame, spend);
+    code_full(frame, hint_.on_full_frame(std::uint64_t(n), requested));
     return;
   }
   const std::size_t bytes = code_light_colour(frame) + make_light_depth(frame);

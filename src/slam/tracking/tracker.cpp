@@ -86,7 +86,7 @@ TrackResult Tracker::track(std::shared_ptr<const FrameData> data) {
       for (size_t i = 0; i < frame.map_points.size(); ++i)
         if (frame.map_points[i] && frame.data->is_close(int(i))) ++full_close_;
       decide_keyframe(frame, result);
-      result.keyframe_due_in = keyframe_due_in();
+      result.keyframe_due_in = keyframe_due_in(frames_since_keyframe_);
     } else {
       has_velocity_ = false;
     }
@@ -349,16 +349,16 @@ void Tracker::decide_keyframe(Frame& frame, TrackResult& result) {
   keyframe_deferred_ = false;
   if (pose_listener_ && frame.reference)
     pose_listener_({frame.data->timestamp, frame.reference, frame.T_cam_ref, tracked_change_index_,
-                    std::max(0, config_.keyframe_every_frames)});
+                    keyframe_due_in(0)});  // the countdown restarts with this keyframe
   if (const KeyFramePtr kf = create_keyframe(frame)) {
     result.new_keyframe = true;
     result.keyframe = kf->id;
   }
 }
 
-int Tracker::keyframe_due_in() const {
+int Tracker::keyframe_due_in(std::uint32_t frames_since_keyframe) const {
   if (config_.keyframe_every_frames <= 0 || keyframe_deferred_) return 0;
-  return std::max(1, config_.keyframe_every_frames - int(frames_since_keyframe_));
+  return std::max(1, config_.keyframe_every_frames - int(frames_since_keyframe));
 }
 
 bool Tracker::need_new_keyframe(const Frame& frame) const {

@@ -134,7 +134,9 @@ class Tracker {
   // The constant-velocity model's pose at `timestamp`, from the last frame's (needs last_).
   SE3 motion_model_pose(double timestamp) const;
   bool need_new_keyframe(const Frame& frame) const;
-  int keyframe_due_in() const;  // TrackResult::keyframe_due_in after the keyframe decision
+  // TrackResult::keyframe_due_in after the keyframe decision, `frames_since_keyframe` frames after
+  // the last keyframe (0: this frame becomes one).
+  int keyframe_due_in(std::uint32_t frames_since_keyframe) const;
   // A flow frame's counts do not rule out the keyframe rule firing (map lock held shared).
   bool keyframe_may_be_due(const Frame& frame, int inliers);
   // On a full frame after a flow estimate: records actual / estimated local-map inliers.

@@ -180,7 +180,7 @@ std::optional<TrackResult> Tracker::track_flow(const FlowFrame& flow) {
   result.reference = frame.reference;
   result.T_cam_ref = frame.T_cam_ref;
   result.flow = true;
-  result.keyframe_due_in = keyframe_due_in();
+  result.keyframe_due_in = keyframe_due_in(frames_since_keyframe_);
   last_is_keyframe_ = false;
   if (!last_full_) last_full_ = std::move(last_);
   last_ = std::make_unique<Frame>(std::move(frame));
