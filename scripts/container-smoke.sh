@@ -11,8 +11,8 @@
 # start containers (crun: "setrlimit RLIMIT_NOFILE: Operation not permitted" without
 # CAP_SYS_RESOURCE, "cgroups in hybrid mode not supported"), it retries with the host's limits
 # (--ulimit) and with runc; where that fails too, the same programs run from the image's own file
-# tree (`podman image mount`) with chroot, as the image's user, with a writable folder bound at
-# /data. The script says which mode ran.
+# tree (`podman image mount`) with chroot, as the image's user, with writable folders bound at
+# /data and /tmp. The script says which mode ran.
 #
 # Not part of ctest (the image build takes 10-25 minutes; root needed for podman/chroot). Environment:
 #   CSLAM_SMOKE_DIR   work folder (default /var/tmp/cslam-smoke): rootfs, build log, /data volume
@@ -143,7 +143,7 @@ cleanup() {
   for p in "${PIDS[@]}"; do kill "$p" 2> /dev/null || true; done
   wait 2> /dev/null || true
   if [ "$MODE" = chroot ] && [ -n "${MNT:-}" ]; then
-    for m in keys data proc dev; do umount "$MNT/$m" 2> /dev/null || true; done
+    for m in keys data proc dev tmp; do umount "$MNT/$m" 2> /dev/null || true; done
     "${E[@]}" image unmount "$IMAGE" > /dev/null 2>&1 || true
   elif [ "$MODE" = container ]; then
     "${E[@]}" rm -f cslam-smoke-server > /dev/null 2>&1 || true
@@ -154,7 +154,10 @@ trap cleanup EXIT
 
 if [ "$MODE" = chroot ]; then
   MNT=$("${E[@]}" image mount "$IMAGE")
-  for m in data proc dev keys; do [ -d "$MNT/$m" ] || fail "image lacks /$m"; done
+  for m in data proc dev keys tmp; do [ -d "$MNT/$m" ] || fail "image lacks /$m"; done
+  # A container's /tmp is writable (its own layer); the image's mounted tree is not.
+  rm -rf "$DIR/tmp" && mkdir -p "$DIR/tmp" && chmod 1777 "$DIR/tmp"
+  mount --bind "$DIR/tmp" "$MNT/tmp"
   mount --bind "$DATA" "$MNT/data"
   mount --bind "$DATA/keys" "$MNT/keys"
   mount --bind /proc "$MNT/proc"
@@ -184,6 +187,19 @@ if "${IMG_NONET[@]}" cslam-server --out-dir /proc/cslam-out --http off --bind "t
 fi
 [ "$(wc -l < "$DIR/ro.log")" -le 2 ] || { cat "$DIR/ro.log" >&2; fail "expected one clear line for an unwritable --out-dir"; }
 say "  -> $(tail -1 "$DIR/ro.log")"
+if [ "$MODE" = container ]; then
+  # A read-only container root without a writable /tmp (docker's --read-only; podman's with
+  # --read-only-tmpfs=false): no folder for the keyframe store, one line saying what to do.
+  RO=(--read-only); [ "$ENGINE" = podman ] && RO+=(--read-only-tmpfs=false)
+  say "cslam-server refuses a read-only container root without a writable /tmp at start"
+  if "${E[@]}" run --rm "${RUN_OPTS[@]}" --no-healthcheck --network none "${RO[@]}" -v "$DATA:/data" "$IMAGE" \
+      cslam-server --http off --bind "tcp://127.0.0.1:$ZMQ_PORT" > "$DIR/ro-tmp.log" 2>&1; then
+    fail "the server started without a folder for its keyframe store"
+  fi
+  grep -q "keyframe store's temporary folder.*--state-dir" "$DIR/ro-tmp.log" \
+    || { cat "$DIR/ro-tmp.log" >&2; fail "expected one clear line for a read-only /tmp"; }
+  say "  -> $(tail -1 "$DIR/ro-tmp.log")"
+fi
 
 # A server built with CURVE support (cslam-keygen in the image) runs keyed, as a deployment should:
 # keys made by the image's cslam-keygen, each robot's key bound to its id.

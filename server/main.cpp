@@ -1,7 +1,9 @@
 // cslam-server: receives RGB-D frames from client robots over ZeroMQ (protobuf messages, see
 // proto/cslam.proto and docs/network.md) and runs one SLAM pipeline per client.
 #include <atomic>
+#include <cerrno>
 #include <csignal>
+#include <cstring>
 #include <cstdlib>
 #include <memory>
 #include <filesystem>
@@ -74,10 +76,22 @@ cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, c
   c.map.keyframes_per_submap = cli.get_int("dense-submap-keyframes");
   if (!state_dir.empty()) {
     c.store.dir = state_dir + "/dense";
-  } else {  // a private folder for this run, removed at exit
-    std::string tmpl = (std::filesystem::temp_directory_path() / "cslam-dense-XXXXXX").string();
-    if (!mkdtemp(tmpl.data()))
-      throw cslam::ConfigError("cslam-server: cannot create a temporary folder for the keyframe store");
+  } else if (c.enabled) {  // a private folder for this run, removed at exit
+    // e.g. a read-only container without a tmpfs at /tmp, or TMPDIR naming no folder
+    const auto refuse = [](const std::string& where, const std::string& why) {
+      return cslam::ConfigError("cslam-server: cannot create the keyframe store's temporary folder in '" + where +
+                                "': " + why +
+                                "; give --state-dir (the store then lives in STATE_DIR/dense), set TMPDIR to a "
+                                "writable folder, or --no-dense");
+    };
+    std::error_code ec;
+    const std::filesystem::path tmp = std::filesystem::temp_directory_path(ec);
+    if (ec) {
+      const char* env = std::getenv("TMPDIR");
+      throw refuse(env ? env : "/tmp", ec.message());
+    }
+    std::string tmpl = (tmp / "cslam-dense-XXXXXX").string();
+    if (!mkdtemp(tmpl.data())) throw refuse(tmp.string(), std::strerror(errno));
     c.store.dir = tmpl;
     c.store_is_temporary = true;
   }
@@ -97,6 +111,8 @@ std::unique_ptr<cslam::server::DenseService> start_dense(const cslam::server::De
     return dense;
   } catch (const std::exception& e) {
     cslam::logger("server")->error("live dense map off: {}", e.what());
+    std::error_code ignored;  // the service that would have removed it at exit does not exist
+    if (config.store_is_temporary) std::filesystem::remove_all(config.store.dir, ignored);
     return nullptr;
   }
 }

@@ -25,7 +25,7 @@ constexpr std::size_t kTimingWindow = 512;
 
 void DenseServiceConfig::validate() const {
   map.validate();
-  store.validate();
+  if (enabled) store.validate();  // off: there is no store
   if (!(step_interval_s > 0) || queue_capacity < 1 || queue_decoded > queue_capacity || max_integrations_per_step < 1 ||
       max_reintegrations_per_step < 0)
     throw ConfigError("dense map: step interval, queue capacity and integrations per step must be positive");

@@ -3,6 +3,7 @@ after the session (where the results would be lost)."""
 import os
 import subprocess
 import unittest
+from unittest import mock
 
 import harness
 
@@ -29,6 +30,31 @@ class ServerStart(unittest.TestCase):
         server.stop()
         self.assertTrue(os.path.isdir(out))
         self.assertFalse(os.path.exists(os.path.join(out, ".cslam-write-probe")))
+        harness.cleanup(d, True)
+
+    def test_the_keyframe_stores_temporary_folder(self):
+        """Without --state-dir the keyframe store lives in a private folder under TMPDIR, removed at
+        exit; --no-dense makes none; a TMPDIR where none can be made is refused at start, with one
+        line saying what to do (a read-only container without a tmpfs at /tmp)."""
+        d = harness.scratch("tmpdir")
+        tmp = os.path.join(d, "tmp")
+        os.makedirs(tmp)
+        for extra in ((), ("--no-dense",)):
+            with self.subTest(extra=extra), mock.patch.dict(os.environ, {"TMPDIR": tmp}):
+                server = harness.Server(os.path.join(d, "run" + "".join(extra)), extra=list(extra))
+                made = os.listdir(tmp)
+                server.stop()
+                self.assertEqual(len(made), 0 if extra else 1, made)
+                self.assertEqual(os.listdir(tmp), [], "the folder outlived the server")
+        for tmpdir in (os.path.join(d, "missing"), "/proc"):  # no folder; one not even root can write
+            with self.subTest(tmpdir=tmpdir), mock.patch.dict(os.environ, {"TMPDIR": tmpdir}):
+                r = subprocess.run([harness.program("cslam-server"), "--http", "off", "--bind", "tcp://127.0.0.1:*"],
+                                   capture_output=True, text=True, timeout=60)
+                self.assertEqual(r.returncode, 2, r.stderr)
+                lines = r.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, r.stderr)
+                self.assertIn(f"cannot create the keyframe store's temporary folder in '{tmpdir}'", lines[0])
+                self.assertIn("--state-dir", lines[0])
         harness.cleanup(d, True)
 
 
