@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/run_program.h"
 #include "core/error.h"
 #include "geometry/camera.h"
 #include "geometry/camera_io.h"
@@ -54,9 +55,9 @@ TEST(Camera, PresetsAndValidation) {
 }
 
 TEST(Camera, FileRoundTripYamlAndJson) {
-  const auto dir = std::filesystem::temp_directory_path();
+  const test::TempDir dir("cslam_cam_test");
   for (const char* ext : {".yaml", ".json"}) {
-    const std::string path = (dir / (std::string("cslam_cam_test") + ext)).string();
+    const std::string path = dir / (std::string("camera") + ext);
     save_camera_file(camera_tum_fr1(), path);
     const PinholeCamera c = load_camera_file(path);
     EXPECT_DOUBLE_EQ(c.fx, camera_tum_fr1().fx);
@@ -68,7 +69,8 @@ TEST(Camera, FileRoundTripYamlAndJson) {
 }
 
 TEST(Camera, FileErrors) {
-  const auto path = (std::filesystem::temp_directory_path() / "cslam_cam_bad.yaml").string();
+  const test::TempDir dir("cslam_cam_bad");
+  const std::string path = dir / "camera.yaml";
   { std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\ncy: 240\nwidth: 640\nheight: 480\nfoo: 1\n"; }
   EXPECT_THROW(load_camera_file(path), InputError);  // unknown key
   { std::ofstream(path) << "%YAML:1.0\nfx: 500\nfy: 500\ncx: 320\nwidth: 640\nheight: 480\n"; }

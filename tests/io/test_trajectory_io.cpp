@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/run_program.h"
 #include "core/error.h"
 #include "io/trajectory_io.h"
 
@@ -14,7 +15,8 @@ TEST(TrajectoryIo, RoundTrip) {
     Eigen::Quaterniond q(Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d(0.2, 1, 0.3).normalized()));
     t.push_back({1305031102.175304 + i / 30.0, SE3(q, Eigen::Vector3d(i * 0.1, -0.5, 1.25))});
   }
-  const auto path = (std::filesystem::temp_directory_path() / "cslam_traj_rt.txt").string();
+  const test::TempDir dir("cslam_traj_rt");
+  const std::string path = dir / "trajectory.txt";
   write_tum_trajectory(path, t, "test");
   const Trajectory r = read_tum_trajectory(path);
   ASSERT_EQ(r.size(), t.size());
@@ -27,7 +29,8 @@ TEST(TrajectoryIo, RoundTrip) {
 }
 
 TEST(TrajectoryIo, BadInput) {
-  const auto path = (std::filesystem::temp_directory_path() / "cslam_traj_bad.txt").string();
+  const test::TempDir dir("cslam_traj_bad");
+  const std::string path = dir / "trajectory.txt";
   std::ofstream(path) << "1.0 0 0 0 0 0 0 1\n2.0 nan 0 0 0 0 0 1\n";
   try {
     read_tum_trajectory(path);

@@ -7,6 +7,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "common/run_program.h"
 #include "core/error.h"
 #include "geometry/camera.h"
 #include "server/http/http_server.h"
@@ -374,7 +375,8 @@ TEST_F(HttpApiTest, ErrorRepliesNeverThrowOnBadBytes) {
 
 // Item 6 over HTTP: a request over --recon-max-mb is a 413 carrying the estimate.
 TEST_F(HttpApiTest, ReconstructionOverTheBudgetIs413WithTheEstimate) {
-  const std::string dir = (std::filesystem::temp_directory_path() / "cslam_http_recon_datasets").string();
+  const test::TempDir temp("cslam_http_recon_datasets");
+  const std::string dir = temp.str();
   std::filesystem::create_directories(dir + "/alpha");
   std::ofstream(dir + "/alpha/rgb.txt") << "# no images needed: refused before any is read\n";
   HttpConfig c;

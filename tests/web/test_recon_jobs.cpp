@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/process_threads.h"
+#include "common/run_program.h"
 #include "server/http/recon_jobs.h"
 
 namespace cslam::http {
@@ -78,7 +79,9 @@ ReconJobView wait_finished(const ReconJobs& jobs, const std::string& id) {
   return {};
 }
 
-const std::string kDir = (fs::temp_directory_path() / "cslam_recon_jobs_test").string();
+// This process's own folder (two suites may run at once), removed at exit.
+const test::TempDir kTemp("cslam_recon_jobs_test");
+const std::string kDir = kTemp.str();
 
 // Item 5: jobs beyond max_finished are dropped oldest first, their threads joined, and the bytes
 // the kept ones hold are shown per job and in stats().
