@@ -2,11 +2,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <sstream>
-
-#include <unistd.h>
 
 #include "cloud/ply_io.h"
 #include "core/log.h"
@@ -42,20 +37,6 @@ struct OverBudget {
 };
 
 constexpr double kMB = 1024.0 * 1024.0;
-
-// Our PLY writers take a path: write to a private temp file, read it back, remove it.
-template <typename Writer>
-std::shared_ptr<const std::string> ply_bytes(const std::string& tag, Writer write) {
-  const auto path =
-      std::filesystem::temp_directory_path() / ("cslam-http-" + std::to_string(::getpid()) + "-" + tag + ".ply");
-  write(path.string());
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  std::error_code ec;
-  std::filesystem::remove(path, ec);
-  return std::make_shared<const std::string>(bytes.str());
-}
 
 std::string mb(double bytes) {
   char buf[32];
@@ -175,9 +156,8 @@ void ReconJobs::keep_products(const Job& job, const DenseResult& result, Outcome
     out.message = "no frame could be used (" + std::to_string(result.counts.skipped()) + " skipped)";
     return;
   }
-  out.cloud = ply_bytes(job.id + "-cloud", [&](const std::string& p) { write_ply(p, result.cloud); });
-  if (out.triangles > 0)
-    out.mesh = ply_bytes(job.id + "-mesh", [&](const std::string& p) { write_ply_mesh(p, result.mesh); });
+  out.cloud = std::make_shared<const std::string>(ply_bytes(result.cloud));  // in memory: no temp files
+  if (out.triangles > 0) out.mesh = std::make_shared<const std::string>(ply_mesh_bytes(result.mesh));
   out.message = std::to_string(result.counts.used) + " frames used, " + std::to_string(out.points) + " points";
 }
 

@@ -5,6 +5,7 @@
 #include <dirent.h>
 
 #include <atomic>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -111,6 +112,27 @@ TEST(ReconJobs, FinishedJobsExpireByCountWithThreadsJoinedAndBytesAccounted) {
   ASSERT_TRUE(jobs.view(ids[4]));
   EXPECT_EQ(st.bytes_held, jobs.view(ids[3])->bytes_held + jobs.view(ids[4])->bytes_held);
   EXPECT_LE(test::thread_count_settled_to(threads_before), threads_before);  // every finished job's thread joined
+}
+
+// The products go to memory, never through a temp file: a server whose TMPDIR cannot be written
+// (a read-only container root) still answers reconstructions.
+TEST(ReconJobs, ProductsNeedNoTempFolder) {
+  const DatasetPoses data = tiny_dataset(kDir + "/notmp", 6);
+  const char* before = std::getenv("TMPDIR");
+  const std::string saved = before ? before : "";
+  ::setenv("TMPDIR", (kDir + "/no-such-folder").c_str(), 1);
+  ReconJobs jobs(ReconJobsConfig{});
+  const ReconStart s = jobs.start(0, {data}, server_defaults());
+  const ReconJobView v = s.outcome == ReconStart::Outcome::kStarted ? wait_finished(jobs, s.id) : ReconJobView{};
+  if (before)
+    ::setenv("TMPDIR", saved.c_str(), 1);
+  else
+    ::unsetenv("TMPDIR");
+  ASSERT_EQ(s.outcome, ReconStart::Outcome::kStarted) << s.message;
+  EXPECT_EQ(v.state, "done") << v.message;
+  const auto cloud = jobs.cloud_ply(s.id);
+  ASSERT_TRUE(cloud);
+  EXPECT_EQ(cloud->rfind("ply\nformat binary_little_endian 1.0\n", 0), 0u);
 }
 
 TEST(ReconJobs, FinishedJobsExpireByAge) {
