@@ -146,7 +146,7 @@ cleanup() {
     for m in keys data proc dev tmp; do umount "$MNT/$m" 2> /dev/null || true; done
     "${E[@]}" image unmount "$IMAGE" > /dev/null 2>&1 || true
   elif [ "$MODE" = container ]; then
-    "${E[@]}" rm -f cslam-smoke-server > /dev/null 2>&1 || true
+    "${E[@]}" rm -f cslam-smoke-server cslam-smoke-ro > /dev/null 2>&1 || true
     "${E[@]}" network rm cslam-smoke > /dev/null 2>&1 || true
   fi
 }
@@ -199,6 +199,22 @@ if [ "$MODE" = container ]; then
   grep -q "keyframe store's temporary folder.*--state-dir" "$DIR/ro-tmp.log" \
     || { cat "$DIR/ro-tmp.log" >&2; fail "expected one clear line for a read-only /tmp"; }
   say "  -> $(tail -1 "$DIR/ro-tmp.log")"
+  say "cslam-server runs in a read-only container root with --state-dir on the volume"
+  "${E[@]}" run -d --name cslam-smoke-ro "${RUN_OPTS[@]}" --no-healthcheck --network none "${RO[@]}" -v "$DATA:/data" \
+    "$IMAGE" cslam-server --http off --bind "tcp://127.0.0.1:$ZMQ_PORT" --state-dir /data/ro-state \
+    --out-dir /data/ro-out > /dev/null
+  for _ in $(seq 1 150); do
+    "${E[@]}" logs cslam-smoke-ro 2>&1 | grep -q "live dense map on" && break
+    sleep 0.2
+  done
+  "${E[@]}" stop -t 20 cslam-smoke-ro > /dev/null
+  "${E[@]}" logs cslam-smoke-ro > "$DIR/ro-state.log" 2>&1
+  RO_EXIT=$("${E[@]}" inspect --format '{{.State.ExitCode}}' cslam-smoke-ro)
+  "${E[@]}" rm -f cslam-smoke-ro > /dev/null
+  grep -q "keyframe store /data/ro-state/dense" "$DIR/ro-state.log" \
+    || { cat "$DIR/ro-state.log" >&2; fail "no live dense map in a read-only container with --state-dir"; }
+  [ "$RO_EXIT" = 0 ] || { cat "$DIR/ro-state.log" >&2; fail "the read-only container's server exited $RO_EXIT"; }
+  say "  -> $(grep -o 'live dense map on.*' "$DIR/ro-state.log" | head -1); exit code 0 after SIGTERM"
 fi
 
 # A server built with CURVE support (cslam-keygen in the image) runs keyed, as a deployment should:

@@ -226,6 +226,7 @@ int run(int argc, char** argv) {
   const cslam::http::HttpConfig http_config = cslam::http::config_from(cli);
   cslam::server::StateStoreConfig state_config;
   state_config.dir = cli.get("state-dir");
+  if (!state_config.dir.empty()) require_writable_dir("--state-dir", state_config.dir);  // else no snapshot, ever
   state_config.interval_s = cli.get_double("snapshot-interval");
   state_config.reset = cli.flag_set("state-reset");
   if (state_config.interval_s < 0) throw cslam::ConfigError("cslam-server: --snapshot-interval must be >= 0");

@@ -9,18 +9,24 @@ import harness
 
 
 class ServerStart(unittest.TestCase):
-    def test_unwritable_out_dir_is_refused_at_start(self):
+    def test_unwritable_out_dir_and_state_dir_are_refused_at_start(self):
+        """--state-dir as --out-dir: a server that could never write a snapshot there would lose
+        the maps it was asked to keep."""
         d = harness.scratch("outdir")
         blocker = os.path.join(d, "a_file")
         open(blocker, "w").close()
-        for out_dir in (os.path.join(blocker, "out"), "/proc/cslam-out"):  # under a file; in /proc (even root)
-            with self.subTest(out_dir=out_dir):
-                r = subprocess.run([harness.program("cslam-server"), "--out-dir", out_dir, "--http", "off", "--bind",
-                                    "tcp://127.0.0.1:*"], capture_output=True, text=True, timeout=60)
-                self.assertEqual(r.returncode, 2, r.stderr)
-                lines = r.stderr.strip().splitlines()
-                self.assertEqual(len(lines), 1, r.stderr)
-                self.assertIn(f"--out-dir '{out_dir}' is not writable", lines[0])
+        for option in ("--out-dir", "--state-dir"):
+            for folder in (os.path.join(blocker, "out"), "/proc/cslam-out"):  # under a file; in /proc (even root)
+                with self.subTest(option=option, folder=folder):
+                    args = [harness.program("cslam-server"), option, folder, "--http", "off", "--bind",
+                            "tcp://127.0.0.1:*"]
+                    if option != "--out-dir":
+                        args += ["--out-dir", os.path.join(d, "out")]
+                    r = subprocess.run(args, capture_output=True, text=True, timeout=60)
+                    self.assertEqual(r.returncode, 2, r.stderr)
+                    lines = r.stderr.strip().splitlines()
+                    self.assertEqual(len(lines), 1, r.stderr)
+                    self.assertIn(f"{option} '{folder}' is not writable", lines[0])
         harness.cleanup(d, True)
 
     def test_writable_out_dir_is_created_and_left_clean(self):
