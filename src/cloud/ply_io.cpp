@@ -355,39 +355,52 @@ PlyContent read_ply_file(const std::string& path, bool want_faces) {
   return out;
 }
 
+// The checks every writer makes, file or memory: `target` names where the bytes were going.
+void check_cloud(const ColoredCloud& cloud, const std::string& target) {
+  if (cloud.empty()) throw std::invalid_argument("refusing to write an empty point cloud to " + target);
+  if (cloud.has_colors() && cloud.colors.size() != cloud.size())
+    throw std::invalid_argument("PLY " + target + ": colour count differs from point count");
+  if (cloud.has_normals() && cloud.normals.size() != cloud.size())
+    throw std::invalid_argument("PLY " + target + ": normal count differs from point count");
+}
+
+void check_mesh(const TriangleMesh& mesh, const std::string& target) {
+  if (mesh.vertices.empty() || mesh.triangles.empty())
+    throw std::invalid_argument("refusing to write an empty mesh to " + target);
+  if (!mesh.colors.empty() && mesh.colors.size() != mesh.vertices.size())
+    throw std::invalid_argument("PLY " + target + ": colour count differs from vertex count");
+  for (const auto& t : mesh.triangles)
+    for (const auto v : t)
+      if (v >= mesh.vertices.size())
+        throw std::invalid_argument("PLY " + target + ": a triangle refers to vertex " + std::to_string(v) + " of " +
+                                    std::to_string(mesh.vertices.size()));
+}
+
 }  // namespace
 
 void write_ply(const std::string& path, const ColoredCloud& cloud) {
-  if (cloud.empty()) throw std::invalid_argument("refusing to write an empty point cloud to " + path);
-  if (cloud.has_colors() && cloud.colors.size() != cloud.size())
-    throw std::invalid_argument("write_ply: colour count differs from point count");
-  if (cloud.has_normals() && cloud.normals.size() != cloud.size())
-    throw std::invalid_argument("write_ply: normal count differs from point count");
+  check_cloud(cloud, path);
   AtomicFile f(path);
   write_ply_body(f.stream(), cloud);
   f.commit();
 }
 
 void write_ply_mesh(const std::string& path, const TriangleMesh& mesh) {
-  if (mesh.vertices.empty() || mesh.triangles.empty())
-    throw std::invalid_argument("refusing to write an empty mesh to " + path);
-  if (!mesh.colors.empty() && mesh.colors.size() != mesh.vertices.size())
-    throw std::invalid_argument("write_ply_mesh: colour count differs from vertex count");
+  check_mesh(mesh, path);
   AtomicFile f(path);
   write_ply_mesh_body(f.stream(), mesh);
   f.commit();
 }
 
 std::string ply_bytes(const ColoredCloud& cloud) {
-  if (cloud.empty()) throw std::invalid_argument("refusing to encode an empty point cloud as PLY");
+  check_cloud(cloud, "bytes in memory");
   std::ostringstream out;
   write_ply_body(out, cloud);
   return std::move(out).str();
 }
 
 std::string ply_mesh_bytes(const TriangleMesh& mesh) {
-  if (mesh.vertices.empty() || mesh.triangles.empty())
-    throw std::invalid_argument("refusing to encode an empty mesh as PLY");
+  check_mesh(mesh, "bytes in memory");
   std::ostringstream out;
   write_ply_mesh_body(out, mesh);
   return std::move(out).str();

@@ -103,6 +103,35 @@ TEST(PlyIo, MeshRoundTrip) {
   EXPECT_EQ(r.triangles, m.triangles);
 }
 
+// The file and the in-memory writers refuse the same inconsistent inputs (the in-memory ones serve
+// HTTP downloads): what one would write, a reader would reject or read past.
+TEST(PlyIo, EveryWriterRefusesInconsistentCountsAndIndices) {
+  ColoredCloud few_colours = sample_cloud();
+  few_colours.colors.pop_back();
+  EXPECT_THROW(write_ply(temp_path("c.ply"), few_colours), std::invalid_argument);
+  EXPECT_THROW(ply_bytes(few_colours), std::invalid_argument);
+  ColoredCloud few_normals = sample_cloud();
+  few_normals.normals.assign(few_normals.size() - 1, Eigen::Vector3f::UnitZ());
+  EXPECT_THROW(write_ply(temp_path("n.ply"), few_normals), std::invalid_argument);
+  EXPECT_THROW(ply_bytes(few_normals), std::invalid_argument);
+  EXPECT_THROW(ply_bytes(ColoredCloud{}), std::invalid_argument);
+  EXPECT_EQ(ply_bytes(sample_cloud()).rfind("ply\n", 0), 0u);
+
+  TriangleMesh mesh;
+  mesh.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.triangles = {{0, 1, 2}};
+  EXPECT_NO_THROW(ply_mesh_bytes(mesh));
+  TriangleMesh out_of_range = mesh;
+  out_of_range.triangles.push_back({0, 2, 3});
+  EXPECT_THROW(write_ply_mesh(temp_path("m.ply"), out_of_range), std::invalid_argument);
+  EXPECT_THROW(ply_mesh_bytes(out_of_range), std::invalid_argument);
+  TriangleMesh few_mesh_colours = mesh;
+  few_mesh_colours.colors = {{1, 2, 3}};
+  EXPECT_THROW(write_ply_mesh(temp_path("m.ply"), few_mesh_colours), std::invalid_argument);
+  EXPECT_THROW(ply_mesh_bytes(few_mesh_colours), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(temp_path("c.ply")) || fs::exists(temp_path("n.ply")) || fs::exists(temp_path("m.ply")));
+}
+
 TEST(PlyIo, RefusesEmptyAndRejectsMalformed) {
   EXPECT_THROW(write_ply(temp_path("empty.ply"), ColoredCloud{}), std::invalid_argument);
   EXPECT_FALSE(fs::exists(temp_path("empty.ply")));
