@@ -62,6 +62,26 @@ void require_writable_dir(const std::string& option, const std::string& dir) {
     throw cslam::ConfigError("cslam-server: " + option + " '" + dir + "' is not writable: " + reason);
 }
 
+// A private folder for the keyframe store under TMPDIR (/tmp); refused with what to do where none
+// can be made (a read-only container root without a tmpfs at /tmp, TMPDIR naming no folder).
+std::string make_private_store_dir() {
+  const auto refuse = [](const std::string& where, const std::string& why) {
+    return cslam::ConfigError("cslam-server: cannot create the keyframe store's temporary folder in '" + where +
+                              "': " + why +
+                              "; give --state-dir (the store then lives in STATE_DIR/dense), set TMPDIR to a "
+                              "writable folder, or --no-dense");
+  };
+  std::error_code ec;
+  const std::filesystem::path tmp = std::filesystem::temp_directory_path(ec);
+  if (ec) {
+    const char* env = std::getenv("TMPDIR");
+    throw refuse(env ? env : "/tmp", ec.message());
+  }
+  std::string tmpl = (tmp / "cslam-dense-XXXXXX").string();
+  if (!mkdtemp(tmpl.data())) throw refuse(tmp.string(), std::strerror(errno));
+  return tmpl;
+}
+
 cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, const std::string& state_dir) {
   cslam::server::DenseServiceConfig c;
   c.enabled = !cli.flag_set("no-dense");
@@ -77,25 +97,16 @@ cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, c
   if (!state_dir.empty()) {
     c.store.dir = state_dir + "/dense";
   } else if (c.enabled) {  // a private folder for this run, removed at exit
-    // e.g. a read-only container without a tmpfs at /tmp, or TMPDIR naming no folder
-    const auto refuse = [](const std::string& where, const std::string& why) {
-      return cslam::ConfigError("cslam-server: cannot create the keyframe store's temporary folder in '" + where +
-                                "': " + why +
-                                "; give --state-dir (the store then lives in STATE_DIR/dense), set TMPDIR to a "
-                                "writable folder, or --no-dense");
-    };
-    std::error_code ec;
-    const std::filesystem::path tmp = std::filesystem::temp_directory_path(ec);
-    if (ec) {
-      const char* env = std::getenv("TMPDIR");
-      throw refuse(env ? env : "/tmp", ec.message());
-    }
-    std::string tmpl = (tmp / "cslam-dense-XXXXXX").string();
-    if (!mkdtemp(tmpl.data())) throw refuse(tmp.string(), std::strerror(errno));
-    c.store.dir = tmpl;
+    c.store.dir = make_private_store_dir();
     c.store_is_temporary = true;
   }
-  c.validate();
+  try {
+    c.validate();
+  } catch (const cslam::ConfigError&) {
+    std::error_code ignored;
+    if (c.store_is_temporary) std::filesystem::remove_all(c.store.dir, ignored);
+    throw;
+  }
   return c;
 }
 

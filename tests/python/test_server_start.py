@@ -52,6 +52,11 @@ class ServerStart(unittest.TestCase):
                 server.stop()
                 self.assertEqual(len(made), 0 if extra else 1, made)
                 self.assertEqual(os.listdir(tmp), [], "the folder outlived the server")
+        with mock.patch.dict(os.environ, {"TMPDIR": tmp}):  # a dense option refused after the folder was made
+            r = subprocess.run([harness.program("cslam-server"), "--http", "off", "--bind", "tcp://127.0.0.1:*",
+                                "--dense-submap-keyframes", "0"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(os.listdir(tmp), [], "a refused start left its folder")
         for tmpdir in (os.path.join(d, "missing"), "/proc"):  # no folder; one not even root can write
             with self.subTest(tmpdir=tmpdir), mock.patch.dict(os.environ, {"TMPDIR": tmpdir}):
                 r = subprocess.run([harness.program("cslam-server"), "--http", "off", "--bind", "tcp://127.0.0.1:*"],
