@@ -54,9 +54,13 @@ void require_writable_dir(const std::string& option, const std::string& dir) {
   std::string reason = ec ? ec.message() : "";
   if (reason.empty()) {
     const fs::path probe = fs::path(dir) / ".cslam-write-probe";
-    const bool ok = bool(std::ofstream(probe) << "ok\n");
+    std::ofstream f(probe);
+    errno = 0;
+    f << "ok\n";
+    f.close();  // a full disk fails here, not at the first write into the buffer
+    const int err = errno;
     fs::remove(probe, ec);
-    if (!ok) reason = "cannot create a file in it";
+    if (f.fail()) reason = "cannot write a file in it" + (err ? std::string(": ") + std::strerror(err) : std::string());
   }
   if (!reason.empty())
     throw cslam::ConfigError("cslam-server: " + option + " '" + dir + "' is not writable: " + reason);

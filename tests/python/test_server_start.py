@@ -1,6 +1,8 @@
 """cslam-server refuses an --out-dir it cannot write at start, with one line, instead of failing
 after the session (where the results would be lost)."""
 import os
+import resource
+import signal
 import subprocess
 import unittest
 from unittest import mock
@@ -27,6 +29,27 @@ class ServerStart(unittest.TestCase):
                     lines = r.stderr.strip().splitlines()
                     self.assertEqual(len(lines), 1, r.stderr)
                     self.assertIn(f"{option} '{folder}' is not writable", lines[0])
+        harness.cleanup(d, True)
+
+    def test_a_full_disk_is_refused_at_start(self):
+        """The probe file is closed before it counts as written: a full disk fails at the flush, not
+        at the write into the buffer. A file size limit below the probe's 3 bytes stands in for the
+        full disk (as tests/persistence does), so this runs without root."""
+        d = harness.scratch("fulldisk")
+
+        def limit_file_size():
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes beyond it fail with EFBIG instead
+            resource.setrlimit(resource.RLIMIT_FSIZE, (2, 2))
+
+        out_dir = os.path.join(d, "out")
+        r = subprocess.run([harness.program("cslam-server"), "--out-dir", out_dir, "--http", "off", "--bind",
+                            "tcp://127.0.0.1:*", "--no-dense"], capture_output=True, text=True, timeout=60,
+                           preexec_fn=limit_file_size)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        self.assertIn(f"--out-dir '{out_dir}' is not writable: cannot write a file in it", lines[0])
+        self.assertEqual(os.listdir(out_dir), [], "the probe file stayed")
         harness.cleanup(d, True)
 
     def test_writable_out_dir_is_created_and_left_clean(self):
