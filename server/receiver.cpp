@@ -5,6 +5,7 @@
 #include <ctime>
 #include <fstream>
 
+#include "core/error.h"
 #include "core/log.h"
 #include "proto/pose_feedback.h"
 
@@ -80,7 +81,11 @@ Receiver::Receiver(zmq::context_t& context, const ReceiverConfig& config, Collab
                              ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL | ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL) != 0)
     throw zmq::error_t();
   monitor_.connect(monitor_endpoint);
-  router_.bind(config_.bind);
+  try {
+    router_.bind(config_.bind);
+  } catch (const zmq::error_t& e) {  // e.g. the port in use: another server, or --bind
+    throw ConfigError("cslam-server: cannot bind --bind " + config_.bind + ": " + e.what());
+  }
   endpoint_ = router_.get(zmq::sockopt::last_endpoint);
   start_ = last_log_ = last_publish_ = Clock::now();
   reclaim_hook_ = [this](const ClientInfo& info, int connections) {

@@ -52,6 +52,21 @@ class ServerStart(unittest.TestCase):
         self.assertEqual(os.listdir(out_dir), [], "the probe file stayed")
         harness.cleanup(d, True)
 
+    def test_a_port_in_use_is_refused_with_the_endpoint(self):
+        d = harness.scratch("port")
+        first = harness.Server(os.path.join(d, "first"), extra=["--no-dense"])
+        try:
+            r = subprocess.run([harness.program("cslam-server"), "--bind", first.endpoint, "--http", "off",
+                                "--no-dense", "--out-dir", os.path.join(d, "out"), "--log-level", "warn"],
+                               capture_output=True, text=True, timeout=60)
+        finally:
+            first.stop()
+        self.assertEqual(r.returncode, 2, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        self.assertIn(f"cannot bind --bind {first.endpoint}: Address already in use", lines[0])
+        harness.cleanup(d, True)
+
     def test_writable_out_dir_is_created_and_left_clean(self):
         d = harness.scratch("outdir")
         out = os.path.join(d, "new", "out")
