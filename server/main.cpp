@@ -298,7 +298,10 @@ int run(int argc, char** argv) {
   http.set_status_extra([d = dense.get()](nlohmann::json& status, std::string& metrics) {
     cslam::http::add_dense_status(d, status, metrics);
   });
-  http.start();
+  if (http_config.enabled && !http.start())  // asked for, so not silently without the API and viewer
+    throw cslam::ConfigError("cslam-server: cannot serve HTTP on " + http_config.bind + ":" +
+                             std::to_string(http_config.port) +
+                             " (in use?): --http PORT (0: any free port), or --http off");
   // A snapshot holds only keyframes whose images the store has (unless the dense worker is more
   // than 5 s behind: then the restarted server counts the missing ones).
   if (dense) state.set_before_export([d = dense.get()] { d->wait_stored(5.0); });

@@ -168,8 +168,7 @@ bool HttpServer::start() {
         config_.web_root);
   guard_ = std::make_unique<HttpGuard>(*server_, config_.guard, config_.tls.get());
   port_ = guard_->bind(config_.bind, config_.port);
-  if (port_ < 0) {
-    log->error("HTTP: cannot bind {}:{} (in use?); continuing without the HTTP API", config_.bind, config_.port);
+  if (port_ < 0) {  // the caller says so (cslam-server refuses to start)
     guard_.reset();
     return false;
   }

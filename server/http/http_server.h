@@ -66,8 +66,8 @@ class HttpServer {
   HttpServer(const HttpServer&) = delete;
   HttpServer& operator=(const HttpServer&) = delete;
 
-  // Binds and starts the listener and the cache threads. Returns false (and logs why) if the
-  // port cannot be bound: SLAM keeps running without HTTP.
+  // Binds and starts the listener and the cache threads. Returns false if HTTP is off or the port
+  // cannot be bound (cslam-server then refuses to start).
   bool start();
   // Live network counters for /api/status and /metrics (set before start()).
   void set_network_status(const NetStatusBoard* board) { cache_.set_network(board); }

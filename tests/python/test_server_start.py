@@ -4,6 +4,7 @@ import os
 import resource
 import signal
 import subprocess
+import time
 import unittest
 from unittest import mock
 
@@ -65,6 +66,29 @@ class ServerStart(unittest.TestCase):
         lines = r.stderr.strip().splitlines()
         self.assertEqual(len(lines), 1, r.stderr)
         self.assertIn(f"cannot bind --bind {first.endpoint}: Address already in use", lines[0])
+        harness.cleanup(d, True)
+
+    def test_an_http_port_in_use_is_refused(self):
+        """Asked for HTTP, the server does not run without its API and viewer."""
+        d = harness.scratch("httpport")
+        port_file = os.path.join(d, "http_port")
+        first = harness.Server(os.path.join(d, "first"), extra=["--no-dense", "--http", "0", "--http-port-file",
+                                                                 port_file])
+        try:
+            for _ in range(300):
+                if os.path.exists(port_file):
+                    break
+                time.sleep(0.05)
+            port = open(port_file).read().strip()
+            r = subprocess.run([harness.program("cslam-server"), "--bind", "tcp://127.0.0.1:*", "--http", port,
+                                "--no-dense", "--out-dir", os.path.join(d, "out"), "--log-level", "warn"],
+                               capture_output=True, text=True, timeout=60)
+        finally:
+            first.stop()
+        self.assertEqual(r.returncode, 2, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        self.assertIn(f"cannot serve HTTP on 127.0.0.1:{port} (in use?)", lines[0])
         harness.cleanup(d, True)
 
     def test_writable_out_dir_is_created_and_left_clean(self):
