@@ -1,5 +1,7 @@
-"""cslam-server refuses an --out-dir it cannot write at start, with one line, instead of failing
-after the session (where the results would be lost)."""
+"""cslam-server refuses at start, with one line (code 2), what would otherwise fail later or leave
+it running without what it was asked for: an --out-dir or --state-dir it cannot write (results or
+snapshots lost after the session), a full disk there, a --bind or HTTP port in use, no folder for
+the keyframe store. Its temporary keyframe store goes away with it."""
 import os
 import resource
 import signal
@@ -12,6 +14,19 @@ import harness
 
 
 class ServerStart(unittest.TestCase):
+    def assert_refused(self, run_dir, args, expected, **kwargs):
+        """Starts cslam-server with `args` (and an --out-dir in run_dir unless given): exit code 2 and
+        one line on stderr that contains `expected`."""
+        if "--out-dir" not in args:
+            args = [*args, "--out-dir", os.path.join(run_dir, "out")]
+        r = subprocess.run([harness.program("cslam-server"), *args, "--log-level", "warn"], capture_output=True,
+                           text=True, timeout=60, **kwargs)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        self.assertIn(expected, lines[0])
+        return lines[0]
+
     def test_unwritable_out_dir_and_state_dir_are_refused_at_start(self):
         """--state-dir as --out-dir: a server that could never write a snapshot there would lose
         the maps it was asked to keep."""
@@ -21,15 +36,8 @@ class ServerStart(unittest.TestCase):
         for option in ("--out-dir", "--state-dir"):
             for folder in (os.path.join(blocker, "out"), "/proc/cslam-out"):  # under a file; in /proc (even root)
                 with self.subTest(option=option, folder=folder):
-                    args = [harness.program("cslam-server"), option, folder, "--http", "off", "--bind",
-                            "tcp://127.0.0.1:*"]
-                    if option != "--out-dir":
-                        args += ["--out-dir", os.path.join(d, "out")]
-                    r = subprocess.run(args, capture_output=True, text=True, timeout=60)
-                    self.assertEqual(r.returncode, 2, r.stderr)
-                    lines = r.stderr.strip().splitlines()
-                    self.assertEqual(len(lines), 1, r.stderr)
-                    self.assertIn(f"{option} '{folder}' is not writable", lines[0])
+                    self.assert_refused(d, [option, folder, "--http", "off", "--bind", "tcp://127.0.0.1:*"],
+                                        f"{option} '{folder}' is not writable")
         harness.cleanup(d, True)
 
     def test_a_full_disk_is_refused_at_start(self):
@@ -43,52 +51,31 @@ class ServerStart(unittest.TestCase):
             resource.setrlimit(resource.RLIMIT_FSIZE, (2, 2))
 
         out_dir = os.path.join(d, "out")
-        r = subprocess.run([harness.program("cslam-server"), "--out-dir", out_dir, "--http", "off", "--bind",
-                            "tcp://127.0.0.1:*", "--no-dense"], capture_output=True, text=True, timeout=60,
-                           preexec_fn=limit_file_size)
-        self.assertEqual(r.returncode, 2, r.stderr)
-        lines = r.stderr.strip().splitlines()
-        self.assertEqual(len(lines), 1, r.stderr)
-        self.assertIn(f"--out-dir '{out_dir}' is not writable: cannot write a file in it", lines[0])
+        self.assert_refused(d, ["--out-dir", out_dir, "--http", "off", "--bind", "tcp://127.0.0.1:*", "--no-dense"],
+                            f"--out-dir '{out_dir}' is not writable: cannot write a file in it",
+                            preexec_fn=limit_file_size)
         self.assertEqual(os.listdir(out_dir), [], "the probe file stayed")
         harness.cleanup(d, True)
 
-    def test_a_port_in_use_is_refused_with_the_endpoint(self):
-        d = harness.scratch("port")
-        first = harness.Server(os.path.join(d, "first"), extra=["--no-dense"])
-        try:
-            r = subprocess.run([harness.program("cslam-server"), "--bind", first.endpoint, "--http", "off",
-                                "--no-dense", "--out-dir", os.path.join(d, "out"), "--log-level", "warn"],
-                               capture_output=True, text=True, timeout=60)
-        finally:
-            first.stop()
-        self.assertEqual(r.returncode, 2, r.stderr)
-        lines = r.stderr.strip().splitlines()
-        self.assertEqual(len(lines), 1, r.stderr)
-        self.assertIn(f"cannot bind --bind {first.endpoint}: Address already in use", lines[0])
-        harness.cleanup(d, True)
-
-    def test_an_http_port_in_use_is_refused(self):
-        """Asked for HTTP, the server does not run without its API and viewer."""
-        d = harness.scratch("httpport")
+    def test_ports_in_use_are_refused(self):
+        """A --bind endpoint in use is named; asked for HTTP, the server does not run without its API
+        and viewer."""
+        d = harness.scratch("ports")
         port_file = os.path.join(d, "http_port")
-        first = harness.Server(os.path.join(d, "first"), extra=["--no-dense", "--http", "0", "--http-port-file",
-                                                                 port_file])
+        first = harness.Server(os.path.join(d, "first"),
+                               extra=["--no-dense", "--http", "0", "--http-port-file", port_file])
         try:
             for _ in range(300):
                 if os.path.exists(port_file):
                     break
                 time.sleep(0.05)
             port = open(port_file).read().strip()
-            r = subprocess.run([harness.program("cslam-server"), "--bind", "tcp://127.0.0.1:*", "--http", port,
-                                "--no-dense", "--out-dir", os.path.join(d, "out"), "--log-level", "warn"],
-                               capture_output=True, text=True, timeout=60)
+            self.assert_refused(d, ["--bind", first.endpoint, "--http", "off", "--no-dense"],
+                                f"cannot bind --bind {first.endpoint}: Address already in use")
+            self.assert_refused(d, ["--bind", "tcp://127.0.0.1:*", "--http", port, "--no-dense"],
+                                f"cannot serve HTTP on 127.0.0.1:{port} (in use?)")
         finally:
             first.stop()
-        self.assertEqual(r.returncode, 2, r.stderr)
-        lines = r.stderr.strip().splitlines()
-        self.assertEqual(len(lines), 1, r.stderr)
-        self.assertIn(f"cannot serve HTTP on 127.0.0.1:{port} (in use?)", lines[0])
         harness.cleanup(d, True)
 
     def test_writable_out_dir_is_created_and_left_clean(self):
@@ -114,20 +101,15 @@ class ServerStart(unittest.TestCase):
                 server.stop()
                 self.assertEqual(len(made), 0 if extra else 1, made)
                 self.assertEqual(os.listdir(tmp), [], "the folder outlived the server")
+        local = ["--http", "off", "--bind", "tcp://127.0.0.1:*"]
         with mock.patch.dict(os.environ, {"TMPDIR": tmp}):  # a dense option refused after the folder was made
-            r = subprocess.run([harness.program("cslam-server"), "--http", "off", "--bind", "tcp://127.0.0.1:*",
-                                "--dense-submap-keyframes", "0"], capture_output=True, text=True, timeout=60)
-        self.assertEqual(r.returncode, 2, r.stderr)
+            self.assert_refused(d, [*local, "--dense-submap-keyframes", "0"], "keyframes_per_submap")
         self.assertEqual(os.listdir(tmp), [], "a refused start left its folder")
         for tmpdir in (os.path.join(d, "missing"), "/proc"):  # no folder; one not even root can write
             with self.subTest(tmpdir=tmpdir), mock.patch.dict(os.environ, {"TMPDIR": tmpdir}):
-                r = subprocess.run([harness.program("cslam-server"), "--http", "off", "--bind", "tcp://127.0.0.1:*"],
-                                   capture_output=True, text=True, timeout=60)
-                self.assertEqual(r.returncode, 2, r.stderr)
-                lines = r.stderr.strip().splitlines()
-                self.assertEqual(len(lines), 1, r.stderr)
-                self.assertIn(f"cannot create the keyframe store's temporary folder in '{tmpdir}'", lines[0])
-                self.assertIn("--state-dir", lines[0])
+                line = self.assert_refused(d, local,
+                                           f"cannot create the keyframe store's temporary folder in '{tmpdir}'")
+                self.assertIn("--state-dir", line)
         harness.cleanup(d, True)
 
 
