@@ -146,7 +146,9 @@ cleanup() {
     for m in keys data proc dev tmp; do umount "$MNT/$m" 2> /dev/null || true; done
     "${E[@]}" image unmount "$IMAGE" > /dev/null 2>&1 || true
   elif [ "$MODE" = container ]; then
-    "${E[@]}" rm -f cslam-smoke-server cslam-smoke-ro > /dev/null 2>&1 || true
+    for c in cslam-smoke-server cslam-smoke-ro; do  # one by one: a name already gone fails the whole call
+      "${E[@]}" rm -f "$c" > /dev/null 2>&1 || true
+    done
     "${E[@]}" network rm cslam-smoke > /dev/null 2>&1 || true
   fi
 }
