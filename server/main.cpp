@@ -86,6 +86,13 @@ std::string make_private_store_dir() {
   return tmpl;
 }
 
+// Removes the keyframe store's private folder (if it has one) where no DenseService, which removes
+// it at exit, will own it: a refused start, or a dense map that could not start.
+void discard_private_store(const cslam::server::DenseServiceConfig& c) {
+  std::error_code ignored;
+  if (c.store_is_temporary) std::filesystem::remove_all(c.store.dir, ignored);
+}
+
 cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, const std::string& state_dir) {
   cslam::server::DenseServiceConfig c;
   c.enabled = !cli.flag_set("no-dense");
@@ -107,8 +114,7 @@ cslam::server::DenseServiceConfig dense_config_from(const cslam::CliArgs& cli, c
   try {
     c.validate();
   } catch (const cslam::ConfigError&) {
-    std::error_code ignored;
-    if (c.store_is_temporary) std::filesystem::remove_all(c.store.dir, ignored);
+    discard_private_store(c);
     throw;
   }
   return c;
@@ -126,8 +132,7 @@ std::unique_ptr<cslam::server::DenseService> start_dense(const cslam::server::De
     return dense;
   } catch (const std::exception& e) {
     cslam::logger("server")->error("live dense map off: {}", e.what());
-    std::error_code ignored;  // the service that would have removed it at exit does not exist
-    if (config.store_is_temporary) std::filesystem::remove_all(config.store.dir, ignored);
+    discard_private_store(config);
     return nullptr;
   }
 }
