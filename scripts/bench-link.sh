@@ -11,7 +11,9 @@
 # the robots encode the colour stream with x264 preset P (e.g. "lean lean@pveryfast"), and in @fF:
 # the server's flow frames (--flow F, e.g. "lean lean@falways"), and in @xPATH: that cslam-server
 # binary (e.g. the previous build's copied aside: "lean@x/tmp/cslam-server.before lean"), and in
-# @bB: the robots' byte budget in MB/s (cslam-client --byte-budget, e.g. "lean@b0 lean").
+# @bB: the robots' byte budget in MB/s (cslam-client --byte-budget, e.g. "lean@b0 lean"), and in
+# @wW: how far above the link's base latency their acks may come back for the budget to be spent
+# (cslam-client --budget-link-margin, ms; e.g. "lean@b1@w0 lean@b1": the budget blind to the link).
 # Needs root (ip netns, tc). Usage:
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
@@ -54,6 +56,7 @@ run_case() {
       f*) server_extra+=(--flow "${opt#f}") ;;
       p*) client_extra+=(--colour-preset "${opt#p}") ;;
       b*) client_extra+=(--byte-budget "${opt#b}") ;;
+      w*) client_extra+=(--budget-link-margin "${opt#w}") ;;
       x*) server_bin="${opt#x}" ;;
       *) echo "bench-link.sh: unknown mode suffix @$opt in $2" >&2; exit 2 ;;
     esac
