@@ -2,7 +2,6 @@
 #include "client/frame_sender_util.h"
 
 #include <algorithm>
-#include <cmath>
 
 #include "codec/depth_subsample.h"
 #include "core/log.h"
@@ -20,8 +19,6 @@ FrameSender::FrameSender(SenderConfig config)
       budget_(config_.budget) {
   config_.info.camera.validate();  // the camera model alone (cslam_camera): no calib3d
   if (config_.depth_every < 1) throw ConfigError("SenderConfig::depth_every must be >= 1");
-  if (!(config_.budget_link_margin_ms >= 0) || !std::isfinite(config_.budget_link_margin_ms))
-    throw ConfigError("SenderConfig::budget_link_margin_ms must be >= 0 (0: the budget ignores the link)");
   if (config_.light_depth_subsample < 0 || config_.light_depth_subsample == 1 ||
       config_.light_depth_subsample > kMaxDepthSubsample)
     throw ConfigError("SenderConfig::light_depth_subsample must be 0 (no depth) or 2.." +
@@ -87,10 +84,8 @@ void FrameSender::reconnect() {
 wire::RgbdFrame FrameSender::encode_full(const RgbdFrame& frame, bool spend) {
   wire::RgbdFrame out;
   // The budget spends room only while the link is calm: a rate controller that stepped down
-  // (full frames less often) would otherwise see the bytes it saved spent again, and a link
-  // that queues would queue the finer frame too.
-  const bool calm = (!config_.adapt.enabled || rate_.level() == 0) && rate_.link().calm(config_.budget_link_margin_ms);
-  if (spend && budget_.enabled() && !calm) ++stats_.budget_held_back;
+  // (full frames less often) would otherwise see the bytes it saved spent again.
+  const bool calm = !config_.adapt.enabled || rate_.level() == 0;
   if (wire::to_wire_frame(frame, full_images_, &out, calm && spend ? &budget_ : nullptr)) ++stats_.frames_finer;
   return out;
 }

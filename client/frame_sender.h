@@ -71,11 +71,6 @@ struct SenderConfig {
   // controller is at its finest step (the link calm). In a lean stream, only on the full frames
   // the server's acks expect to become keyframes (codec/keyframe_hint.h).
   ByteBudgetConfig budget;
-  // The budget watches the link (client/link_latency.h): a full frame spends room only while the
-  // newest ack came back within this many ms of the link's base latency, so robots sharing a
-  // link do not queue finer full frames behind each other (the default: the rate controller's
-  // calm, half its congestion margin). 0: spend regardless of the link.
-  double budget_link_margin_ms = RateControlConfig{}.margin_ms / 2;
   // Whether frames may be light (a colour stream exists): a lean stream or an adaptive one.
   bool colour_stream_on() const { return depth_every > 1 || adapt.enabled; }
 };
@@ -99,9 +94,8 @@ struct SenderStats {
   // Adaptive rate: steps down (full frames less often) and back up; the current depth_every.
   std::uint64_t rate_steps_down = 0, rate_steps_up = 0;
   int depth_every = 1;
-  // Byte budget: full frames whose colour the budget made finer than the stream's codec, and
-  // full frames it would have been spent on but the link held a queue (budget_link_margin_ms).
-  std::uint64_t frames_finer = 0, budget_held_back = 0;
+  // Byte budget: full frames whose colour the budget made finer than the stream's codec.
+  std::uint64_t frames_finer = 0;
 };
 
 // The server refused us or stopped answering.

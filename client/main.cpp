@@ -78,14 +78,9 @@ int run(int argc, char** argv) {
           "MB/s this robot's stream may take (its share of the link): full frames' colour becomes the finest JPEG "
           "(q95, q90, q85) the budget has room for, else --rgb-codec's (never coarser; in a lean stream only on the "
           "full frames the server's acks expect to become keyframes; counted at --rate, the "
-          "dataset's rate with --live, 30 with --rate max, and only while the link holds no queue: "
-          "--budget-link-margin); 0: off",
+          "dataset's rate with --live, 30 with --rate max); 0: off. Leave the link headroom: robots that fill a "
+          "shared link queue behind each other",
           "0")
-      .option("budget-link-margin",
-              "ms: the byte budget is spent only while the newest ack came back within this of the link's base "
-              "latency (robots sharing a link then do not queue finer frames behind each other); 0: regardless of "
-              "the link",
-              std::to_string(int(cslam::client::SenderConfig().budget_link_margin_ms)))
       .flag("new-session",
             "start a new recording session (a new map, fused by the server) even if the server knows this id")
       .flag("preload",
@@ -128,7 +123,6 @@ int run(int argc, char** argv) {
   config.codecs.rgb = cslam::parse_rgb_codec(cli.get("rgb-codec"), config.colour_stream_on());
   config.budget.bytes_per_s = cli.get_double("byte-budget") * 1e6;
   config.budget.frame_rate = nominal_rate(cli.flag_set("live"), rate, pairs);
-  config.budget_link_margin_ms = cli.get_double("budget-link-margin");
   config.reply_timeout_s = cli.get_double("reply-timeout");
   {
     const double mb = cli.get_double("resend-buffer");
@@ -246,11 +240,9 @@ int run(int argc, char** argv) {
             : 0.0,
         s.depth_requests, s.colour_key_packets, s.stream_gaps);
   if (config.budget.bytes_per_s > 0)
-    log->info(
-        "client {}: byte budget {:.2f} MB/s at {:.1f} Hz: {} full frames' colour finer than {}, {} held back while "
-        "the link queued",
-        id, config.budget.bytes_per_s / 1e6, config.budget.frame_rate, s.frames_finer,
-        cslam::to_string(config.codecs.rgb), s.budget_held_back);
+    log->info("client {}: byte budget {:.2f} MB/s at {:.1f} Hz: {} full frames' colour finer than {}", id,
+              config.budget.bytes_per_s / 1e6, config.budget.frame_rate, s.frames_finer,
+              cslam::to_string(config.codecs.rgb));
   if (config.adapt.enabled)
     log->info("client {}: adaptive rate: {} steps down, {} up, depth every {} at the end", id, s.rate_steps_down,
               s.rate_steps_up, s.depth_every);

@@ -66,7 +66,6 @@ nlohmann::json PoseLog::summary(const SenderStats& stats, double wall_s, std::si
           {"rate_steps_up", stats.rate_steps_up},
           {"depth_every_last", stats.depth_every},
           {"frames_finer", stats.frames_finer},
-          {"budget_held_back", stats.budget_held_back},
           {"wall_s", wall_s},
           {"processed_fps", wall_s > 0 ? double(processed) / wall_s : 0.0},
           {"latency_ms",

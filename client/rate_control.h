@@ -12,9 +12,8 @@
 // the map nothing; it only thins out the depth tracking reads between keyframes.
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <vector>
-
-#include "client/link_latency.h"
 
 namespace cslam::client {
 
@@ -36,7 +35,6 @@ class RateController {
   // start_depth_every: the configured stream (1: every frame full), the finest step.
   RateController(RateControlConfig config, int start_depth_every);
 
-  // Every ack with a known latency: the link's latency is followed (link()) even when disabled.
   void on_ack(double latency_ms, Clock::time_point now);
   void on_live_drop(Clock::time_point now);  // a frame replaced before a credit came: congested
 
@@ -44,18 +42,19 @@ class RateController {
   int level() const { return int(level_); }
   std::uint64_t steps_down() const { return steps_down_; }
   std::uint64_t steps_up() const { return steps_up_; }
-  double base_ms() const { return link_.base_ms(); }
-  const LinkLatency& link() const { return link_; }
+  double base_ms() const { return base_.empty() ? 0.0 : base_.front().second; }
 
  private:
   void congested(Clock::time_point now);
+  void push_base(double latency_ms, Clock::time_point now);
 
   RateControlConfig config_;
   std::vector<int> ladder_;  // depth_every per level, finest first
   std::size_t level_ = 0;
   int over_margin_ = 0;  // consecutive acks over the margin
   Clock::time_point last_change_{}, last_congestion_{};
-  LinkLatency link_;  // the base over config.base_window_s
+  // Sliding minimum of the latency: (time, latency), latencies increasing from the front.
+  std::deque<std::pair<Clock::time_point, double>> base_;
   std::uint64_t steps_down_ = 0, steps_up_ = 0;
 };
 

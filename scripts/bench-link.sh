@@ -10,10 +10,9 @@
 # A mode may end in @sS: the server runs with --tracking-slots S (e.g. "lean lean@s2"), and in @pP:
 # the robots encode the colour stream with x264 preset P (e.g. "lean lean@pveryfast"), and in @fF:
 # the server's flow frames (--flow F, e.g. "lean lean@falways"), and in @xPATH: that cslam-server
-# binary (e.g. the previous build's copied aside: "lean@x/tmp/cslam-server.before lean"), and in
-# @bB: the robots' byte budget in MB/s (cslam-client --byte-budget, e.g. "lean@b0 lean"), and in
-# @wW: how far above the link's base latency their acks may come back for the budget to be spent
-# (cslam-client --budget-link-margin, ms; e.g. "lean@b1@w0 lean@b1": the budget blind to the link).
+# binary (e.g. the previous build's copied aside: "lean@x/tmp/cslam-server.before lean"), in @cPATH:
+# that cslam-client binary for the robots (a trial build's beside the current one), and in
+# @bB: the robots' byte budget in MB/s (cslam-client --byte-budget, e.g. "lean@b0 lean").
 # Needs root (ip netns, tc). Usage:
 #   scripts/bench-link.sh [OUT=bench_out/link] [RUNS=3] [N=4] [RATE=40mbit] [FRAMES=600] [K=5] [MODES="default lean adapt"]
 set -euo pipefail
@@ -47,7 +46,7 @@ if [ ! -f "$SCENE/robot_${N}/groundtruth.txt" ]; then
 fi
 
 run_case() {
-  local dir="$1" mode="${2%%@*}" server_extra=() client_extra=() opt server_bin="$BIN/cslam-server"
+  local dir="$1" mode="${2%%@*}" server_extra=() client_extra=() opt server_bin="$BIN/cslam-server" client_bin="$BIN/cslam-client"
   IFS=@ read -ra opts <<< "${2#"$mode"}"
   for opt in "${opts[@]}"; do
     case "$opt" in
@@ -56,8 +55,8 @@ run_case() {
       f*) server_extra+=(--flow "${opt#f}") ;;
       p*) client_extra+=(--colour-preset "${opt#p}") ;;
       b*) client_extra+=(--byte-budget "${opt#b}") ;;
-      w*) client_extra+=(--budget-link-margin "${opt#w}") ;;
       x*) server_bin="${opt#x}" ;;
+      c*) client_bin="${opt#c}" ;;
       *) echo "bench-link.sh: unknown mode suffix @$opt in $2" >&2; exit 2 ;;
     esac
   done
@@ -75,7 +74,7 @@ run_case() {
   extra+=("${client_extra[@]}")
   local pids=() k
   for k in $(seq 1 "$N"); do
-    inns "$BIN/cslam-client" --server "$endpoint" --id "$k" --dataset "$SCENE/robot_$k" --live --preload --start-at "$start_at" \
+    inns "$client_bin" --server "$endpoint" --id "$k" --dataset "$SCENE/robot_$k" --live --preload --start-at "$start_at" \
       "${extra[@]}" --reply-timeout 60 --summary-out "$dir/client_$k.json" --progress-interval 1000 --log-level warn \
       > "$dir/client_$k.log" 2>&1 &
     pids+=($!)

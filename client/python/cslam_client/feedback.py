@@ -1,7 +1,5 @@
 """What the server says back about a robot's frames: each Ack as an AckInfo (tracking state,
 pose in the group's frame, latency), and the sender's counters (SenderStats)."""
-import collections
-import math
 from dataclasses import dataclass, field
 from typing import Dict, Optional
 
@@ -75,41 +73,3 @@ class SenderStats:
     depth_request_lag_max: int = 0
     stream_gaps: int = 0
     frames_finer: int = 0  # full frames whose colour the byte budget made finer than the codecs' own
-    budget_held_back: int = 0  # full frames the budget would have been spent on, but the link queued
-
-
-class LinkLatency:
-    """What a robot's acks say about its link, as LinkLatency in client/link_latency.h: the base is
-    the smallest send-to-ack latency over the last ``window_s`` seconds (no queue), and the newest
-    ack's latency above it is the queue the link holds now."""
-
-    def __init__(self, window_s=10.0):
-        if not window_s > 0:
-            raise ValueError(f"link latency window {window_s} s must be positive")
-        self.window_s = float(window_s)
-        self._base = collections.deque()  # (time, latency ms), latencies increasing from the left
-        self.excess_ms = 0.0
-
-    def on_ack(self, latency_ms, now):
-        if not latency_ms >= 0:  # negative or NaN: ignored
-            return
-        while self._base and self._base[-1][1] >= latency_ms:
-            self._base.pop()
-        self._base.append((now, latency_ms))
-        while len(self._base) > 1 and now - self._base[0][0] > self.window_s:
-            self._base.popleft()
-        self.excess_ms = latency_ms - self.base_ms
-
-    @property
-    def base_ms(self):
-        return self._base[0][1] if self._base else 0.0
-
-    def calm(self, margin_ms):
-        """No queue worth ``margin_ms`` (always for a margin <= 0: the link is not watched)."""
-        return margin_ms <= 0 or self.excess_ms <= margin_ms
-
-
-def check_link_margin(margin_ms):
-    if not (margin_ms >= 0 and math.isfinite(margin_ms)):
-        raise ValueError(f"budget link margin {margin_ms} ms must be >= 0 (0: the budget ignores the link)")
-    return float(margin_ms)

@@ -38,7 +38,7 @@ import zmq
 
 from . import errors, video
 from .codecs import RGB_H264, ByteBudget, Codecs, ImageEncoder, auto_rgb_codec, encode_depth
-from .feedback import AckInfo, LinkLatency, SenderStats, ack_info, check_link_margin
+from .feedback import AckInfo, SenderStats, ack_info
 from .keys import CurveKeys
 from .wire import pb
 
@@ -53,8 +53,7 @@ class FrameSender:
                  max_reconnects=3, live=False, strict=False, curve: Optional[CurveKeys] = None,
                  on_ack: Optional[Callable[[AckInfo], None]] = None, context=None, protocol_version=None,
                  resend_buffer_bytes=128 << 20, depth_every=1, light_depth_subsample=4,
-                 colour_stream: Optional[video.H264Options] = None, byte_budget: Optional[ByteBudget] = None,
-                 budget_link_margin_ms=25.0):
+                 colour_stream: Optional[video.H264Options] = None, byte_budget: Optional[ByteBudget] = None):
         if not 0 <= int(client_id) <= 65535:
             raise ValueError("client id must be in 0..65535")
         self.server = server
@@ -69,10 +68,6 @@ class FrameSender:
         # that keeps the stream within it, else the codecs' own; in a lean stream only on the full
         # frames the acks expect to become keyframes (LeanStream.expects_keyframe). None: no budget.
         self.budget = byte_budget or ByteBudget()
-        # The budget is spent only while the newest ack came back within this many ms of the
-        # link's base latency (LinkLatency), as the C++ sender (SenderConfig::budget_link_margin_ms).
-        self.budget_link_margin_ms = check_link_margin(budget_link_margin_ms)
-        self._link = LinkLatency()
         camera.validate()
         # Lean stream: light frames between full ones. The default colour stream is coarser than
         # H264Options' (light frames are only tracked): video.light_colour_stream().
@@ -192,10 +187,7 @@ class FrameSender:
         h, w = depth.shape[:2]
         frame = pb.RgbdFrame(timestamp=float(timestamp), depth_time_offset=float(depth_time_offset))
         depth_enc, depth_data = self._images.depth(depth)
-        calm = self._link.calm(self.budget_link_margin_ms)
-        if self.budget.enabled and spend and not calm:
-            self.stats.budget_held_back += 1
-        if self.budget.enabled and spend and calm:
+        if self.budget.enabled and spend:
             enc, data, finer = self._images.rgb_within(bgr, self.budget.image_allowance(len(depth_data)),
                                                        self.budget.jpeg_qualities)
             self.stats.frames_finer += int(finer)
@@ -443,8 +435,6 @@ class FrameSender:
                 self.in_flight -= 1
             self.stats.acks += 1
             info = ack_info(a, self._last_reply, self._sent_at.pop(a.seq, None))
-            if info.latency_s is not None:
-                self._link.on_ack(info.latency_s * 1000.0, info.received_at)
             # The acks of the frames in flight may all ask; a full frame sent since meets them.
             if self.lean and info.fields.get("want_depth") and self.lean.on_want_depth(a.seq):
                 self.stats.depth_requests += 1
