@@ -88,7 +88,7 @@ run_case() {
 for r in $(seq 1 "$RUNS"); do
   for mode in $MODES; do
     echo "-- run $r $mode (load $(loadavg))"
-    run_case "$OUT/${mode}_r$r" "$mode"
+    run_case "$OUT/${mode//\//_}_r$r" "$mode"  # a binary path in the mode: one folder
   done
 done
 
@@ -102,7 +102,7 @@ print("|---|---|---|---|---|")
 for mode in modes:
     proc, p99, mbs, ate = [], [], [], []
     for r in range(1, runs + 1):
-        d = f"{out}/{mode}_r{r}"
+        d = f"{out}/{mode.replace('/', '_')}_r{r}"
         if not os.path.isdir(d): continue
         ps, ls, bs, es = [], [], [], []
         for k in range(1, n + 1):
