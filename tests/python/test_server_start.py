@@ -6,7 +6,6 @@ import os
 import resource
 import signal
 import subprocess
-import time
 import unittest
 from unittest import mock
 
@@ -65,11 +64,9 @@ class ServerStart(unittest.TestCase):
         first = harness.Server(os.path.join(d, "first"),
                                extra=["--no-dense", "--http", "0", "--http-port-file", port_file])
         try:
-            for _ in range(300):
-                if os.path.exists(port_file):
-                    break
-                time.sleep(0.05)
-            port = open(port_file).read().strip()
+            # Written (atomically) before the endpoint file the harness waited for.
+            with open(port_file) as f:
+                port = f.read().strip()
             self.assert_refused(d, ["--bind", first.endpoint, "--http", "off", "--no-dense"],
                                 f"cannot bind --bind {first.endpoint}: Address already in use")
             self.assert_refused(d, ["--bind", "tcp://127.0.0.1:*", "--http", port, "--no-dense"],
