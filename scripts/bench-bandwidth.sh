@@ -83,13 +83,14 @@ for seq in $SEQUENCES; do
 done
 
 python3 - "$OUT" "$RUNS" "$SEQUENCES" <<'EOF'
-import json, os, statistics, sys
+import json, os, random, statistics, sys
 out, runs, seqs = sys.argv[1], int(sys.argv[2]), sys.argv[3].split()
 def med(v):
     return f"{statistics.median(v):.4g} ({min(v):.4g}-{max(v):.4g})" if v else "n/a"
 print("\n| sequence | stream | MB/s per robot | KB/frame | light frames | depth requests | request lag frames | ATE m (mean over robots) | server CPU s |")
 print("|---|---|---|---|---|---|---|---|---|")
 demo_ates = {"default": [], "lean": []}
+ates_of = {}  # (sequence, stream) -> every run's ATE
 for seq in seqs:
     for mode in ("default", "lean"):
         mbs, kbf, share, req, lag, ate, cpu = [], [], [], [], [], [], []
@@ -117,6 +118,28 @@ for seq in seqs:
             cpu.append(float(t[0]) + float(t[1]))
         print(f"| {seq} | {mode} | {med(mbs)} | {med(kbf)} | {med(share)} % | {med(req)} | {med(lag)} | {med(ate)} | {med(cpu)} |")
         if seq.startswith("demo"): demo_ates[mode] += ate
+        ates_of[(seq, mode)] = ate
+# How far one sitting of 3 runs per stream can land from the streams' cost: the ratio of two
+# 3-run medians drawn from these runs (fixed seed), for the default pair against itself (its own
+# run-to-run scatter: multi-robot runs depend on timing) and for the lean stream against it.
+def three_run_ratios(num, den, same):
+    rng, ratios = random.Random(1), []
+    for _ in range(10000):
+        if same:
+            pick = rng.sample(num, 6)
+            a, b = pick[:3], pick[3:]
+        else:
+            a, b = rng.sample(num, 3), rng.sample(den, 3)
+        ratios.append(statistics.median(a) / statistics.median(b))
+    ratios.sort()
+    q = lambda p: ratios[int(p * (len(ratios) - 1))]
+    above = sum(r > 1.05 for r in ratios) / len(ratios)
+    return f"median {q(0.5):.3f}, p5-p95 {q(0.05):.3f}-{q(0.95):.3f}, above 1.05 in {100 * above:.0f} %"
+for seq in seqs:
+    d, l = ates_of.get((seq, "default"), []), ates_of.get((seq, "lean"), [])
+    if len(d) >= 6 and len(l) >= 3 and len(set(d)) > 1:
+        print(f"\n{seq}: a 3-run sitting's ATE ratio, resampled from these runs: default / default "
+              f"{three_run_ratios(d, d, True)}; lean / default {three_run_ratios(l, d, False)}")
 if len([s for s in seqs if s.startswith("demo")]) > 1 and demo_ates["default"] and demo_ates["lean"]:
     d, l = statistics.mean(demo_ates["default"]), statistics.mean(demo_ates["lean"])
     print(f"\nDemo scenes ({len(demo_ates['default'])} default / {len(demo_ates['lean'])} lean runs): mean ATE "

@@ -54,8 +54,8 @@ void require_writable_dir(const std::string& option, const std::string& dir) {
   std::string reason = ec ? ec.message() : "";
   if (reason.empty()) {
     const fs::path probe = fs::path(dir) / ".cslam-write-probe";
-    std::ofstream f(probe);
     errno = 0;
+    std::ofstream f(probe);  // a folder without write permission fails here (errno says why)
     f << "ok\n";
     f.close();  // a full disk fails here, not at the first write into the buffer
     const int err = errno;

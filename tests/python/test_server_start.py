@@ -39,6 +39,14 @@ class ServerStart(unittest.TestCase):
                                         f"{option} '{folder}' is not writable")
         harness.cleanup(d, True)
 
+    def test_a_folder_without_write_permission_is_refused_with_the_reason(self):
+        """The folder exists but no file can be made in it (/sys refuses even root): the line says
+        why, as the system does."""
+        d = harness.scratch("outdir")
+        self.assert_refused(d, ["--out-dir", "/sys", "--http", "off", "--bind", "tcp://127.0.0.1:*", "--no-dense"],
+                            "--out-dir '/sys' is not writable: cannot write a file in it: Permission denied")
+        harness.cleanup(d, True)
+
     def test_a_full_disk_is_refused_at_start(self):
         """The probe file is closed before it counts as written: a full disk fails at the flush, not
         at the write into the buffer. A file size limit below the probe's 3 bytes stands in for the
