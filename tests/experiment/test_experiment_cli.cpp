@@ -225,6 +225,7 @@ TEST_F(ExperimentCli, BadArgumentsGiveOneLineErrors) {
       {"--quick --clients 0 --out " + path("x"), "--clients"},
       {"--quick --mode fast --out " + path("x"), "--mode"},
       {"--quick --repeat 0 --out " + path("x"), "--repeat"},
+      {"--quick --byte-budget -1 --out " + path("x"), "--byte-budget"},
       {"--dataset /nonexistent/seq --out " + path("x"), "/nonexistent/seq"},
       {"--dataset a --datasets b c --out " + path("x"), "only one of"},
       {"--quick --bin-dir /nonexistent --out " + path("x"), "/nonexistent/cslam-server"},

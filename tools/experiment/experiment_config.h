@@ -35,9 +35,10 @@ struct ExperimentOptions {
   bool quick = false;
   double timeout_s = 900;  // per run (SLAM processes only)
   std::string rate = "max";
-  int depth_every = 1;  // network/live: cslam-client --depth-every (lean stream when > 1)
-  std::string camera;   // passed to the SLAM programs if set
-  std::string bin_dir;  // where cslam-slam, cslam-server, cslam-client, cslam-synth live
+  int depth_every = 1;        // network/live: cslam-client --depth-every (lean stream when > 1)
+  double byte_budget_mb = 0;  // network/live: cslam-client --byte-budget (MB/s; 0: none)
+  std::string camera;         // passed to the SLAM programs if set
+  std::string bin_dir;        // where cslam-slam, cslam-server, cslam-client, cslam-synth live
   ReconOptions recon;
   std::string command_line;  // as given, for the report
 };

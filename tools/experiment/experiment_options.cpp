@@ -50,6 +50,10 @@ void declare_options(CliArgs& args) {
               "K-th frame and when the server asks, light frames (H.264 colour, depth at 1/4 of each axis) between; 1: "
               "every frame full",
               "1")
+      .option("byte-budget",
+              "network/live: every cslam-client spends this many MB/s on finer colour for the full frames the server "
+              "expects to become keyframes (cslam-client --byte-budget); 0: none",
+              "0")
       .option("camera",
               "camera preset or file for the dataset (default: DATASET/camera.yaml, else its calibration.txt (fx fy cx "
               "cy), else the TUM camera its folder name says (freiburg1..3, fr1..3), else tum1)",
@@ -118,6 +122,8 @@ ExperimentOptions options_from(const CliArgs& args, int argc, char** argv) {
   }
   o.depth_every = args.get_int("depth-every");
   if (o.depth_every < 1) throw ConfigError(p + "--depth-every must be >= 1");
+  o.byte_budget_mb = args.get_double("byte-budget");
+  if (!(o.byte_budget_mb >= 0 && o.byte_budget_mb <= 1000)) throw ConfigError(p + "--byte-budget must be 0..1000 MB/s");
   o.camera = args.get("camera");
   o.bin_dir = args.has("bin-dir") ? args.get("bin-dir") : own_directory();
   o.recon.enabled = !args.flag_set("no-recon");
