@@ -89,7 +89,6 @@ def med(v):
     return f"{statistics.median(v):.4g} ({min(v):.4g}-{max(v):.4g})" if v else "n/a"
 print("\n| sequence | stream | MB/s per robot | KB/frame | light frames | depth requests | request lag frames | ATE m (mean over robots) | server CPU s |")
 print("|---|---|---|---|---|---|---|---|---|")
-demo_ates = {"default": [], "lean": []}
 ates_of = {}  # (sequence, stream) -> every run's ATE
 for seq in seqs:
     for mode in ("default", "lean"):
@@ -117,7 +116,6 @@ for seq in seqs:
             t = open(f"{d}/server_time.txt").read().split()
             cpu.append(float(t[0]) + float(t[1]))
         print(f"| {seq} | {mode} | {med(mbs)} | {med(kbf)} | {med(share)} % | {med(req)} | {med(lag)} | {med(ate)} | {med(cpu)} |")
-        if seq.startswith("demo"): demo_ates[mode] += ate
         ates_of[(seq, mode)] = ate
 # How far one sitting of 3 runs per stream can land from the streams' cost: the ratio of two
 # 3-run medians drawn from these runs (fixed seed), for the default pair against itself (its own
@@ -140,6 +138,7 @@ for seq in seqs:
     if len(d) >= 6 and len(l) >= 3 and len(set(d)) > 1:
         print(f"\n{seq}: a 3-run sitting's ATE ratio, resampled from these runs: default / default "
               f"{three_run_ratios(d, d, True)}; lean / default {three_run_ratios(l, d, False)}")
+demo_ates = {m: [a for s in seqs if s.startswith("demo") for a in ates_of.get((s, m), [])] for m in ("default", "lean")}
 if len([s for s in seqs if s.startswith("demo")]) > 1 and demo_ates["default"] and demo_ates["lean"]:
     d, l = statistics.mean(demo_ates["default"]), statistics.mean(demo_ates["lean"])
     print(f"\nDemo scenes ({len(demo_ates['default'])} default / {len(demo_ates['lean'])} lean runs): mean ATE "

@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include "codec/byte_budget.h"
 #include "core/error.h"
 
 namespace cslam::experiment {
@@ -123,7 +124,11 @@ ExperimentOptions options_from(const CliArgs& args, int argc, char** argv) {
   o.depth_every = args.get_int("depth-every");
   if (o.depth_every < 1) throw ConfigError(p + "--depth-every must be >= 1");
   o.byte_budget_mb = args.get_double("byte-budget");
-  if (!(o.byte_budget_mb >= 0 && o.byte_budget_mb <= 1000)) throw ConfigError(p + "--byte-budget must be 0..1000 MB/s");
+  try {
+    ByteBudgetConfig{o.byte_budget_mb * 1e6}.validate();  // the rule cslam-client applies to it
+  } catch (const ConfigError& e) {
+    throw ConfigError(p + "--byte-budget: " + e.what());
+  }
   o.camera = args.get("camera");
   o.bin_dir = args.has("bin-dir") ? args.get("bin-dir") : own_directory();
   o.recon.enabled = !args.flag_set("no-recon");

@@ -4,7 +4,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <sstream>
 
 #include "process.h"
 
@@ -168,11 +167,7 @@ RunOutcome run_network(const RunConfig& cfg, const ExperimentOptions& opt, const
         if (opt.mode == RunMode::kLive && opt.depth_every == 1) argv.push_back("--preload");
         if (opt.mode != RunMode::kLive) argv.insert(argv.end(), {"--rate", opt.rate});
         if (opt.depth_every > 1) argv.insert(argv.end(), {"--depth-every", std::to_string(opt.depth_every)});
-        if (opt.byte_budget_mb > 0) {
-          std::ostringstream mb;
-          mb << opt.byte_budget_mb;
-          argv.insert(argv.end(), {"--byte-budget", mb.str()});
-        }
+        if (opt.byte_budget_mb > 0) argv.insert(argv.end(), {"--byte-budget", std::to_string(opt.byte_budget_mb)});
         argv.insert(argv.end(), {"--summary-out", dir + "/client_" + std::to_string(s.id) + "_summary.json"});
         if (!opt.camera.empty()) argv.insert(argv.end(), {"--camera", opt.camera});
         owned.push_back(std::make_unique<ChildProcess>(argv, dir + "/client_" + std::to_string(s.id) + ".log"));
