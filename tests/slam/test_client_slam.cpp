@@ -1,6 +1,7 @@
 // The per-client worker on bad input: it reports and skips, or loses tracking and recovers;
 // it never crashes or blocks.
 #include <cmath>
+#include <map>
 #include <random>
 #include <thread>
 #include <shared_mutex>
@@ -288,6 +289,37 @@ TEST_F(ClientSlamTest, LightFramesAreTrackedAndKeyframesWaitForFullDepth) {
   const auto ate = compute_ate(*dataset_.groundtruth, slam_->trajectory(), Alignment::kSE3);
   EXPECT_EQ(ate.timestamps.size(), std::size_t(n - 1));  // every frame but the first (no map yet)
   EXPECT_LT(ate.stats.rmse, 0.02);
+}
+
+// Map point culling reads how often the local-map search matched a point it projected into view
+// (found / visible). A flow frame runs no such search: it leaves both counts as they were.
+TEST_F(ClientSlamTest, FlowFramesLeaveThePointsMatchCountsToFullFrames) {
+  SlamConfig cfg;
+  cfg.threaded = false;
+  cfg.tracker.flow.mode = FlowMode::kAlways;
+  ClientSlam slam(info_, cfg, *vocabulary_);
+  auto counts = [&] {
+    std::map<const MapPoint*, std::pair<int, int>> c;
+    const auto map = slam.main_map();
+    std::shared_lock<std::shared_mutex> lock(map->mutex);
+    map->for_each_map_point([&](const MapPoint& mp) { c[&mp] = {int(mp.visible), int(mp.found)}; });
+    return c;
+  };
+  int flow = 0, full_changed = 0;
+  for (std::size_t i = 0; i < dataset_.pairs.size(); ++i) {
+    const auto before = counts();
+    const ProcessResult r = slam.process(frame(int(i)));
+    ASSERT_EQ(r.fate, FrameFate::kTracked) << i;
+    const auto after = counts();
+    if (r.flow) {
+      ++flow;
+      EXPECT_EQ(after, before) << "flow frame " << i;  // no keyframe either: the map is as it was
+    } else if (after != before) {
+      ++full_changed;
+    }
+  }
+  EXPECT_GE(flow, int(dataset_.pairs.size()) / 3);
+  EXPECT_GE(full_changed, int(dataset_.pairs.size()) - flow - 1);  // every full frame counts (not the first)
 }
 
 TEST_F(ClientSlamTest, FlowFramesTrackBetweenFullFramesAsAccuratelyAsTheFullPath) {

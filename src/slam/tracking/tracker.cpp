@@ -263,9 +263,8 @@ bool Tracker::track_reference_keyframe(Frame& frame) {
   return drop_outliers_count_map_points(frame) >= config_.min_pose_inliers;
 }
 
-void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs,
-                               std::vector<const MapPointPtr*>& local_points, KeyFramePtr& reference) {
-  // Keyframes sharing the frame's points, counted in a hash map and then visited in id order.
+std::vector<std::pair<KeyFrame*, int>> Tracker::keyframes_sharing(const Frame& frame) {
+  // Counted in a hash map, then sorted by id: the order decides ties.
   std::unordered_map<KeyFrame*, int> count;
   count.reserve(64);
   for (size_t i = 0; i < frame.map_points.size(); ++i) {
@@ -273,19 +272,29 @@ void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& loc
     if (!mp || mp->bad || frame.outlier[i]) continue;
     for (const auto& [kf, idx] : mp->observations) ++count[kf];
   }
-  std::vector<std::pair<KeyFrame*, int>> counter(count.begin(), count.end());
-  std::sort(counter.begin(), counter.end(), [](const auto& a, const auto& b) { return ById()(a.first, b.first); });
-  std::set<KeyFrame*, ById> chosen;
+  std::vector<std::pair<KeyFrame*, int>> sharing(count.begin(), count.end());
+  std::sort(sharing.begin(), sharing.end(), [](const auto& a, const auto& b) { return ById()(a.first, b.first); });
+  return sharing;
+}
+
+KeyFrame* Tracker::most_sharing(const std::vector<std::pair<KeyFrame*, int>>& sharing) {
   int best = 0;
   KeyFrame* best_kf = nullptr;
-  for (const auto& [kf, n] : counter) {
-    if (kf->bad) continue;
-    if (n > best) {
+  for (const auto& [kf, n] : sharing)
+    if (!kf->bad && n > best) {
       best = n;
       best_kf = kf;
     }
-    chosen.insert(kf);
-  }
+  return best_kf;
+}
+
+void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs,
+                               std::vector<const MapPointPtr*>& local_points, KeyFramePtr& reference) {
+  const std::vector<std::pair<KeyFrame*, int>> sharing = keyframes_sharing(frame);
+  std::set<KeyFrame*, ById> chosen;
+  for (const auto& [kf, n] : sharing)
+    if (!kf->bad) chosen.insert(kf);
+  KeyFrame* best_kf = most_sharing(sharing);
   std::vector<KeyFrame*> first_ring(chosen.begin(), chosen.end());
   for (KeyFrame* kf : first_ring) {
     if (int(chosen.size()) >= config_.max_local_keyframes) break;

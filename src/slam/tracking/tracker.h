@@ -127,6 +127,11 @@ class Tracker {
   bool relocalize(Frame& frame);
   bool track_local_map(Frame& frame);
   void update_last_frame();
+  // The keyframes observing the frame's inlier map points and how many of them each observes, in
+  // id order, and the first good one of those observing the most (null if none): the reference
+  // keyframe (map lock held shared).
+  static std::vector<std::pair<KeyFrame*, int>> keyframes_sharing(const Frame& frame);
+  static KeyFrame* most_sharing(const std::vector<std::pair<KeyFrame*, int>>& sharing);
   // Local keyframes and the slots of their points (valid while the map's shared lock is held).
   void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs,
                         std::vector<const MapPointPtr*>& local_points, KeyFramePtr& reference);
@@ -166,7 +171,6 @@ class Tracker {
   int last_inliers_ = 0;
   std::uint64_t tracked_change_index_ = 0;  // map change index when the frame was tracked
   PointerSet local_points_seen_;            // update_local_map's scratch, reused frame to frame
-  PointerSet flow_in_frame_;                // track_flow's scratch
   int flow_run_ = 0;                        // flow frames since the last full frame
   int full_inliers_ = 0;                    // local-map inliers of the last full frame
   int full_close_ = 0;                      // ... and of them close points
