@@ -136,9 +136,8 @@ std::optional<TrackResult> Tracker::track_flow(const FlowFrame& flow) {
     // recent point matched in under a quarter of the frames that should see it goes). A flow frame
     // runs no such search. It follows at most FlowConfig::max_seeds of the last frame's matches and
     // projects nothing else, so counting its seeds found and the rest of the local map in view but
-    // not found sampled another rate: with such counts the ATE of 30 runs of fr1/desk and fr1/rpy
-    // (the guard set's sequences from six starts, and its segments) came out 4.6 % above the full
-    // path's (geometric mean of the ratios), without them 3.0 % (docs/results/capacity.md).
+    // not found sampled another rate, and culled points a full frame keeps (the accuracy it cost:
+    // docs/results/capacity.md, "Flow frames without match counts").
     if (KeyFrame* best = most_sharing(keyframes_sharing(frame)))
       if (KeyFramePtr ref = map_->shared(best)) reference_kf_ = std::move(ref);
     frame.reference = reference_kf_;
