@@ -1,5 +1,6 @@
 #include "slam_runner.h"
 
+#include <charconv>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,14 @@ namespace cslam::experiment {
 namespace fs = std::filesystem;
 
 namespace {
+
+// A value as the shortest text that reads back to the same double (std::to_string keeps six
+// decimals: a budget below 1e-6 MB/s would reach the client as 0, none).
+std::string round_trip_text(double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
 
 Clock::time_point deadline_after(double seconds) {
   return Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
@@ -167,7 +176,7 @@ RunOutcome run_network(const RunConfig& cfg, const ExperimentOptions& opt, const
         if (opt.mode == RunMode::kLive && opt.depth_every == 1) argv.push_back("--preload");
         if (opt.mode != RunMode::kLive) argv.insert(argv.end(), {"--rate", opt.rate});
         if (opt.depth_every > 1) argv.insert(argv.end(), {"--depth-every", std::to_string(opt.depth_every)});
-        if (opt.byte_budget_mb > 0) argv.insert(argv.end(), {"--byte-budget", std::to_string(opt.byte_budget_mb)});
+        if (opt.byte_budget_mb > 0) argv.insert(argv.end(), {"--byte-budget", round_trip_text(opt.byte_budget_mb)});
         argv.insert(argv.end(), {"--summary-out", dir + "/client_" + std::to_string(s.id) + "_summary.json"});
         if (!opt.camera.empty()) argv.insert(argv.end(), {"--camera", opt.camera});
         owned.push_back(std::make_unique<ChildProcess>(argv, dir + "/client_" + std::to_string(s.id) + ".log"));
