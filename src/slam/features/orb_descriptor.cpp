@@ -10,6 +10,8 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "slam/features/orb_blur.h"
+
 namespace cslam {
 
 namespace {
@@ -178,10 +180,8 @@ const OrbPattern* opencv_orb_pattern() {
 }
 
 cv::Mat blur_for_orb(const cv::Mat& level, cv::Mat& buffer) {
-  cv::copyMakeBorder(level, buffer, kBorder, kBorder, kBorder, kBorder, cv::BORDER_REFLECT_101 + cv::BORDER_ISOLATED);
-  cv::Mat inner = buffer(cv::Rect(kBorder, kBorder, level.cols, level.rows));
-  cv::GaussianBlur(inner, inner, cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
-  return inner;
+  orb_blur(level, buffer);
+  return buffer;
 }
 
 void compute_orb_descriptors(const cv::Mat& blurred, const std::vector<cv::KeyPoint>& keypoints,

@@ -3,9 +3,9 @@
 // (patch size 31, WTA_K 2), without what cv::ORB::compute does around them on every call: a
 // bordered copy of the image, its keypoint filters and clustering, its output matrices.
 //
-// Same bits because every step is OpenCV's: the image is blurred by cv::GaussianBlur exactly as
-// cv::ORB blurs it (7x7, sigma 2, reflect-101, on a submatrix of a bordered copy: OpenCV filters a
-// submatrix by another path than a whole image, and the two round differently); each point of
+// Same bits because every step is OpenCV's: the image is blurred exactly as cv::ORB blurs it
+// (orb_blur.h: 7x7, sigma 2, reflect-101, the pixels of cv::GaussianBlur on a submatrix of a
+// bordered copy, which OpenCV filters by another path than a whole image); each point of
 // the 256 pairs is rotated by the keypoint's angle with the same float operations (angle in
 // radians as a float, std::cos / std::sin of a float, x*cos - y*sin, x*sin + y*cos) and rounded
 // to the nearest pixel as cvRound does; bit i is "first point darker than the second".
@@ -39,7 +39,7 @@ const OrbPattern* opencv_orb_pattern();
 // (opencv_orb_pattern() keeps the first result).
 std::unique_ptr<OrbPattern> probe_opencv_orb_pattern();
 
-// `level` blurred as cv::ORB blurs it, as a view into `buffer` (a bordered copy, reused between calls).
+// `level` blurred as cv::ORB blurs it (orb_blur), into `buffer` (reused between calls); returns `buffer`.
 cv::Mat blur_for_orb(const cv::Mat& level, cv::Mat& buffer);
 
 // Descriptor of each keypoint of `blurred` (its pixel: cvRound of pt; at least 19 pixels from the
