@@ -48,10 +48,8 @@ std::vector<OrbBlurPath> paths() {
 
 TEST(OrbBlur, TheVectorPathIsChosenWhereTheCpuHasAvx2AndFma) {
   // The fast path reproduces Debian 12's OpenCV on such a CPU; losing it would cost every frame.
-  if (cpu_has_avx2_fma())
-    EXPECT_EQ(orb_blur_best_path(), OrbBlurPath::kAvx2Fma);
-  else
-    EXPECT_EQ(orb_blur_best_path(), OrbBlurPath::kOpenCv);
+  const OrbBlurPath expected = cpu_has_avx2_fma() ? OrbBlurPath::kAvx2Fma : OrbBlurPath::kOpenCv;
+  EXPECT_EQ(orb_blur_best_path(), expected);
 }
 
 TEST(OrbBlur, OrbPyramidOfNoiseAndScenes) {
@@ -96,12 +94,15 @@ TEST(OrbBlur, HardEdgesAndSaturation) {
 
 TEST(OrbBlur, RejectsOtherTypesAndTooSmallImages) {
   cv::Mat out;
-  EXPECT_THROW(orb_blur(cv::Mat(40, 40, CV_8UC3), out), std::invalid_argument);
-  EXPECT_THROW(orb_blur(cv::Mat(40, 40, CV_16UC1), out), std::invalid_argument);
-  EXPECT_THROW(orb_blur(cv::Mat(3, 40, CV_8UC1), out), std::invalid_argument);
-  EXPECT_THROW(orb_blur(cv::Mat(40, 3, CV_8UC1), out), std::invalid_argument);
-  if (!cpu_has_avx2_fma())
+  for (const OrbBlurPath path : paths()) {
+    EXPECT_THROW(orb_blur(cv::Mat(40, 40, CV_8UC3), out, path), std::invalid_argument);
+    EXPECT_THROW(orb_blur(cv::Mat(40, 40, CV_16UC1), out, path), std::invalid_argument);
+    EXPECT_THROW(orb_blur(cv::Mat(3, 40, CV_8UC1), out, path), std::invalid_argument);
+    EXPECT_THROW(orb_blur(cv::Mat(40, 3, CV_8UC1), out, path), std::invalid_argument);
+  }
+  if (!cpu_has_avx2_fma()) {  // the vector path is refused where the CPU cannot run it
     EXPECT_THROW(orb_blur(cv::Mat(40, 40, CV_8UC1), out, OrbBlurPath::kAvx2Fma), std::invalid_argument);
+  }
 }
 
 }  // namespace
