@@ -9,16 +9,10 @@
 
 #include "slam/features/linear_resize.h"
 #include "slam/features/procedural_image.h"
+#include "slam/features/noise_image.h"
 
 namespace cslam {
 namespace {
-
-cv::Mat noise(cv::Size size, unsigned seed) {
-  cv::Mat image(size, CV_8UC1);
-  cv::RNG rng(seed);
-  rng.fill(image, cv::RNG::UNIFORM, 0, 256);
-  return image;
-}
 
 int differing_pixels(const cv::Mat& image, cv::Size to, const LinearResize& rule) {
   cv::Mat expected, actual;
@@ -44,7 +38,7 @@ TEST(LinearResize, OrbPyramidOfNoiseAndScenes) {
       ProceduralImageConfig scene;
       scene.width = base.width;
       scene.height = base.height;
-      cv::Mat level = seed == 1 ? noise(base, 11) : procedural_image(5, scene);
+      cv::Mat level = seed == 1 ? noise_image(base, 11) : procedural_image(5, scene);
       for (int l = 1; l < 8; ++l) {
         const cv::Size size(int(std::lround(base.width / std::pow(1.2, l))),
                             int(std::lround(base.height / std::pow(1.2, l))));
@@ -63,11 +57,11 @@ TEST(LinearResize, EverySmallSize) {
   for (int k = 0; k < 400; ++k) {
     const cv::Size from(side(rng), side(rng));
     const cv::Size to(1 + side(rng) % from.width, 1 + side(rng) % from.height);
-    ASSERT_EQ(differing_pixels(noise(from, unsigned(k)), to, *rule), 0) << from << " -> " << to;
+    ASSERT_EQ(differing_pixels(noise_image(from, unsigned(k)), to, *rule), 0) << from << " -> " << to;
   }
   // Every width from 1 to 80 (each remainder of every vector width) down by 1.2, and to the same size.
   for (int w = 1; w <= 80; ++w) {
-    const cv::Mat image = noise(cv::Size(w, 9), unsigned(w));
+    const cv::Mat image = noise_image(cv::Size(w, 9), unsigned(w));
     ASSERT_EQ(differing_pixels(image, cv::Size(std::max(1, int(std::lround(w / 1.2))), 7), *rule), 0) << w;
     ASSERT_EQ(differing_pixels(image, image.size(), *rule), 0) << w;
   }
@@ -76,7 +70,7 @@ TEST(LinearResize, EverySmallSize) {
 TEST(LinearResize, ViewIntoALargerImageAndExtremeValues) {
   const LinearResize* rule = opencv_linear_resize();
   ASSERT_NE(rule, nullptr);
-  const cv::Mat big = noise(cv::Size(700, 500), 9);
+  const cv::Mat big = noise_image(cv::Size(700, 500), 9);
   const cv::Mat view = big(cv::Rect(13, 7, 640, 480));
   EXPECT_EQ(differing_pixels(view, cv::Size(533, 400), *rule), 0);
   // Saturated and alternating extremes: the largest fixed-point sums.
@@ -86,7 +80,7 @@ TEST(LinearResize, ViewIntoALargerImageAndExtremeValues) {
   EXPECT_EQ(differing_pixels(extremes, cv::Size(169, 84), *rule), 0);
   EXPECT_EQ(differing_pixels(cv::Mat(50, 60, CV_8UC1, cv::Scalar(255)), cv::Size(41, 33), *rule), 0);
   // The output may be the input matrix itself.
-  cv::Mat same = noise(cv::Size(640, 480), 5), expected;
+  cv::Mat same = noise_image(cv::Size(640, 480), 5), expected;
   cv::resize(same, expected, cv::Size(533, 400), 0, 0, cv::INTER_LINEAR);
   resize_linear(same, same, cv::Size(533, 400), *rule);
   EXPECT_EQ(cv::countNonZero(same != expected), 0);
@@ -97,7 +91,7 @@ TEST(LinearResize, TheRoundingRuleMatters) {
   const LinearResize* rule = opencv_linear_resize();
   ASSERT_NE(rule, nullptr);
   const LinearResize other{rule->vector_columns == 0 ? 1 : 0};
-  EXPECT_GT(differing_pixels(noise(cv::Size(640, 480), 4), cv::Size(533, 400), other), 100);
+  EXPECT_GT(differing_pixels(noise_image(cv::Size(640, 480), 4), cv::Size(533, 400), other), 100);
 }
 
 TEST(LinearResize, RejectsOtherTypesEmptyAndLargerSizes) {

@@ -11,16 +11,10 @@
 #include "core/cpu_features.h"
 #include "slam/features/orb_blur.h"
 #include "slam/features/procedural_image.h"
+#include "slam/features/noise_image.h"
 
 namespace cslam {
 namespace {
-
-cv::Mat noise(cv::Size size, unsigned seed) {
-  cv::Mat image(size, CV_8UC1);
-  cv::RNG rng(seed);
-  rng.fill(image, cv::RNG::UNIFORM, 0, 256);
-  return image;
-}
 
 // As cv::ORB blurs a level: a copy bordered by its edge threshold (19), the inner part blurred in
 // place (what OrbExtractor ran before orb_blur).
@@ -57,7 +51,7 @@ TEST(OrbBlur, OrbPyramidOfNoiseAndScenes) {
     ProceduralImageConfig scene;
     scene.width = base.width;
     scene.height = base.height;
-    for (const cv::Mat& image : {noise(base, 3), procedural_image(7, scene)})
+    for (const cv::Mat& image : {noise_image(base, 3), procedural_image(7, scene)})
       for (int l = 0; l < 8; ++l) {
         const cv::Size size(int(std::lround(base.width / std::pow(1.2, l))),
                             int(std::lround(base.height / std::pow(1.2, l))));
@@ -70,11 +64,11 @@ TEST(OrbBlur, OrbPyramidOfNoiseAndScenes) {
 }
 
 TEST(OrbBlur, OddAndTinySizesAndViews) {
-  const cv::Mat big = noise(cv::Size(300, 200), 5);
+  const cv::Mat big = noise_image(cv::Size(300, 200), 5);
   for (const cv::Size size : {cv::Size(4, 4), cv::Size(5, 9), cv::Size(15, 4), cv::Size(17, 33), cv::Size(46, 46),
                               cv::Size(63, 47), cv::Size(129, 7)})
     for (const OrbBlurPath path : paths()) {
-      EXPECT_EQ(differing_pixels(noise(size, unsigned(size.area())), path), 0) << size << " path " << int(path);
+      EXPECT_EQ(differing_pixels(noise_image(size, unsigned(size.area())), path), 0) << size << " path " << int(path);
       // A view into a larger image: only its own pixels count, the reflected border is its own.
       EXPECT_EQ(differing_pixels(big(cv::Rect(cv::Point(31, 17), size)), path), 0) << "view " << size;
     }
