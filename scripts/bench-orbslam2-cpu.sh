@@ -36,7 +36,7 @@ for r in $(seq 1 "$RUNS"); do
   echo "round $r  ORB-SLAM2 ${orb} s  ATE $(ate "$OUT/orbslam2_$r.txt" | cut -c1-6) m"
   for v in "${!VARIANTS[@]}"; do
     opts="${VARIANTS[$v]}" bin=build/bin/cslam-slam
-    if [[ "$opts" == bin=* ]]; then bin="${opts%% *}"; bin="${bin#bin=}"; opts="${opts#* }"; [[ "$opts" == bin=* ]] && opts=""; fi
+    if [[ "$opts" =~ ^bin=([^ ]+)\ ?(.*)$ ]]; then bin="${BASH_REMATCH[1]}" opts="${BASH_REMATCH[2]}"; fi
     traj="$OUT/cslam_${v}_$r.txt"
     # shellcheck disable=SC2086
     /usr/bin/time -f "%U %S" -o "$OUT/cslam_${v}_$r.time" "$bin" --dataset "$D" --camera tum1 --out "$traj" --quiet \

@@ -28,9 +28,6 @@ std::array<float, 7> gaussian_kernel() {
   return out;
 }
 
-// Reflect-101 (dcb|abcd|cba), the border cv::ORB's bordered copy holds; n > kRadius.
-int reflect101(int i, int n) { return i < 0 ? -i : (i >= n ? 2 * n - 2 - i : i); }
-
 void blur_opencv(const cv::Mat& level, cv::Mat& out) {
   // As cv::ORB: a bordered copy, its inner part blurred in place (a submatrix: OpenCV reads the
   // border's pixels instead of extrapolating).
@@ -112,7 +109,7 @@ void blur_avx2(const cv::Mat& level, cv::Mat& out) {
     for (; done <= std::min(y + kRadius, h - 1); ++done)
       row_pass(level.ptr<std::uint8_t>(done), w, k, pad.data(), rows.data() + std::size_t(done % 8) * padded, padded);
     for (int j = -kRadius; j <= kRadius; ++j)
-      r[j + kRadius] = rows.data() + std::size_t(reflect101(y + j, h) % 8) * padded;
+      r[j + kRadius] = rows.data() + std::size_t(cv::borderInterpolate(y + j, h, cv::BORDER_REFLECT_101) % 8) * padded;
     column_pass(r, k, w, padded, out.ptr<std::uint8_t>(y));
   }
 }

@@ -154,9 +154,10 @@ bool matches_opencv(const OrbPattern& pattern) {
     cv::Mat desc;
     orb->compute(img, theirs, desc);
     if (theirs.size() != kps.size() || desc.rows != int(kps.size())) return false;
-    cv::Mat buffer;
+    cv::Mat blurred;
+    orb_blur(img, blurred);
     std::vector<Descriptor> ours;
-    compute_orb_descriptors(blur_for_orb(img, buffer), kps, pattern, ours);
+    compute_orb_descriptors(blurred, kps, pattern, ours);
     for (int r = 0; r < desc.rows; ++r)
       if (std::memcmp(desc.ptr(r), ours[std::size_t(theirs[r].class_id)].data(), 32) != 0) return false;
   }
@@ -177,11 +178,6 @@ std::unique_ptr<OrbPattern> probe_opencv_orb_pattern() {
 const OrbPattern* opencv_orb_pattern() {
   static const std::unique_ptr<OrbPattern> pattern = probe_opencv_orb_pattern();  // immutable once made
   return pattern.get();
-}
-
-cv::Mat blur_for_orb(const cv::Mat& level, cv::Mat& buffer) {
-  orb_blur(level, buffer);
-  return buffer;
 }
 
 void compute_orb_descriptors(const cv::Mat& blurred, const std::vector<cv::KeyPoint>& keypoints,

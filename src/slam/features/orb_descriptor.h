@@ -39,9 +39,6 @@ const OrbPattern* opencv_orb_pattern();
 // (opencv_orb_pattern() keeps the first result).
 std::unique_ptr<OrbPattern> probe_opencv_orb_pattern();
 
-// `level` blurred as cv::ORB blurs it (orb_blur), into `buffer` (reused between calls); returns `buffer`.
-cv::Mat blur_for_orb(const cv::Mat& level, cv::Mat& buffer);
-
 // Descriptor of each keypoint of `blurred` (its pixel: cvRound of pt; at least 19 pixels from the
 // border, where the rotated pattern fits), appended to `out`.
 void compute_orb_descriptors(const cv::Mat& blurred, const std::vector<cv::KeyPoint>& keypoints,

@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "slam/features/fast_corners.h"
 #include "slam/features/linear_resize.h"
+#include "slam/features/orb_blur.h"
 #include "slam/features/orb_descriptor.h"
 #include "slam/features/patch_moments.h"
 
@@ -291,7 +292,7 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
   cv::Mat level = gray;
   int carry = 0;  // budget a level could not use is handed to the next one
   std::vector<cv::KeyPoint> kps;
-  cv::Mat desc, blur_buffer;
+  cv::Mat desc, blurred;
   std::vector<Descriptor> level_descriptors;
   for (int l = 0; l < L; ++l) {
     if (l > 0) {
@@ -321,7 +322,8 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& input, const PinholeCamera* cam
       // detect_level keeps keypoints at >= edge_threshold from the border: cv::ORB::compute's
       // border filter would drop none of them.
       level_descriptors.clear();
-      compute_orb_descriptors(blur_for_orb(level, blur_buffer), kps, *pattern_, level_descriptors);
+      orb_blur(level, blurred);
+      compute_orb_descriptors(blurred, kps, *pattern_, level_descriptors);
       desc = cv::Mat(int(level_descriptors.size()), 32, CV_8UC1, level_descriptors.data());
     } else {
       orb->compute(level, kps, desc);

@@ -6,6 +6,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "slam/features/orb_blur.h"
 #include "slam/features/orb_descriptor.h"
 #include "slam/features/procedural_image.h"
 
@@ -27,9 +28,10 @@ std::vector<Descriptor> opencv_descriptors(const cv::Mat& image, std::vector<cv:
 
 std::vector<Descriptor> our_descriptors(const cv::Mat& image, const std::vector<cv::KeyPoint>& kps,
                                         const OrbPattern& pattern) {
-  cv::Mat buffer;
+  cv::Mat blurred;
+  orb_blur(image, blurred);
   std::vector<Descriptor> out;
-  compute_orb_descriptors(blur_for_orb(image, buffer), kps, pattern, out);
+  compute_orb_descriptors(blurred, kps, pattern, out);
   return out;
 }
 
