@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include <opencv2/imgproc.hpp>
 
@@ -38,16 +39,19 @@ bool depth_is_smooth(const cv::Mat& depth_raw, int x, int y, double d, const Pin
                      const RgbdParams& rgbd) {
   const int r = rgbd.depth_edge_radius;
   if (r <= 0 || d <= 0) return true;
-  double lo = d, hi = d;
+  // The window's extremes in raw units: depth_from_raw is non-decreasing, so they convert to the
+  // extremes in metres (the window is never empty: it holds (x, y)).
+  std::uint16_t lo_raw = UINT16_MAX, hi_raw = 0;
+  const int x0 = std::max(0, x - r), x1 = std::min(depth_raw.cols - 1, x + r);
   for (int yy = std::max(0, y - r); yy <= std::min(depth_raw.rows - 1, y + r); ++yy) {
     const auto* row = depth_raw.ptr<std::uint16_t>(yy);
-    for (int xx = std::max(0, x - r); xx <= std::min(depth_raw.cols - 1, x + r); ++xx) {
-      if (row[xx] == 0) return false;
-      const double dd = camera.depth_from_raw(row[xx]);
-      lo = std::min(lo, dd);
-      hi = std::max(hi, dd);
+    for (int xx = x0; xx <= x1; ++xx) {
+      lo_raw = std::min(lo_raw, row[xx]);
+      hi_raw = std::max(hi_raw, row[xx]);
     }
   }
+  if (lo_raw == 0) return false;
+  const double lo = std::min(d, camera.depth_from_raw(lo_raw)), hi = std::max(d, camera.depth_from_raw(hi_raw));
   return hi - lo <= rgbd.depth_edge_ratio * d;
 }
 }  // namespace
