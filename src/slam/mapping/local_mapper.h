@@ -29,6 +29,16 @@ enum class TrackingWait {
 // "none" | "new-points" | "keyframe"; throws ConfigError otherwise.
 TrackingWait parse_tracking_wait(const std::string& name);
 
+// The local BA's solver settings: BaConfig's, except that a stage ends after an accepted step that
+// lowered its cost by at most 0.3 % of it. The next keyframe's local BA solves most of the same
+// keyframes and points again, so the last small steps are taken then (docs/performance.md:
+// 22 % fewer iterations, accuracy unchanged).
+inline BaConfig local_ba_defaults() {
+  BaConfig c;
+  c.min_step_decrease = 3e-3;
+  return c;
+}
+
 struct LocalMapperConfig {
   int min_observations = 3;  // a recent point seen by fewer keyframes (after 2 keyframes) is culled
   double min_found_ratio = 0.25;
@@ -37,7 +47,7 @@ struct LocalMapperConfig {
   TriangulationConfig triangulation;  // new points from keyframe pairs
   bool local_ba = true;
   int local_ba_max_keyframes = 20;  // free keyframes: the new one and its strongest covisible neighbours
-  BaConfig ba;
+  BaConfig ba = local_ba_defaults();
   // Keyframes waiting or in work before tracking waits to insert another (threaded mode).
   std::size_t max_pending_keyframes = 2;
   TrackingWait tracking_wait = TrackingWait::kNewPoints;
