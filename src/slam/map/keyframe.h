@@ -3,6 +3,7 @@
 // mutable member is guarded by the owning Map's mutex (shared for reads, unique for writes).
 // Graph links between keyframes are raw pointers that the Map removes before a keyframe is
 // erased; ownership lives in the Map's tables (and in trajectory records, for culled keyframes).
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <set>
@@ -56,6 +57,31 @@ class MapPoint {
 };
 using MapPointPtr = std::shared_ptr<MapPoint>;
 
+// A keyframe's map point per keypoint (null if none). Read like a vector; every change goes
+// through set / reset, which bump version(): a reader that listed the slots (Tracker's local map)
+// knows they still hold the same points while the version is the same.
+class MapPointSlots {
+ public:
+  explicit MapPointSlots(std::size_t n) : slots_(n) {}
+  const MapPointPtr& operator[](std::size_t i) const { return slots_[i]; }
+  std::size_t size() const { return slots_.size(); }
+  std::vector<MapPointPtr>::const_iterator begin() const { return slots_.begin(); }
+  std::vector<MapPointPtr>::const_iterator end() const { return slots_.end(); }
+  void set(std::size_t i, MapPointPtr mp) {
+    slots_[i] = std::move(mp);
+    ++version_;
+  }
+  void reset(std::size_t i) {
+    slots_[i].reset();
+    ++version_;
+  }
+  std::uint64_t version() const { return version_; }
+
+ private:
+  std::vector<MapPointPtr> slots_;
+  std::uint64_t version_ = 0;
+};
+
 class KeyFrame {
  public:
   KeyFrame(KeyFrameId id, std::shared_ptr<const FrameData> data, const SE3& T_cam_world)
@@ -65,7 +91,7 @@ class KeyFrame {
   const std::shared_ptr<const FrameData> data;
 
   SE3 T_cam_world;
-  std::vector<MapPointPtr> map_points;  // per keypoint, null if none
+  MapPointSlots map_points;  // per keypoint, null if none
 
   // Covisibility: weight = number of shared map points.
   std::map<KeyFrame*, int, ById> connections;

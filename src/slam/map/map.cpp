@@ -78,7 +78,7 @@ void Map::add_observation(KeyFrame* kf, int index, const MapPointPtr& mp) {
   mp->observations[kf] = index;
   ++mp->observations_version;
   mp->num_obs += kf->data->u_right[index] >= 0 ? 2 : 1;
-  kf->map_points[index] = mp;
+  kf->map_points.set(std::size_t(index), mp);
 }
 
 void Map::erase_observation(KeyFrame* kf, const MapPointPtr& mp) {
@@ -88,7 +88,7 @@ void Map::erase_observation(KeyFrame* kf, const MapPointPtr& mp) {
   mp->num_obs -= kf->data->u_right[idx] >= 0 ? 2 : 1;
   mp->observations.erase(it);
   ++mp->observations_version;
-  if (kf->map_points[idx] == mp) kf->map_points[idx].reset();
+  if (kf->map_points[idx] == mp) kf->map_points.reset(std::size_t(idx));
   if (mp->reference == kf) mp->reference = mp->observations.empty() ? nullptr : mp->observations.begin()->first;
   if (mp->num_obs <= 2) set_map_point_bad(mp);
 }
@@ -97,7 +97,7 @@ void Map::set_map_point_bad(const MapPointPtr& mp) {
   if (mp->bad) return;
   mp->bad = true;
   for (const auto& [kf, idx] : mp->observations)
-    if (kf->map_points[idx] == mp) kf->map_points[idx].reset();
+    if (kf->map_points[idx] == mp) kf->map_points.reset(std::size_t(idx));
   mp->observations.clear();
   ++mp->observations_version;
   map_points_.erase(mp->id);
@@ -108,10 +108,10 @@ void Map::replace_map_point(const MapPointPtr& from, const MapPointPtr& into) {
   const auto obs = from->observations;
   for (const auto& [kf, idx] : obs) {
     if (!into->in_keyframe(kf)) {
-      kf->map_points[idx].reset();
+      kf->map_points.reset(std::size_t(idx));
       add_observation(kf, idx, into);
     } else if (kf->map_points[idx] == from) {
-      kf->map_points[idx].reset();
+      kf->map_points.reset(std::size_t(idx));
     }
   }
   into->found += from->found;

@@ -94,7 +94,7 @@ void LocalMapper::insert_into_map(KeyFrame* kf) {
     auto mp = kf->map_points[i];
     if (!mp) continue;
     if (mp->bad) {
-      kf->map_points[i].reset();
+      kf->map_points.reset(i);
       continue;
     }
     if (!mp->in_keyframe(kf)) {

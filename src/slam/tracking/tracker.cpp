@@ -288,8 +288,7 @@ KeyFrame* Tracker::most_sharing(const std::vector<std::pair<KeyFrame*, int>>& sh
   return best_kf;
 }
 
-void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs,
-                               std::vector<const MapPointPtr*>& local_points, KeyFramePtr& reference) {
+const std::vector<const MapPointPtr*>& Tracker::update_local_map(const Frame& frame, KeyFramePtr& reference) {
   const std::vector<std::pair<KeyFrame*, int>> sharing = keyframes_sharing(frame);
   std::set<KeyFrame*, ById> chosen;
   for (const auto& [kf, n] : sharing)
@@ -304,24 +303,34 @@ void Tracker::update_local_map(const Frame& frame, std::vector<KeyFramePtr>& loc
       if (!c->bad && chosen.insert(c).second) break;
     if (kf->parent && !kf->parent->bad) chosen.insert(kf->parent.get());
   }
-  local_kfs.clear();
-  for (KeyFrame* kf : chosen)
-    if (auto p = map_->shared(kf)) local_kfs.push_back(p);
   if (best_kf) reference = map_->shared(best_kf);
+  LocalMap& local = local_map_;
+  std::vector<KeyFramePtr> kfs;
+  kfs.reserve(chosen.size());
+  for (KeyFrame* kf : chosen)
+    if (auto p = map_->shared(kf)) kfs.push_back(std::move(p));
+  // The last frame's points stand while the same keyframes hold the same slots.
+  bool same = local.map == map_.get() && local.keyframes.size() == kfs.size();
+  for (std::size_t k = 0; same && k < kfs.size(); ++k)
+    same = local.keyframes[k] == kfs[k] && local.versions[k] == kfs[k]->map_points.version();
+  if (same) return local.points;
+  local.map = map_.get();
+  local.keyframes = std::move(kfs);
+  local.versions.clear();
+  for (const auto& kf : local.keyframes) local.versions.push_back(kf->map_points.version());
   local_points_seen_.clear();
-  local_points.clear();
+  local.points.clear();
   // Deduplicate before reading the point: keyframes share most points, and each first read of a
   // point is a cache miss.
-  for (const auto& kf : local_kfs)
+  for (const auto& kf : local.keyframes)
     for (const auto& mp : kf->map_points)
-      if (mp && local_points_seen_.insert(mp.get()) && !mp->bad) local_points.push_back(&mp);
+      if (mp && local_points_seen_.insert(mp.get()) && !mp->bad) local.points.push_back(&mp);
+  return local.points;
 }
 
 bool Tracker::track_local_map(Frame& frame) {
-  std::vector<KeyFramePtr> local_kfs;
-  std::vector<const MapPointPtr*> local_points;
   KeyFramePtr ref;
-  update_local_map(frame, local_kfs, local_points, ref);
+  const std::vector<const MapPointPtr*>& local_points = update_local_map(frame, ref);
   if (ref) reference_kf_ = ref;
   frame.reference = reference_kf_;
   for (const auto& mp : frame.map_points)
@@ -426,7 +435,7 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
     }
     for (size_t i = 0; i < f.size(); ++i)
       if (frame.map_points[i] && !frame.map_points[i]->bad && !frame.outlier[i])
-        kf->map_points[i] = frame.map_points[i];
+        kf->map_points.set(i, frame.map_points[i]);
     std::vector<std::pair<float, int>> by_depth;
     for (size_t i = 0; i < f.size(); ++i)
       if (f.has_depth(int(i))) by_depth.emplace_back(f.depth[i], int(i));
@@ -437,7 +446,7 @@ KeyFramePtr Tracker::create_keyframe(Frame& frame) {
     for (const auto& [d, i] : by_depth) {
       const auto& existing = kf->map_points[i];
       if (!existing || existing->observations.empty()) {
-        kf->map_points[i].reset();
+        kf->map_points.reset(i);
         auto mp = std::make_shared<MapPoint>(map_->ids().next_map_point(), T_world_cam * f.unproject(i), kf.get(),
                                              f.colors[i]);
         mp->first_keyframe_seq = kf->id.seq;

@@ -132,9 +132,9 @@ class Tracker {
   // keyframe (map lock held shared).
   static std::vector<std::pair<KeyFrame*, int>> keyframes_sharing(const Frame& frame);
   static KeyFrame* most_sharing(const std::vector<std::pair<KeyFrame*, int>>& sharing);
-  // Local keyframes and the slots of their points (valid while the map's shared lock is held).
-  void update_local_map(const Frame& frame, std::vector<KeyFramePtr>& local_kfs,
-                        std::vector<const MapPointPtr*>& local_points, KeyFramePtr& reference);
+  // The slots of the local keyframes' points (read them while the map's shared lock is held), and
+  // the reference keyframe.
+  const std::vector<const MapPointPtr*>& update_local_map(const Frame& frame, KeyFramePtr& reference);
   int optimize_frame_pose(Frame& frame) const;
   // The constant-velocity model's pose at `timestamp`, from the last frame's (needs last_).
   SE3 motion_model_pose(double timestamp) const;
@@ -171,9 +171,19 @@ class Tracker {
   int last_inliers_ = 0;
   std::uint64_t tracked_change_index_ = 0;  // map change index when the frame was tracked
   PointerSet local_points_seen_;            // update_local_map's scratch, reused frame to frame
-  int flow_run_ = 0;                        // flow frames since the last full frame
-  int full_inliers_ = 0;                    // local-map inliers of the last full frame
-  int full_close_ = 0;                      // ... and of them close points
+  // The local keyframes of the last full frame, their slots' versions and their points' slots:
+  // the next frame reuses the points while it chooses the same keyframes of the same map and no
+  // slot changed (the keyframes are held, so no other keyframe takes their addresses meanwhile).
+  struct LocalMap {
+    const Map* map = nullptr;
+    std::vector<KeyFramePtr> keyframes;
+    std::vector<std::uint64_t> versions;
+    std::vector<const MapPointPtr*> points;
+  };
+  LocalMap local_map_;
+  int flow_run_ = 0;           // flow frames since the last full frame
+  int full_inliers_ = 0;       // local-map inliers of the last full frame
+  int full_close_ = 0;         // ... and of them close points
   double flow_estimate_ = -1;  // a flow frame's estimate of local-map inliers, until a full frame measures them
   std::deque<double> flow_calibration_;  // recent actual / estimated local-map inliers (keyframe_may_be_due)
   int flow_seeded_ = 0;                  // map points seeded into the flow (flow_seeds)

@@ -142,3 +142,41 @@ TEST(MapPoints, ReplaceMovesObservationsAndFreesTheOldPoint) {
   q.reset();
   EXPECT_TRUE(weak_q.expired());  // erased objects are really freed once unused
 }
+
+TEST(Covisibility, EveryChangeOfAKeyframesSlotsChangesItsVersion) {
+  Fixture fx;
+  auto a = fx.add_keyframe(), b = fx.add_keyframe(), c = fx.add_keyframe(), d = fx.add_keyframe();
+  auto versions = [&] {
+    std::vector<std::uint64_t> out;
+    for (const auto& kf : {a, b, c, d}) out.push_back(kf->map_points.version());
+    return out;
+  };
+  auto changed = [](const std::vector<std::uint64_t>& before, const std::vector<std::uint64_t>& after) {
+    std::vector<bool> out;
+    for (std::size_t k = 0; k < before.size(); ++k) out.push_back(after[k] != before[k]);
+    return out;
+  };
+  auto v = versions();
+  const auto abc = fx.share({a, b, c}, 50, 3);  // points at slots 50..52 of a, b and c (RGB-D: each seen twice)
+  EXPECT_EQ(changed(v, versions()), (std::vector<bool>{true, true, true, false}));
+  v = versions();
+  fx.map.erase_observation(a.get(), abc[0]);  // b and c still see it: it stays good
+  EXPECT_EQ(a->map_points[50], nullptr);
+  EXPECT_FALSE(abc[0]->bad);
+  EXPECT_EQ(changed(v, versions()), (std::vector<bool>{true, false, false, false}));
+  v = versions();
+  fx.map.set_map_point_bad(abc[1]);
+  EXPECT_EQ(changed(v, versions()), (std::vector<bool>{true, true, true, false}));
+  const auto in_d = fx.share({d}, 53, 1);
+  v = versions();
+  fx.map.replace_map_point(abc[2], in_d[0]);  // a, b and c now hold d's point at slot 52
+  for (const auto& kf : {a, b, c}) EXPECT_EQ(kf->map_points[52], in_d[0]);
+  EXPECT_EQ(changed(v, versions()), (std::vector<bool>{true, true, true, false}));
+  // Reading changes nothing.
+  v = versions();
+  int held = 0;
+  for (const auto& kf : {a, b, c, d})
+    for (const auto& mp : kf->map_points) held += mp != nullptr;
+  EXPECT_EQ(held, 6);  // the first point in b and c, d's point in all four
+  EXPECT_EQ(changed(v, versions()), (std::vector<bool>{false, false, false, false}));
+}

@@ -105,7 +105,7 @@ TEST(TriangulationSearch, FindsTheTruePairsAndRejectsOffEpipolarDescriptorTwins)
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(right, 58);  // all but (possibly) points 4 and 5
   // Keypoints that already have a map point take no part.
-  kf1.map_points[10] = std::make_shared<MapPoint>(MapPointId{1, 0}, v.scene.points[10], &kf1, cv::Vec3b());
+  kf1.map_points.set(10, std::make_shared<MapPoint>(MapPointId{1, 0}, v.scene.points[10], &kf1, cv::Vec3b()));
   for (const auto& [i1, i2] : search_for_triangulation(kf1, kf2)) EXPECT_NE(i1, 10);
 }
 
