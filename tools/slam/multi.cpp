@@ -46,11 +46,11 @@ PinholeCamera camera_for(const CliArgs& args, const std::string& dir) {
 }
 
 LeanStreamConfig lean_stream_config(const CliArgs& args) {
-  LeanStreamConfig c{args.get_int("depth-every"),
-                     args.get_int("depth-request-delay"),
-                     args.get_int("light-depth"),
-                     args.flag_set("coded-colour"),
-                     {}};
+  LeanStreamConfig c;
+  c.depth_every = args.get_int("depth-every");
+  c.request_delay = args.get_int("depth-request-delay");
+  c.light_depth = args.get_int("light-depth");
+  c.coded_colour = args.flag_set("coded-colour");
   c.full_colour.rgb = parse_rgb_codec(args.get("rgb-codec"), c.depth_every > 1);
   c.full_colour.jpeg_quality = args.get_int("jpeg-quality");
   c.full_colour.h264_intra_crf = args.get_int("h264-intra-crf");

@@ -309,12 +309,12 @@ const std::vector<const MapPointPtr*>& Tracker::update_local_map(const Frame& fr
   kfs.reserve(chosen.size());
   for (KeyFrame* kf : chosen)
     if (auto p = map_->shared(kf)) kfs.push_back(std::move(p));
-  // The last frame's points stand while the same keyframes hold the same slots.
-  bool same = local.map == map_.get() && local.keyframes.size() == kfs.size();
+  // The last frame's points stand while the same keyframes (of this map: kfs holds no other)
+  // hold the same slots.
+  bool same = local.keyframes.size() == kfs.size();
   for (std::size_t k = 0; same && k < kfs.size(); ++k)
     same = local.keyframes[k] == kfs[k] && local.versions[k] == kfs[k]->map_points.version();
   if (same) return local.points;
-  local.map = map_.get();
   local.keyframes = std::move(kfs);
   local.versions.clear();
   for (const auto& kf : local.keyframes) local.versions.push_back(kf->map_points.version());

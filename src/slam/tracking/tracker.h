@@ -172,10 +172,9 @@ class Tracker {
   std::uint64_t tracked_change_index_ = 0;  // map change index when the frame was tracked
   PointerSet local_points_seen_;            // update_local_map's scratch, reused frame to frame
   // The local keyframes of the last full frame, their slots' versions and their points' slots:
-  // the next frame reuses the points while it chooses the same keyframes of the same map and no
-  // slot changed (the keyframes are held, so no other keyframe takes their addresses meanwhile).
+  // the next frame reuses the points while it chooses the same keyframes and no slot changed
+  // (the keyframes are held, so no other keyframe takes their addresses meanwhile).
   struct LocalMap {
-    const Map* map = nullptr;
     std::vector<KeyFramePtr> keyframes;
     std::vector<std::uint64_t> versions;
     std::vector<const MapPointPtr*> points;
