@@ -100,6 +100,8 @@ for r in $(seq 1 "$RUNS"); do
   done
 done
 SERVER_ARGS="${VARIANTS[0]}"
+# Robot 1's reference is its N = 1 run; an N list without 1 streams it alone once here.
+if ! grep -qw 1 <<< "$NS"; then run_case "solo1" 1 1; echo "robot 1 alone done"; fi
 if [ "$SOLO" = 1 ]; then
   for k in $(seq 2 "$MAXN"); do run_case "solo${k}" 1 "$k"; echo "robot $k alone done"; done
 fi
@@ -156,7 +158,7 @@ def fmt(t, f="{:.1f}"):
 
 cases = {n: [case(f"{prefix}n{n}_r{r}") for r in range(1, runs + 1)] for n in ns}
 ref = {}
-base = [c["robots"].get(1, {}).get("ate", float("nan")) for c in cases.get(1, [])]
+base = [c["robots"].get(1, {}).get("ate", float("nan")) for c in cases.get(1, [])] or [case("solo1")["robots"].get(1, {}).get("ate", float("nan"))]
 ref[1] = med(base)[0]
 for k in range(2, max(ns) + 1):
     ref[k] = case(f"solo{k}")["robots"].get(k, {}).get("ate", float("nan")) if solo else ref[1]
