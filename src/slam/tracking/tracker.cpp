@@ -25,6 +25,7 @@ void Tracker::reset(std::shared_ptr<Map> new_map, KeyFrameSink* sink) {
   has_velocity_ = false;
   reference_kf_.reset();
   last_keyframe_.reset();
+  local_map_ = {};  // it holds the old map's keyframes
   keyframe_deferred_ = false;
 }
 
