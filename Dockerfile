@@ -1,8 +1,10 @@
 # cslam server image, two stages (see docs/deployment.md):
 #   build   - Debian 12 with the compilers; builds the programs and installs the viewer's pinned
 #             three.js (scripts/install-web.sh, npm ci from web/package-lock.json);
-#   runtime - Debian 12 with only the shared libraries the programs load (their ldd closure,
-#             copied from the build stage), the stripped programs, the vocabulary and the viewer.
+#   runtime - Debian 12 with only the shared libraries the programs and their codec plugins load
+#             (their ldd closure, copied from the build stage), the stripped programs, the codec
+#             plugins (lib/cslam/, loaded on first use: src/codec/codec_plugins.h), the vocabulary
+#             and the viewer.
 # The paths under /opt/cslam are the same in both stages, so the programs find the vocabulary
 # (data/vocabulary) and the viewer (web/) at their compiled-in defaults.
 ARG BASE=debian:bookworm
@@ -41,12 +43,14 @@ ARG OPTIONAL_PROGRAMS="cslam-keygen cslam-map"
 RUN set -eu; mkdir -p /stage/opt/cslam/bin /stage/usr/local/bin; \
     for p in $PROGRAMS; do install -s -m 0755 build/bin/$p /stage/opt/cslam/bin/$p; done; \
     for p in $OPTIONAL_PROGRAMS; do if [ -f build/bin/$p ]; then install -s -m 0755 build/bin/$p /stage/opt/cslam/bin/$p; fi; done; \
+    mkdir -p /stage/opt/cslam/lib/cslam; \
+    for m in build/lib/cslam/*.so; do install -s -m 0644 "$m" /stage/opt/cslam/lib/cslam/; done; \
     install -m 0755 /usr/bin/curl /stage/usr/local/bin/curl; \
     install -m 0755 /usr/bin/openssl /stage/usr/local/bin/openssl; \
     mkdir -p /stage/etc/ssl /stage/usr/lib/ssl /stage/usr/share/doc/openssl; \
     cp /etc/ssl/openssl.cnf /stage/etc/ssl/; ln -s /etc/ssl/openssl.cnf /stage/usr/lib/ssl/openssl.cnf; \
     cp /usr/share/doc/openssl/copyright /stage/usr/share/doc/openssl/; \
-    ldd /stage/opt/cslam/bin/* /stage/usr/local/bin/curl /stage/usr/local/bin/openssl | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u \
+    ldd /stage/opt/cslam/bin/* /stage/opt/cslam/lib/cslam/*.so /stage/usr/local/bin/curl /stage/usr/local/bin/openssl | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u \
       > /tmp/libs.txt; \
     while read -r lib; do \
       real=$(readlink -f "$lib"); pkg=$(dpkg -S "$real" 2>/dev/null | head -1 | cut -d: -f1 || true); \

@@ -5,6 +5,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "codec/codec_plugins.h"
 #include "dense/tsdf_volume.h"
 #include "io/tum_dataset.h"
 #include "server/http/recon_jobs.h"
@@ -68,7 +69,7 @@ std::optional<double> sampled_surface_m2(const std::vector<DatasetPoses>& source
       if (k++ % step != 0 || !p.T_world_cam.is_finite()) continue;
       const auto it = nearest_depth(depth, p.timestamp);
       if (it == depth.end()) continue;
-      const cv::Mat d = cv::imread(it->path, cv::IMREAD_UNCHANGED);
+      const cv::Mat d = image_io().imread(it->path, cv::IMREAD_UNCHANGED);
       if (d.type() != CV_16UC1 || d.cols != s.camera.width || d.rows != s.camera.height) continue;
       ++read;
       add_cells(d, s.camera, p, config, cells);

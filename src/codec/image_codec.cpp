@@ -1,3 +1,4 @@
+#include "codec/codec_plugins.h"
 #include "codec/image_codec.h"
 
 #include <cstring>
@@ -101,7 +102,7 @@ cv::Mat imdecode_checked(const std::uint8_t* data, std::size_t size, int flags, 
                          const std::string& source) {
   cv::Mat out;
   try {
-    out = cv::imdecode(cv::Mat(1, int(size), CV_8UC1, const_cast<std::uint8_t*>(data)), flags);
+    out = image_io().imdecode(cv::Mat(1, int(size), CV_8UC1, const_cast<std::uint8_t*>(data)), flags);
   } catch (const cv::Exception&) {
     throw InputError(source, "image could not be decoded");
   }
@@ -114,7 +115,7 @@ cv::Mat imdecode_checked(const std::uint8_t* data, std::size_t size, int flags, 
 
 Bytes imencode_checked(const char* ext, const cv::Mat& image, const std::vector<int>& params) {
   std::vector<std::uint8_t> out;
-  if (!cv::imencode(ext, image, out, params)) throw std::runtime_error(std::string("cannot encode ") + ext);
+  if (!image_io().imencode(ext, image, out, params)) throw std::runtime_error(std::string("cannot encode ") + ext);
   return out;
 }
 

@@ -1,3 +1,4 @@
+#include "codec/codec_plugins.h"
 #include "codec/jpeg_decode.h"
 
 #include <climits>
@@ -67,8 +68,8 @@ cv::Mat decode_jpeg_bgr(const std::uint8_t* data, std::size_t size, const std::s
   if (colorspace == TJCS_CMYK || colorspace == TJCS_YCCK) {
     cv::Mat out;
     try {
-      out = cv::imdecode(cv::Mat(1, int(size), CV_8UC1, const_cast<std::uint8_t*>(data)),
-                         cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+      out = image_io().imdecode(cv::Mat(1, int(size), CV_8UC1, const_cast<std::uint8_t*>(data)),
+                                cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
     } catch (const cv::Exception&) {
     }
     if (out.empty() || out.type() != CV_8UC3 || out.cols != w || out.rows != h)

@@ -1,25 +1,14 @@
 #include "codec/video_codec.h"
 
 #include <algorithm>
-#include <cstdarg>
 #include <cstring>
-#include <mutex>
-#include <new>
 #include <stdexcept>
 #include <string>
 
 #include <opencv2/imgproc.hpp>
 #include <zlib.h>
 
-extern "C" {
-#include <libavcodec/avcodec.h>
-#include <libavutil/dict.h>
-#include <libavutil/error.h>
-#include <libavutil/frame.h>
-#include <libavutil/log.h>
-#include <libavutil/pixdesc.h>
-}
-
+#include "codec/codec_plugins.h"
 #include "core/error.h"
 
 namespace cslam::video {
@@ -27,48 +16,6 @@ namespace cslam::video {
 namespace {
 
 constexpr std::uint8_t kMagic0 = 'H', kMagic1 = '4', kVersion = 1, kFlagKey = 1;
-
-struct CodecContextDeleter {
-  void operator()(AVCodecContext* c) const { avcodec_free_context(&c); }
-};
-struct FrameDeleter {
-  void operator()(AVFrame* f) const { av_frame_free(&f); }
-};
-struct PacketDeleter {
-  void operator()(AVPacket* p) const { av_packet_free(&p); }
-};
-struct DictDeleter {
-  void operator()(AVDictionary* d) const { av_dict_free(&d); }
-};
-using CodecContextPtr = std::unique_ptr<AVCodecContext, CodecContextDeleter>;
-using FramePtr = std::unique_ptr<AVFrame, FrameDeleter>;
-using PacketPtr = std::unique_ptr<AVPacket, PacketDeleter>;
-
-// libav* log lines go nowhere by default here (a hostile stream must not flood stderr, x264's
-// banner and statistics are noise); the first error line of this thread is kept for the exception
-// text (the first one of a call names the cause; later ones are consequences, e.g. "no frame!").
-// This replaces libav's process-wide callback: cslam has no other libav user.
-thread_local std::string t_av_error;
-void capture_av_log(void* avcl, int level, const char* fmt, va_list vl) {
-  if (level > AV_LOG_ERROR || !t_av_error.empty()) return;
-  char line[256];
-  int print_prefix = 0;
-  av_log_format_line2(avcl, level, fmt, vl, line, sizeof line, &print_prefix);
-  t_av_error = line;
-  while (!t_av_error.empty() && (t_av_error.back() == '\n' || t_av_error.back() == ' ')) t_av_error.pop_back();
-}
-void install_av_log() {
-  static std::once_flag once;
-  std::call_once(once, [] { av_log_set_callback(capture_av_log); });
-}
-
-std::string av_error_text(int err) {
-  char buf[AV_ERROR_MAX_STRING_SIZE] = {};
-  av_strerror(err, buf, sizeof buf);
-  std::string text = buf;
-  if (!t_av_error.empty()) text += " (" + t_av_error + ")";
-  return text;
-}
 
 std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
@@ -150,9 +97,7 @@ bool is_h264_key_packet(const std::uint8_t* data, std::size_t size) {
 
 // ---------------------------------------------------------------------------------------------
 struct H264Encoder::State {
-  CodecContextPtr ctx;
-  FramePtr frame;
-  PacketPtr packet;
+  std::unique_ptr<H264EncoderEngine> engine;  // libavcodec's side (codec_plugins.h)
   cv::Mat i420;
 };
 
@@ -160,43 +105,7 @@ H264Encoder::H264Encoder(int width, int height, H264Options options)
     : state_(std::make_unique<State>()), width_(width), height_(height) {
   check_size(width, height);
   options.validate();
-  install_av_log();
-  const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
-  if (!codec) throw std::runtime_error("libavcodec has no libx264 encoder");
-  state_->ctx.reset(avcodec_alloc_context3(codec));
-  state_->frame.reset(av_frame_alloc());
-  state_->packet.reset(av_packet_alloc());
-  if (!state_->ctx || !state_->frame || !state_->packet) throw std::bad_alloc();
-  AVCodecContext* c = state_->ctx.get();
-  c->width = width;
-  c->height = height;
-  c->pix_fmt = AV_PIX_FMT_YUV420P;
-  c->color_range = AVCOL_RANGE_MPEG;  // cv::cvtColor's I420 is BT.601 limited range
-  c->colorspace = AVCOL_SPC_SMPTE170M;
-  c->time_base = AVRational{1, options.frame_rate};
-  c->framerate = AVRational{options.frame_rate, 1};
-  c->gop_size = options.key_interval;
-  c->max_b_frames = 0;
-  c->thread_count = 1;  // deterministic output, one core
-  // Not AV_CODEC_FLAG_GLOBAL_HEADER: SPS/PPS stay in-band before every IDR.
-  AVDictionary* raw_opts = nullptr;
-  av_dict_set(&raw_opts, "preset", options.preset.c_str(), 0);
-  av_dict_set(&raw_opts, "tune", options.tune.c_str(), 0);
-  av_dict_set(&raw_opts, "crf", std::to_string(options.crf).c_str(), 0);
-  av_dict_set(&raw_opts, "rc-lookahead", "0", 0);
-  av_dict_set(&raw_opts, "forced-idr", "1", 0);
-  t_av_error.clear();
-  int err = avcodec_open2(c, codec, &raw_opts);
-  std::unique_ptr<AVDictionary, DictDeleter> unused(raw_opts);
-  if (err < 0) throw std::runtime_error("libx264: cannot open the encoder: " + av_error_text(err));
-  if (av_dict_count(unused.get()) > 0)
-    throw std::runtime_error(std::string("libx264 ignored option '") +
-                             av_dict_get(unused.get(), "", nullptr, AV_DICT_IGNORE_SUFFIX)->key + "'");
-  AVFrame* f = state_->frame.get();
-  f->format = AV_PIX_FMT_YUV420P;
-  f->width = width;
-  f->height = height;
-  if ((err = av_frame_get_buffer(f, 0)) < 0) throw std::runtime_error("av_frame_get_buffer: " + av_error_text(err));
+  state_->engine.reset(h264_engine().make_encoder(width, height, options));
 }
 
 H264Encoder::~H264Encoder() = default;
@@ -205,74 +114,31 @@ Bytes H264Encoder::encode(const cv::Mat& bgr, bool force_key) {
   if (bgr.type() != CV_8UC3 || bgr.cols != width_ || bgr.rows != height_)
     throw std::invalid_argument("H264Encoder::encode: expected a CV_8UC3 " + size_text(width_, height_) + " image");
   State& s = *state_;
-  t_av_error.clear();
   cv::cvtColor(bgr, s.i420, cv::COLOR_BGR2YUV_I420);  // Y (w x h), then U, V (w/2 x h/2 each)
-  AVFrame* f = s.frame.get();
-  int err = av_frame_make_writable(f);
-  if (err < 0) throw std::runtime_error("av_frame_make_writable: " + av_error_text(err));
-  const std::uint8_t* src = s.i420.data;
-  const int plane_w[3] = {width_, width_ / 2, width_ / 2}, plane_h[3] = {height_, height_ / 2, height_ / 2};
-  for (int p = 0; p < 3; ++p)
-    for (int y = 0; y < plane_h[p]; ++y, src += plane_w[p])
-      std::memcpy(f->data[p] + std::ptrdiff_t(y) * f->linesize[p], src, std::size_t(plane_w[p]));
-  f->pts = next_index_;
-  f->pict_type = force_key ? AV_PICTURE_TYPE_I : AV_PICTURE_TYPE_NONE;
-  if ((err = avcodec_send_frame(s.ctx.get(), f)) < 0)
-    throw std::runtime_error("libx264: send_frame: " + av_error_text(err));
-  AVPacket* pkt = s.packet.get();
-  if ((err = avcodec_receive_packet(s.ctx.get(), pkt)) < 0)  // zerolatency: never EAGAIN
-    throw std::runtime_error("libx264: no packet for the frame: " + av_error_text(err));
-  const bool key = (pkt->flags & AV_PKT_FLAG_KEY) != 0;
-  Bytes out(kH264HeaderBytes + std::size_t(pkt->size));
+  bool key = false;
+  const std::vector<std::uint8_t> unit = s.engine->encode(s.i420, next_index_, force_key, key);
+  Bytes out(kH264HeaderBytes + unit.size());
   out[0] = kMagic0;
   out[1] = kMagic1;
   out[2] = kVersion;
   out[3] = key ? kFlagKey : 0;
   put_le32(&out[4], next_index_);
-  put_le32(&out[8], std::uint32_t(pkt->size));
-  std::memcpy(out.data() + kH264HeaderBytes, pkt->data, std::size_t(pkt->size));
-  put_le32(&out[12], packet_crc(out.data(), out.data() + kH264HeaderBytes, std::size_t(pkt->size)));
-  av_packet_unref(pkt);
-  if (avcodec_receive_packet(s.ctx.get(), pkt) != AVERROR(EAGAIN)) {
-    av_packet_unref(pkt);
-    throw std::logic_error("libx264 returned more than one packet for a frame");
-  }
+  put_le32(&out[8], std::uint32_t(unit.size()));
+  std::memcpy(out.data() + kH264HeaderBytes, unit.data(), unit.size());
+  put_le32(&out[12], packet_crc(out.data(), out.data() + kH264HeaderBytes, unit.size()));
   ++next_index_;
   return out;
 }
 
 // ---------------------------------------------------------------------------------------------
 struct H264Decoder::State {
-  CodecContextPtr ctx;
-  FramePtr frame, extra;
-  PacketPtr packet;
+  std::unique_ptr<H264DecoderEngine> engine;  // libavcodec's side (codec_plugins.h)
   cv::Mat i420;
 };
 
 H264Decoder::H264Decoder(int width, int height) : state_(std::make_unique<State>()), width_(width), height_(height) {
   check_size(width, height);
-  install_av_log();
-  const AVCodec* codec = avcodec_find_decoder(AV_CODEC_ID_H264);
-  if (!codec) throw std::runtime_error("libavcodec has no H.264 decoder");
-  state_->ctx.reset(avcodec_alloc_context3(codec));
-  state_->frame.reset(av_frame_alloc());
-  state_->extra.reset(av_frame_alloc());
-  state_->packet.reset(av_packet_alloc());
-  if (!state_->ctx || !state_->frame || !state_->extra || !state_->packet) throw std::bad_alloc();
-  AVCodecContext* c = state_->ctx.get();
-  c->thread_count = 1;                  // no frame threading: no output delay
-  c->flags |= AV_CODEC_FLAG_LOW_DELAY;  // no reordering delay (our streams have no B-frames)
-  c->flags &= ~AV_CODEC_FLAG_OUTPUT_CORRUPT;
-  c->err_recognition = AV_EF_EXPLODE | AV_EF_BITSTREAM | AV_EF_BUFFER;
-  // Pixel budget: the expected size plus libavcodec's alignment and edges (its buffer for
-  // 160x120 is checked as 192x120). A stream announcing a larger picture fails in libavcodec's
-  // size check before anything of that size is allocated; the exact size is checked after.
-  c->max_pixels = std::int64_t(((width + 15) & ~15) + 64) * (((height + 15) & ~15) + 64);
-  c->width = width;
-  c->height = height;
-  t_av_error.clear();
-  const int err = avcodec_open2(c, codec, nullptr);
-  if (err < 0) throw std::runtime_error("cannot open the H.264 decoder: " + av_error_text(err));
+  state_->engine.reset(h264_engine().make_decoder(width, height));
   state_->i420.create(height * 3 / 2, width, CV_8UC1);
 }
 
@@ -281,7 +147,7 @@ H264Decoder::~H264Decoder() = default;
 void H264Decoder::fail_corrupt(const std::string& source, const std::string& message) {
   ++stats_.corrupt;
   waiting_for_key_ = true;
-  avcodec_flush_buffers(state_->ctx.get());
+  state_->engine->flush();
   throw InputError(source, "H.264 packet: " + message);
 }
 
@@ -315,7 +181,7 @@ cv::Mat H264Decoder::decode(const std::uint8_t* data, std::size_t size, const st
     if (std::uint64_t(index) > std::uint64_t(last_index_) + 1) {
       ++stats_.gaps;
       waiting_for_key_ = true;
-      avcodec_flush_buffers(state_->ctx.get());
+      state_->engine->flush();
       throw InputError(source, "H.264 " + at + " after " + std::to_string(last_index_) + ": " +
                                    std::to_string(index - last_index_ - 1) + " missing, waiting for a key frame");
     }
@@ -329,39 +195,8 @@ cv::Mat H264Decoder::decode(const std::uint8_t* data, std::size_t size, const st
 
 cv::Mat H264Decoder::decode_bitstream(const std::uint8_t* data, std::size_t size, const std::string& source) {
   State& s = *state_;
-  AVCodecContext* c = s.ctx.get();
-  AVPacket* pkt = s.packet.get();
-  AVFrame* f = s.frame.get();
-  t_av_error.clear();
-  // Not reference-counted: avcodec_send_packet copies the bytes into a padded buffer.
-  pkt->data = const_cast<std::uint8_t*>(data);
-  pkt->size = int(size);
-  int err = avcodec_send_packet(c, pkt);
-  pkt->data = nullptr;
-  pkt->size = 0;
-  if (err < 0) fail_corrupt(source, "libavcodec: " + av_error_text(err));
-  if ((err = avcodec_receive_frame(c, f)) < 0)
-    fail_corrupt(source, err == AVERROR(EAGAIN) ? "no picture decoded" : "libavcodec: " + av_error_text(err));
-  struct Unref {
-    AVFrame* f;
-    ~Unref() { av_frame_unref(f); }
-  } unref{f};
-  if (f->width != width_ || f->height != height_)
-    fail_corrupt(source, "picture is " + size_text(f->width, f->height) + ", expected " + size_text(width_, height_));
-  if (f->format != AV_PIX_FMT_YUV420P) {
-    const char* name = av_get_pix_fmt_name(AVPixelFormat(f->format));
-    fail_corrupt(source, std::string("pixel format ") + (name ? name : "unknown") + ", expected yuv420p");
-  }
-  if ((f->flags & AV_FRAME_FLAG_CORRUPT) || f->decode_error_flags)
-    fail_corrupt(source, "libavcodec reports a damaged picture");
-  const int more = avcodec_receive_frame(c, s.extra.get());
-  av_frame_unref(s.extra.get());
-  if (more != AVERROR(EAGAIN)) fail_corrupt(source, "more than one picture in the packet");
-  std::uint8_t* dst = s.i420.data;
-  const int plane_w[3] = {width_, width_ / 2, width_ / 2}, plane_h[3] = {height_, height_ / 2, height_ / 2};
-  for (int p = 0; p < 3; ++p)
-    for (int y = 0; y < plane_h[p]; ++y, dst += plane_w[p])
-      std::memcpy(dst, f->data[p] + std::ptrdiff_t(y) * f->linesize[p], std::size_t(plane_w[p]));
+  const std::string problem = s.engine->decode(data, size, s.i420);
+  if (!problem.empty()) fail_corrupt(source, problem);
   cv::Mat bgr;
   cv::cvtColor(s.i420, bgr, cv::COLOR_YUV2BGR_I420);
   return bgr;

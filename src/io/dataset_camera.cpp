@@ -1,3 +1,4 @@
+#include "codec/codec_plugins.h"
 #include "io/dataset_camera.h"
 
 #include <cctype>
@@ -80,7 +81,7 @@ std::optional<PinholeCamera> calibration_txt(const std::string& dataset_dir, con
   const TumDataset ds = open_tum_dataset(dataset_dir);
   if (ds.rgb.empty())
     throw InputError(dataset_dir + "/rgb.txt", "no colour image listed: cannot size the camera of " + path);
-  const cv::Mat first = cv::imread(ds.rgb.front().path, cv::IMREAD_UNCHANGED);
+  const cv::Mat first = image_io().imread(ds.rgb.front().path, cv::IMREAD_UNCHANGED);
   if (first.empty()) throw InputError(ds.rgb.front().path, "cannot read the first colour image");
   c.width = first.cols;
   c.height = first.rows;

@@ -1,3 +1,4 @@
+#include "codec/codec_plugins.h"
 #include "io/tum_dataset.h"
 
 #include <algorithm>
@@ -162,7 +163,7 @@ cv::Mat load_colour_image(const std::string& path) {
   // (zlib level 6, adaptive filters) per 640x480 image.
   if (decode_png_rgb8(bytes.data(), bytes.size(), out)) return out;
   // Any other file, or a damaged one: OpenCV decodes the same bytes as cv::imread did.
-  if (!bytes.empty()) out = cv::imdecode(bytes, cv::IMREAD_COLOR);
+  if (!bytes.empty()) out = image_io().imdecode(cv::Mat(bytes), cv::IMREAD_COLOR);
   if (out.empty()) throw InputError(path, "cannot read RGB image");
   return out;
 }
@@ -172,7 +173,7 @@ cv::Mat load_depth_image(const std::string& path) {
   cv::Mat depth;
   if (decode_png16_gray(bytes.data(), bytes.size(), depth)) return depth;
   // Any other file, or a damaged one: OpenCV decodes the same bytes as cv::imread did.
-  if (!bytes.empty()) depth = cv::imdecode(bytes, cv::IMREAD_ANYDEPTH);
+  if (!bytes.empty()) depth = image_io().imdecode(cv::Mat(bytes), cv::IMREAD_ANYDEPTH);
   if (depth.empty()) throw InputError(path, "cannot read depth image");
   if (depth.type() != CV_16UC1) throw InputError(path, "depth image must be 16-bit single channel");
   return depth;

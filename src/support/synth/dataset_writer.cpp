@@ -1,3 +1,4 @@
+#include "codec/codec_plugins.h"
 #include "support/synth/dataset_writer.h"
 
 #include <unistd.h>
@@ -143,8 +144,8 @@ void write_sequence(const std::string& dir, const Renderer& renderer, const Traj
         const RenderedFrame f = renderer.render_moving(prev, trajectory[i].T_world_cam, derive_seed(noise_seed, i));
         const std::string name = stamp(trajectory[i].timestamp) + ".png";
         const std::string rgb_path = dir + "/rgb/" + name, depth_path = dir + "/depth/" + name;
-        if (!cv::imwrite(rgb_path, f.bgr, png_rgb)) throw InputError(rgb_path, "cannot write image");
-        if (!cv::imwrite(depth_path, f.depth, png_depth)) throw InputError(depth_path, "cannot write image");
+        if (!image_io().imwrite(rgb_path, f.bgr, png_rgb)) throw InputError(rgb_path, "cannot write image");
+        if (!image_io().imwrite(depth_path, f.depth, png_depth)) throw InputError(depth_path, "cannot write image");
       }
     } catch (...) {
       std::lock_guard<std::mutex> lock(error_mutex);
