@@ -8,8 +8,9 @@
 // frame or file first needs it.
 //
 // A plugin is looked for in ../lib/cslam/ beside the running executable (programs in bin/, tests
-// in tests/). A missing or unloadable plugin throws std::runtime_error naming every path tried;
-// loading happens once per process (the loader keeps it mapped until exit).
+// in tests/). A missing or unloadable plugin throws std::runtime_error naming its path and the
+// loader's reason; loading happens once per process (the loader keeps it mapped until exit).
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -32,7 +33,8 @@ namespace video {
 struct H264Options;
 
 // libavcodec's side of the H.264 codec (h264_plugin.cpp); video_codec.h adds the packet
-// header, the chain rules and the colour conversion. Errors of the engines are std::runtime_error.
+// header, the chain rules and the colour conversion. The engines throw std::runtime_error (the
+// decoder returns what is wrong with a unit instead).
 class H264EncoderEngine {
  public:
   virtual ~H264EncoderEngine() = default;
