@@ -38,9 +38,11 @@ struct H264Options;
 class H264EncoderEngine {
  public:
   virtual ~H264EncoderEngine() = default;
-  // i420: (height * 3 / 2) x width, CV_8UC1 (Y, then U and V). Returns one access unit for the
-  // frame; key: whether it is an IDR picture.
-  virtual std::vector<std::uint8_t> encode(const cv::Mat& i420, std::int64_t pts, bool force_key, bool& key) = 0;
+  // i420: (height * 3 / 2) x width, CV_8UC1 (Y, then U and V). Appends the frame's one access
+  // unit to `out` (after whatever the caller put there, e.g. a packet header); key: whether it is
+  // an IDR picture.
+  virtual void encode(const cv::Mat& i420, std::int64_t pts, bool force_key, std::vector<std::uint8_t>& out,
+                      bool& key) = 0;
 };
 class H264DecoderEngine {
  public:

@@ -67,18 +67,18 @@ std::string av_error_text(int err) {
   return text;
 }
 
-// The three planes of `i420` (Y w x h, then U and V w/2 x h/2) to or from an AVFrame's.
-void copy_planes(const std::uint8_t* src, AVFrame* f, int w, int h) {
+// The three planes of an I420 image (Y w x h, then U and V w/2 x h/2, contiguous) into an
+// AVFrame's (into_frame) or out of it.
+void copy_planes(std::uint8_t* i420, AVFrame* f, int w, int h, bool into_frame) {
   const int plane_w[3] = {w, w / 2, w / 2}, plane_h[3] = {h, h / 2, h / 2};
   for (int p = 0; p < 3; ++p)
-    for (int y = 0; y < plane_h[p]; ++y, src += plane_w[p])
-      std::memcpy(f->data[p] + std::ptrdiff_t(y) * f->linesize[p], src, std::size_t(plane_w[p]));
-}
-void copy_planes(const AVFrame* f, std::uint8_t* dst, int w, int h) {
-  const int plane_w[3] = {w, w / 2, w / 2}, plane_h[3] = {h, h / 2, h / 2};
-  for (int p = 0; p < 3; ++p)
-    for (int y = 0; y < plane_h[p]; ++y, dst += plane_w[p])
-      std::memcpy(dst, f->data[p] + std::ptrdiff_t(y) * f->linesize[p], std::size_t(plane_w[p]));
+    for (int y = 0; y < plane_h[p]; ++y, i420 += plane_w[p]) {
+      std::uint8_t* row = f->data[p] + std::ptrdiff_t(y) * f->linesize[p];
+      if (into_frame)
+        std::memcpy(row, i420, std::size_t(plane_w[p]));
+      else
+        std::memcpy(i420, row, std::size_t(plane_w[p]));
+    }
 }
 
 class Encoder final : public cslam::video::H264EncoderEngine {
@@ -123,12 +123,13 @@ class Encoder final : public cslam::video::H264EncoderEngine {
     if ((err = av_frame_get_buffer(f, 0)) < 0) throw std::runtime_error("av_frame_get_buffer: " + av_error_text(err));
   }
 
-  std::vector<std::uint8_t> encode(const cv::Mat& i420, std::int64_t pts, bool force_key, bool& key) override {
+  void encode(const cv::Mat& i420, std::int64_t pts, bool force_key, std::vector<std::uint8_t>& out,
+              bool& key) override {
     t_av_error.clear();
     AVFrame* f = frame_.get();
     int err = av_frame_make_writable(f);
     if (err < 0) throw std::runtime_error("av_frame_make_writable: " + av_error_text(err));
-    copy_planes(i420.data, f, width_, height_);
+    copy_planes(i420.data, f, width_, height_, true);
     f->pts = pts;
     f->pict_type = force_key ? AV_PICTURE_TYPE_I : AV_PICTURE_TYPE_NONE;
     if ((err = avcodec_send_frame(ctx_.get(), f)) < 0)
@@ -137,13 +138,12 @@ class Encoder final : public cslam::video::H264EncoderEngine {
     if ((err = avcodec_receive_packet(ctx_.get(), pkt)) < 0)  // zerolatency: never EAGAIN
       throw std::runtime_error("libx264: no packet for the frame: " + av_error_text(err));
     key = (pkt->flags & AV_PKT_FLAG_KEY) != 0;
-    std::vector<std::uint8_t> unit(pkt->data, pkt->data + pkt->size);
+    out.insert(out.end(), pkt->data, pkt->data + pkt->size);
     av_packet_unref(pkt);
     if (avcodec_receive_packet(ctx_.get(), pkt) != AVERROR(EAGAIN)) {
       av_packet_unref(pkt);
       throw std::logic_error("libx264 returned more than one packet for a frame");
     }
-    return unit;
   }
 
  private:
@@ -209,7 +209,7 @@ class Decoder final : public cslam::video::H264DecoderEngine {
     const int more = avcodec_receive_frame(c, extra_.get());
     av_frame_unref(extra_.get());
     if (more != AVERROR(EAGAIN)) return "more than one picture in the packet";
-    copy_planes(f, i420.data, width_, height_);
+    copy_planes(i420.data, f, width_, height_, false);
     return {};
   }
 

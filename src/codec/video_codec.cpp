@@ -116,16 +116,16 @@ Bytes H264Encoder::encode(const cv::Mat& bgr, bool force_key) {
   State& s = *state_;
   cv::cvtColor(bgr, s.i420, cv::COLOR_BGR2YUV_I420);  // Y (w x h), then U, V (w/2 x h/2 each)
   bool key = false;
-  const std::vector<std::uint8_t> unit = s.engine->encode(s.i420, next_index_, force_key, key);
-  Bytes out(kH264HeaderBytes + unit.size());
+  Bytes out(kH264HeaderBytes);  // the engine appends the access unit
+  s.engine->encode(s.i420, next_index_, force_key, out, key);
+  const std::size_t unit_size = out.size() - kH264HeaderBytes;
   out[0] = kMagic0;
   out[1] = kMagic1;
   out[2] = kVersion;
   out[3] = key ? kFlagKey : 0;
   put_le32(&out[4], next_index_);
-  put_le32(&out[8], std::uint32_t(unit.size()));
-  std::memcpy(out.data() + kH264HeaderBytes, unit.data(), unit.size());
-  put_le32(&out[12], packet_crc(out.data(), out.data() + kH264HeaderBytes, unit.size()));
+  put_le32(&out[8], std::uint32_t(unit_size));
+  put_le32(&out[12], packet_crc(out.data(), out.data() + kH264HeaderBytes, unit_size));
   ++next_index_;
   return out;
 }

@@ -1,4 +1,3 @@
-#include "codec/codec_plugins.h"
 #include "io/dataset_camera.h"
 
 #include <cctype>
@@ -7,8 +6,6 @@
 #include <optional>
 #include <sstream>
 #include <vector>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -81,8 +78,8 @@ std::optional<PinholeCamera> calibration_txt(const std::string& dataset_dir, con
   const TumDataset ds = open_tum_dataset(dataset_dir);
   if (ds.rgb.empty())
     throw InputError(dataset_dir + "/rgb.txt", "no colour image listed: cannot size the camera of " + path);
-  const cv::Mat first = image_io().imread(ds.rgb.front().path, cv::IMREAD_UNCHANGED);
-  if (first.empty()) throw InputError(ds.rgb.front().path, "cannot read the first colour image");
+  // Read as the frames will be (our JPEG and PNG decoders; OpenCV's plugin only for other formats).
+  const cv::Mat first = load_colour_image(ds.rgb.front().path);
   c.width = first.cols;
   c.height = first.rows;
   c.validate();
