@@ -83,11 +83,9 @@ std::unique_ptr<test::ScratchDir> Persistence::scene_dir_;
 TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   const std::string rate = "20";  // 300 frames: at least 15 s per robot
   // Reference: the same two robots uninterrupted, stepped on one thread, robot by robot, frame by
-  // frame (cslam-slam --sync: the same SLAM and fusion, one fixed interleaving). A reference
-  // streamed to a server varies with the order in which the two robots' frames arrive: over 14
-  // runs at cf4b2c0..6e136bc it gave 0.0341-0.0351 m thirteen times and 0.0294 m once, and that
-  // run failed the bound below with a killed run of 0.0359 m, inside the killed runs' own
-  // 0.0339-0.0359 m. The stepped reference gives 0.0345 m every time.
+  // frame (cslam-slam --sync: the same SLAM and fusion, one fixed interleaving). It gives the same
+  // ATE every time; a streamed uninterrupted run gives it too on a quiet machine, and varies under
+  // load (below).
   const test::ScratchDir ref_dir("persist_ref");
   const std::string& ref = ref_dir.path();
   {
@@ -192,15 +190,22 @@ TEST_F(Persistence, KilledServerRestartsFromItsSnapshotAndClientsResume) {
   std::printf("joint ATE: uninterrupted %.4f m, killed and restarted %.4f m (ratio %.2f)\n", ate_ref, ate,
               ate / ate_ref);
   // The bound: 1.15 x the same run uninterrupted. The killed run's servers run
-  // --deterministic (mapping inline on each client's worker), so only the interleaving of the two
-  // robots' frames differs between runs, but that moves the uninterrupted run itself: streamed, it
-  // gave 0.0314-0.0404 m over 10 runs on a loaded machine (how far robot 2 has come when robot 1
-  // re-encounters its map decides), up to 1.19 x the stepped reference. The bound is 1.15 x that
-  // upper end. Killed runs (docs/results/persistence_restart.md): before the snapshot stored
-  // fusion's seams and consistency runs, 0.0331-0.0393 m quiet and up to 0.0453 m loaded; since,
-  // 0.0302-0.0417 m loaded. The restart's specific losses are checked exactly above (seams stored)
-  // and below (the restored server's re-encounters are anchored by them).
-  const double uninterrupted_upper = 1.19 * ate_ref;
+  // --deterministic (mapping and fusion inline on each client's worker), so only the interleaving
+  // of the two robots' frames differs between runs, and it moves the uninterrupted run itself once
+  // the server lags: streamed without a kill at d625bdc (docs/results/persistence_restart.md,
+  // 2026-12-07), 0.0159 m in 8 of 8 quiet runs (the stepped value) but 0.0155-0.0226 m, median
+  // 0.0186, in 12 runs under two busy loops (the fusion events are the same in every run; what
+  // each robot has tracked when a group BA or a re-encounter correction lands differs): up to
+  // 1.42 x the stepped reference. The bound is 1.15 x that upper end. Killed runs of the same
+  // build: 0.0133-0.0158 m quiet (5), 0.0136-0.0221 m loaded (10). The factor was measured for
+  // this SLAM on this scene, so the stepped reference must still be the one it was measured
+  // against: a SLAM change that moves it needs the spread measured again, not a stale margin.
+  // The restart's specific losses are checked exactly above (seams stored) and below (the
+  // restored server's re-encounters are anchored by them).
+  constexpr double kSteppedWhenMeasured = 0.0159, kStreamedSpread = 1.42;
+  EXPECT_NEAR(ate_ref, kSteppedWhenMeasured, 0.05 * kSteppedWhenMeasured)
+      << "the stepped reference moved: measure the streamed spread again (docs/results/persistence_restart.md)";
+  const double uninterrupted_upper = kStreamedSpread * ate_ref;
   EXPECT_LE(ate, 1.15 * uninterrupted_upper) << "uninterrupted (stepped) " << ate_ref;
   const auto stats = nlohmann::json::parse(read_text(run + "/out2/stats.json"));
   for (const auto& e : stats["fusion_events"]) {
