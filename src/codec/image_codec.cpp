@@ -8,7 +8,9 @@
 
 #include "codec/depth_codecs.h"
 #include "codec/jpeg_decode.h"
+#include "codec/png16_decode.h"
 #include "codec/png_guard.h"
+#include "codec/png_rgb8_decode.h"
 #include "codec/video_codec.h"
 #include "core/error.h"
 
@@ -113,6 +115,19 @@ cv::Mat imdecode_checked(const std::uint8_t* data, std::size_t size, int flags, 
   return out;
 }
 
+// A wire PNG whose header says the announced size. The plain images robots send (8-bit RGB,
+// 16-bit grey, not interlaced) are inflated once by libdeflate into a buffer of exactly the
+// header's size, every CRC, length and the Adler-32 checked (png16_decode.h): bounded by
+// construction, as the pre-check is. Anything else, and any damage, goes the guarded way: the
+// stream pre-check (png_guard.h), then OpenCV, which reports a damaged file.
+cv::Mat decode_png_bounded(const std::uint8_t* data, std::size_t size, int width, int height, bool depth16,
+                           const std::string& source) {
+  cv::Mat out;
+  if (depth16 ? decode_png16_gray(data, size, out) : decode_png_rgb8(data, size, out)) return out;
+  check_png_stream(data, size, PngLimits{width, height, depth16}, source);
+  return depth16 ? imdecode_checked(data, size, cv::IMREAD_ANYDEPTH, CV_16UC1, width, height, source)
+                 : imdecode_checked(data, size, cv::IMREAD_COLOR, CV_8UC3, width, height, source);
+}
 Bytes imencode_checked(const char* ext, const cv::Mat& image, const std::vector<int>& params) {
   std::vector<std::uint8_t> out;
   if (!image_io().imencode(ext, image, out, params)) throw std::runtime_error(std::string("cannot encode ") + ext);
@@ -228,8 +243,7 @@ cv::Mat decode_rgb(RgbCodec codec, const std::uint8_t* data, std::size_t size, i
       return decode_jpeg_bgr(data, size, source, width, height);
     case RgbCodec::kPng:
       check_png_header(data, size, width, height, false, source);
-      check_png_stream(data, size, PngLimits{width, height, false}, source);
-      return imdecode_checked(data, size, cv::IMREAD_COLOR, CV_8UC3, width, height, source);
+      return decode_png_bounded(data, size, width, height, false, source);
     case RgbCodec::kH264Intra: {
       if (width % 2 != 0 || height % 2 != 0)
         throw InputError(source, "H.264 image size " + size_text(width, height) + " is not even");
@@ -255,8 +269,7 @@ cv::Mat decode_depth(DepthCodec codec, const std::uint8_t* data, std::size_t siz
     }
     case DepthCodec::kPng:
       check_png_header(data, size, width, height, true, source);
-      check_png_stream(data, size, PngLimits{width, height, true}, source);
-      return imdecode_checked(data, size, cv::IMREAD_ANYDEPTH, CV_16UC1, width, height, source);
+      return decode_png_bounded(data, size, width, height, true, source);
     case DepthCodec::kRvl: {
       cv::Mat out(height, width, CV_16UC1);
       depth_codec::rvl_decode(data, size, out.ptr<std::uint16_t>(), out.total(), source);

@@ -91,8 +91,12 @@ bool inflate_png(const std::uint8_t* d, std::size_t size, const PngFormat& forma
 
   // The other chunks, up to IEND: lengths inside the buffer, valid types, CRCs; IDATs consecutive.
   ThreadState& st = thread_state();
-  // More compressed data than even fixed Huffman codes need for this image: not from an encoder.
-  const std::size_t max_idat_size = 2 * inflated_size + 1024;
+  // More compressed data than even fixed Huffman codes need for this image (9 bits per literal at
+  // most, stored blocks 5 bytes per 64 kB): not from an encoder. It also bounds the one call to
+  // libdeflate, which cannot be interrupted: a stream of empty blocks with their own code tables is
+  // the slowest input per byte (about 50 ms per MB on this project's VM), so this decoder spends
+  // at most about 60 ms on a 640x480 colour frame whatever a peer sends.
+  const std::size_t max_idat_size = inflated_size + inflated_size / 8 + 1024;
   const std::uint8_t* idat = nullptr;  // the image data, contiguous
   std::size_t idat_size = 0;
   int idat_chunks = 0;

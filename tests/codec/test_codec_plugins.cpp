@@ -8,6 +8,7 @@
 
 #include "codec/codec_plugins.h"
 #include "codec/image_codec.h"
+#include "codec/png16_fixtures.h"
 #include "codec/video_codec.h"
 
 namespace cslam {
@@ -27,6 +28,20 @@ TEST(CodecPlugins, LoadedOnFirstUseOnly) {
   ASSERT_TRUE(mapped("libturbojpeg")) << "the check reads /proc/self/maps";
   EXPECT_FALSE(mapped("libopencv_imgcodecs")) << "a program linking cslam_codec must not map OpenCV's codecs at start";
   EXPECT_FALSE(mapped("libavcodec")) << "nor libavcodec";
+
+  // Wire PNGs of the plain kinds (8-bit RGB, 16-bit grey; built here by hand) decode without
+  // OpenCV's codecs: libdeflate inflates them once (codec/png16_decode.h).
+  const cv::Mat depth = test::synthetic_depth(32, 24, "smooth", 3);
+  const Bytes depth_png = test::hand_png(depth, {4, 1, 0, 2, 3});
+  const cv::Mat depth_back = decode_depth(DepthCodec::kPng, depth_png.data(), depth_png.size(), 32, 24, "test");
+  EXPECT_EQ(cv::norm(depth_back, depth, cv::NORM_INF), 0.0);
+  cv::Mat colour(24, 32, CV_8UC3);
+  cv::randu(colour, 0, 255);
+  const Bytes colour_png =
+      test::build_png(test::ihdr(32, 24, 8, 2), test::zlib_compress(test::filter_rows_rgb8(colour, {1, 4}), 6), 8192);
+  const cv::Mat colour_back = decode_rgb(RgbCodec::kPng, colour_png.data(), colour_png.size(), 32, 24, "test");
+  EXPECT_EQ(cv::norm(colour_back, colour, cv::NORM_INF), 0.0);
+  EXPECT_FALSE(mapped("libopencv_imgcodecs")) << "a plain wire PNG went through OpenCV's decoder";
 
   // PNG colour goes through OpenCV's encoder (the image I/O plugin) and comes back exactly.
   cv::Mat bgr(24, 32, CV_8UC3);

@@ -99,6 +99,25 @@ TEST(RgbJpeg, DecodesLikeOpenCvAndRefusesTruncation) {
   EXPECT_THROW(decode_rgb(o.rgb, bytes.data(), bytes.size() - 1, 160, 120, "test"), InputError);
 }
 
+// The network decoder's PNG path: plain 8-bit RGB and 16-bit grey PNGs are inflated once by
+// libdeflate (codec/png16_decode.h); every other kind a robot may send (here 8-bit grey and 16-bit
+// colour written by OpenCV, sent as colour) goes through the stream pre-check and OpenCV, as
+// before, and decodes as cv::imdecode does.
+TEST(RgbPng, KindsTheFastDecoderLeavesAloneDecodeAsOpenCvDoes) {
+  const cv::Mat bgr = random_bgr(40, 30, 9);
+  cv::Mat grey, colour16;
+  cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
+  bgr.convertTo(colour16, CV_16UC3, 257.0);
+  for (const cv::Mat& im : {bgr, grey, colour16}) {
+    Bytes png;
+    ASSERT_TRUE(cv::imencode(".png", im, png));
+    const cv::Mat expected = cv::imdecode(png, cv::IMREAD_COLOR);
+    const cv::Mat back = decode_rgb(RgbCodec::kPng, png.data(), png.size(), 40, 30, "test");
+    ASSERT_EQ(back.type(), CV_8UC3) << im.type();
+    EXPECT_EQ(cv::norm(back, expected, cv::NORM_INF), 0.0) << im.type();
+  }
+}
+
 // H.264 codes chroma at half resolution (I420), which blurred noise pays for: mean error ~5 of 255
 // even at CRF 8 (a wrong picture: ~60).
 INSTANTIATE_TEST_SUITE_P(AllRgb, RgbCodecTest,

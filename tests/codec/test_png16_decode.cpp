@@ -174,6 +174,40 @@ TEST(Png16Decode, DamagedFilesAreRefused) {
   expect_refused(build_png(ihdr(9000, 1), zlib_compress(Bytes(18001, 0), 6), 8192), "wider than kMaxImageSide");
 }
 
+// The zlib stream of `raw` after `empty_blocks` empty stored blocks: valid, but longer than any
+// encoder writes it.
+Bytes padded_zlib(const Bytes& raw, std::size_t empty_blocks) {
+  Bytes z = {0x78, 0x01};
+  for (std::size_t i = 0; i < empty_blocks; ++i) z.insert(z.end(), {0x00, 0x00, 0x00, 0xff, 0xff});
+  libdeflate_compressor* c = libdeflate_alloc_compressor(6);
+  Bytes body(libdeflate_deflate_compress_bound(c, raw.size()));
+  body.resize(libdeflate_deflate_compress(c, raw.data(), raw.size(), body.data(), body.size()));
+  libdeflate_free_compressor(c);
+  z.insert(z.end(), body.begin(), body.end());
+  put32(z, libdeflate_adler32(1, raw.data(), raw.size()));
+  return z;
+}
+
+// The image data may exceed the inflated image by 1/8 + 1024 bytes (what fixed Huffman codes can
+// need); beyond that the decoder leaves the file to OpenCV, which decodes it: the cap bounds the
+// one uninterruptible libdeflate call on data from a peer, and no real file reaches it.
+TEST(Png16Decode, ImageDataFarLongerThanTheImageIsLeftToOpenCv) {
+  const cv::Mat im = synthetic_depth(24, 12, "smooth", 5);
+  const Bytes raw = filter_rows(im, {1, 4});
+  const std::size_t cap = raw.size() + raw.size() / 8 + 1024;       // 12 x 49 = 588 bytes inflated
+  const std::size_t fits = (cap - padded_zlib(raw, 0).size()) / 5;  // empty blocks of 5 bytes
+  cv::Mat out;
+  const Bytes at_cap = build_png(ihdr(24, 12), padded_zlib(raw, fits), 8192);
+  ASSERT_TRUE(decodes(at_cap, out));
+  expect_identical(out, opencv_decode(at_cap));
+  const Bytes past_cap = build_png(ihdr(24, 12), padded_zlib(raw, fits + 1), 8192);
+  expect_refused(past_cap, "image data past the cap");
+  std::string why;
+  EXPECT_FALSE(decodes(past_cap, out, &why));
+  EXPECT_NE(why.find("more image data"), std::string::npos) << why;
+  expect_identical(opencv_decode(past_cap), im);
+}
+
 // Random damage, with and without CRCs fixed up: never a crash, and whatever is accepted is
 // exactly what OpenCV decodes (OpenCV must accept it too).
 TEST(Png16Decode, MutatedFilesNeverCrashOrDisagreeWithOpenCv) {
