@@ -128,6 +128,7 @@ cv::Mat decode_png_bounded(const std::uint8_t* data, std::size_t size, int width
   return depth16 ? imdecode_checked(data, size, cv::IMREAD_ANYDEPTH, CV_16UC1, width, height, source)
                  : imdecode_checked(data, size, cv::IMREAD_COLOR, CV_8UC3, width, height, source);
 }
+
 Bytes imencode_checked(const char* ext, const cv::Mat& image, const std::vector<int>& params) {
   std::vector<std::uint8_t> out;
   if (!image_io().imencode(ext, image, out, params)) throw std::runtime_error(std::string("cannot encode ") + ext);

@@ -94,8 +94,8 @@ bool inflate_png(const std::uint8_t* d, std::size_t size, const PngFormat& forma
   // More compressed data than even fixed Huffman codes need for this image (9 bits per literal at
   // most, stored blocks 5 bytes per 64 kB): not from an encoder. It also bounds the one call to
   // libdeflate, which cannot be interrupted: a stream of empty blocks with their own code tables is
-  // the slowest input per byte (about 50 ms per MB on this project's VM), so this decoder spends
-  // at most about 60 ms on a 640x480 colour frame whatever a peer sends.
+  // the slowest input per byte (about 50 ms per MB on this project's VM: 51 ms at the cap of a
+  // 640x480 colour frame), so the decoder's time is bounded by the image size a peer announced.
   const std::size_t max_idat_size = inflated_size + inflated_size / 8 + 1024;
   const std::uint8_t* idat = nullptr;  // the image data, contiguous
   std::size_t idat_size = 0;
