@@ -104,6 +104,22 @@ struct Band {
   __m128i sub, up, average, paeth;  // per-lane masks of the rows' filter types
 };
 
+// The rows of the band from row y0 (at most kRows): where each one's filtered bytes and output
+// start, and its filter type as all-ones in its two 16-bit lanes of the mask of that type (sub,
+// up, average, paeth; none: no mask). Returns the band's row count.
+template <int kRows>
+int band_rows(const std::uint8_t* rows, std::size_t stride, int y0, int height, cv::Mat& out,
+              const std::uint8_t* (&cur)[kRows], std::uint16_t* (&dst)[kRows], std::int16_t (&masks)[4][2 * kRows]) {
+  const int n = std::min(kRows, height - y0);
+  for (int r = 0; r < n; ++r) {
+    const std::uint8_t* row = rows + std::size_t(y0 + r) * stride;
+    cur[r] = row + 1;
+    dst[r] = out.ptr<std::uint16_t>(y0 + r);
+    if (row[0] >= 1 && row[0] <= 4) masks[row[0] - 1][2 * r] = masks[row[0] - 1][2 * r + 1] = -1;
+  }
+  return n;
+}
+
 inline std::uint16_t load_u16(const std::uint8_t* p) {
   std::uint16_t v;
   std::memcpy(&v, p, 2);
@@ -153,16 +169,10 @@ void unfilter_rows_simd(const std::uint8_t* rows, int width, int height, cv::Mat
   const std::uint16_t* above = zeros.data();
   for (int y0 = 0; y0 < height; y0 += 4) {
     Band band{};
-    band.rows = std::min(4, height - y0);
+    std::int16_t masks[4][8] = {};  // sub, up, average, paeth
+    band.rows = band_rows(rows, stride, y0, height, out, band.cur, band.dst, masks);
     band.width = width;
     band.above = above;
-    std::int16_t masks[4][8] = {};  // sub, up, average, paeth
-    for (int r = 0; r < band.rows; ++r) {
-      const std::uint8_t* row = rows + std::size_t(y0 + r) * stride;
-      band.cur[r] = row + 1;
-      band.dst[r] = out.ptr<std::uint16_t>(y0 + r);
-      if (row[0] >= 1 && row[0] <= 4) masks[row[0] - 1][2 * r] = masks[row[0] - 1][2 * r + 1] = -1;
-    }
     band.sub = _mm_loadu_si128(reinterpret_cast<const __m128i*>(masks[0]));
     band.up = _mm_loadu_si128(reinterpret_cast<const __m128i*>(masks[1]));
     band.average = _mm_loadu_si128(reinterpret_cast<const __m128i*>(masks[2]));
@@ -238,16 +248,10 @@ __attribute__((target("avx2"))) void unfilter_rows_avx2(const std::uint8_t* rows
   const std::uint16_t* above = zeros.data();
   for (int y0 = 0; y0 < height; y0 += 8) {
     Band8 band{};
-    band.rows = std::min(8, height - y0);
+    std::int16_t masks[4][16] = {};  // sub, up, average, paeth
+    band.rows = band_rows(rows, stride, y0, height, out, band.cur, band.dst, masks);
     band.width = width;
     band.above = above;
-    std::int16_t masks[4][16] = {};  // sub, up, average, paeth
-    for (int r = 0; r < band.rows; ++r) {
-      const std::uint8_t* row = rows + std::size_t(y0 + r) * stride;
-      band.cur[r] = row + 1;
-      band.dst[r] = out.ptr<std::uint16_t>(y0 + r);
-      if (row[0] >= 1 && row[0] <= 4) masks[row[0] - 1][2 * r] = masks[row[0] - 1][2 * r + 1] = -1;
-    }
     band.sub = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(masks[0]));
     band.up = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(masks[1]));
     band.average = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(masks[2]));

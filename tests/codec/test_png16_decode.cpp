@@ -47,32 +47,37 @@ TEST(Png16Decode, PaethPredictorMatchesTheSpecForAllInputs) {
   EXPECT_EQ(mismatches, 0);
 }
 
+// The vector kernels undo the filters of `rows` (filter bytes and data, 2 * w bytes a row) exactly
+// as the scalar one does.
+void expect_kernels_agree(const Bytes& rows, int w, int h, const std::string& what) {
+  using png16_detail::UnfilterPath;
+  Bytes scratch = rows;
+  cv::Mat scalar(h, w, CV_16UC1);
+  png16_detail::unfilter_rows(scratch.data(), w, h, scalar, UnfilterPath::kScalar);
+  for (UnfilterPath path : {UnfilterPath::kSse41, UnfilterPath::kAvx2}) {
+    scratch = rows;
+    cv::Mat vector(h, w, CV_16UC1);
+    png16_detail::unfilter_rows(scratch.data(), w, h, vector, path);
+    EXPECT_EQ(cv::norm(vector, scalar, cv::NORM_INF), 0.0) << what << ", path " << int(path);
+  }
+}
+
 // The AVX2 (eight rows at once) and SSE4.1 (four) kernels against the scalar one, on random
 // filtered data with random filter bytes: every band shape (1-8 rows left over) and narrow widths.
 TEST(Png16Decode, VectorAndScalarUnfilteringAgree) {
-  using png16_detail::UnfilterPath;
   std::mt19937 rng(3);
   for (int h = 1; h <= 19; ++h)
     for (int w : {1, 2, 3, 4, 5, 7, 8, 9, 64, 641}) {
       Bytes rows(std::size_t(h) * (1 + 2 * std::size_t(w)));
       for (std::size_t i = 0; i < rows.size(); ++i)
         rows[i] = i % (1 + 2 * std::size_t(w)) == 0 ? std::uint8_t(rng() % 5) : std::uint8_t(rng());
-      Bytes scratch = rows;
-      cv::Mat scalar(h, w, CV_16UC1);
-      png16_detail::unfilter_rows(scratch.data(), w, h, scalar, UnfilterPath::kScalar);
-      for (UnfilterPath path : {UnfilterPath::kSse41, UnfilterPath::kAvx2}) {
-        scratch = rows;
-        cv::Mat vector(h, w, CV_16UC1);
-        png16_detail::unfilter_rows(scratch.data(), w, h, vector, path);
-        ASSERT_EQ(cv::norm(vector, scalar, cv::NORM_INF), 0.0) << w << "x" << h << " path " << int(path);
-      }
+      expect_kernels_agree(rows, w, h, std::to_string(w) + "x" + std::to_string(h));
     }
 }
 
 // Each filter type alone over whole bands (rows of one type, then of each type in turn): the
 // vector kernels pick every row's predictor by lane masks, so a mask in the wrong lane shows here.
 TEST(Png16Decode, VectorKernelsKeepEachRowsFilter) {
-  using png16_detail::UnfilterPath;
   std::mt19937 rng(4);
   const int w = 37, h = 24;
   for (int pattern = 0; pattern < 6; ++pattern) {
@@ -82,15 +87,7 @@ TEST(Png16Decode, VectorKernelsKeepEachRowsFilter) {
       row[0] = std::uint8_t(pattern < 5 ? pattern : y % 5);
       for (int i = 1; i <= 2 * w; ++i) row[i] = std::uint8_t(rng());
     }
-    Bytes scratch = rows;
-    cv::Mat scalar(h, w, CV_16UC1);
-    png16_detail::unfilter_rows(scratch.data(), w, h, scalar, UnfilterPath::kScalar);
-    for (UnfilterPath path : {UnfilterPath::kSse41, UnfilterPath::kAvx2}) {
-      scratch = rows;
-      cv::Mat vector(h, w, CV_16UC1);
-      png16_detail::unfilter_rows(scratch.data(), w, h, vector, path);
-      ASSERT_EQ(cv::norm(vector, scalar, cv::NORM_INF), 0.0) << "pattern " << pattern << " path " << int(path);
-    }
+    expect_kernels_agree(rows, w, h, "pattern " + std::to_string(pattern));
   }
 }
 
