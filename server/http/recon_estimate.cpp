@@ -3,9 +3,7 @@
 #include <cmath>
 #include <unordered_set>
 
-#include <opencv2/imgcodecs.hpp>
-
-#include "codec/codec_plugins.h"
+#include "core/error.h"
 #include "dense/tsdf_volume.h"
 #include "io/tum_dataset.h"
 #include "server/http/recon_jobs.h"
@@ -69,8 +67,14 @@ std::optional<double> sampled_surface_m2(const std::vector<DatasetPoses>& source
       if (k++ % step != 0 || !p.T_world_cam.is_finite()) continue;
       const auto it = nearest_depth(depth, p.timestamp);
       if (it == depth.end()) continue;
-      const cv::Mat d = image_io().imread(it->path, cv::IMREAD_UNCHANGED);
-      if (d.type() != CV_16UC1 || d.cols != s.camera.width || d.rows != s.camera.height) continue;
+      // Read as the reconstruction reads it (load_rgbd); an unreadable image is left out here too.
+      cv::Mat d;
+      try {
+        d = load_depth_image(it->path);
+      } catch (const InputError&) {
+        continue;
+      }
+      if (d.cols != s.camera.width || d.rows != s.camera.height) continue;
       ++read;
       add_cells(d, s.camera, p, config, cells);
     }

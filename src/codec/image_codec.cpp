@@ -1,4 +1,3 @@
-#include "codec/codec_plugins.h"
 #include "codec/image_codec.h"
 
 #include <cstring>
@@ -6,6 +5,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "codec/codec_plugins.h"
 #include "codec/depth_codecs.h"
 #include "codec/jpeg_decode.h"
 #include "codec/png16_decode.h"

@@ -1,4 +1,3 @@
-#include "codec/codec_plugins.h"
 #include "codec/jpeg_decode.h"
 
 #include <climits>
@@ -9,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <turbojpeg.h>
 
+#include "codec/codec_plugins.h"
 #include "codec/image_codec.h"
 #include "core/error.h"
 

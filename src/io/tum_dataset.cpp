@@ -1,4 +1,3 @@
-#include "codec/codec_plugins.h"
 #include "io/tum_dataset.h"
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "codec/codec_plugins.h"
 #include "codec/jpeg_decode.h"
 #include "codec/png16_decode.h"
 #include "codec/png_rgb8_decode.h"

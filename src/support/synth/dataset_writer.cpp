@@ -1,4 +1,3 @@
-#include "codec/codec_plugins.h"
 #include "support/synth/dataset_writer.h"
 
 #include <unistd.h>
@@ -14,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "codec/codec_plugins.h"
 #include "core/error.h"
 #include "core/stopwatch.h"
 #include "geometry/camera_io.h"
