@@ -62,6 +62,8 @@ class Vocabulary {
   WordId word_of(const Descriptor& d) const;
   // Word and the node at depth (depth() - levels_up) on its path (the leaf if it is shallower).
   WordId word_of(const Descriptor& d, int levels_up, NodeId& node) const;
+  // word_of(d[i], levels_up, nodes[i]) into words[i] for i < n, the same results, faster for many.
+  void words_of(const Descriptor* d, std::size_t n, int levels_up, WordId* words, NodeId* nodes) const;
 
   // DBoW2 L1 score: 1 - 0.5 * |a - b|_1 for L1-normalised vectors, in [0,1].
   static double score(const BowVector& a, const BowVector& b);

@@ -63,6 +63,27 @@ TEST(KMajority, SeparatesTwoClusters) {
   for (const Descriptor& c : r.centers) EXPECT_TRUE(c == c0 || c == c1);
 }
 
+// words_of against word_of one descriptor at a time: random descriptors and `known` ones, batch
+// sizes around the lock-step batch (16), every direct-index level.
+void expect_batch_matches_one_by_one(const Vocabulary& voc, const std::vector<Descriptor>& known) {
+  std::mt19937_64 rng(5);
+  std::vector<Descriptor> all = known;
+  for (int i = 0; i < 300; ++i) all.push_back({rng(), rng(), rng(), rng()});
+  for (const std::size_t n : {std::size_t(0), std::size_t(1), std::size_t(15), std::size_t(16), std::size_t(17),
+                              std::size_t(33), all.size()}) {
+    for (int levels_up = 0; levels_up <= voc.depth() + 1; ++levels_up) {
+      std::vector<WordId> words(n, WordId(-1));
+      std::vector<NodeId> nodes(n, NodeId(-1));
+      voc.words_of(all.data(), n, levels_up, words.data(), nodes.data());
+      for (std::size_t i = 0; i < n; ++i) {
+        NodeId node = 0;
+        ASSERT_EQ(words[i], voc.word_of(all[i], levels_up, node)) << "descriptor " << i << " of " << n;
+        ASSERT_EQ(nodes[i], node) << "descriptor " << i << " of " << n << ", levels_up " << levels_up;
+      }
+    }
+  }
+}
+
 // A small vocabulary trained on procedural images (k=10, L=4: leaves are single descriptors).
 class SmallVocabulary : public ::testing::Test {
  protected:
@@ -219,6 +240,19 @@ TEST(VocabularyTrain, RejectsBadConfig) {
   empty.transform({Descriptor{1, 2, 3, 4}}, bow);
   EXPECT_TRUE(bow.empty());
   EXPECT_THROW(empty.word_of(Descriptor{1, 2, 3, 4}), std::logic_error);
+}
+
+TEST_F(SmallVocabulary, BatchLookupIsTheSameAsOneByOne) {
+  std::vector<Descriptor> known;
+  for (const auto& img : *images_) known.insert(known.end(), img.begin(), img.end());
+  expect_batch_matches_one_by_one(*voc_, known);
+}
+
+TEST(DefaultVocabulary, BatchLookupIsTheSameAsOneByOne) {
+  const Vocabulary voc = Vocabulary::load(default_vocabulary_path());
+  OrbConfig oc;
+  const OrbExtractor ex(oc);
+  expect_batch_matches_one_by_one(voc, ex.extract(procedural_image(42)).descriptors);
 }
 
 TEST(DefaultVocabulary, LoadsAndHasTheDocumentedShape) {
