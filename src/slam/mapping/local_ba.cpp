@@ -1,6 +1,7 @@
 // Local bundle adjustment: the new keyframe and its covisible keyframes are free, keyframes that
 // see their points but are not covisible are fixed. Data is copied under the shared map lock,
 // solved without holding it (tracking goes on), and written back under the unique lock.
+#include <algorithm>
 #include <shared_mutex>
 #include <unordered_map>
 
@@ -47,22 +48,42 @@ void LocalMapper::local_bundle_adjustment(KeyFrame* kf) {
           points.push_back(mp);
           prob.points.push_back(mp->position);
         }
+    std::vector<int> keypoint;  // of each observation
     for (size_t p = 0; p < points.size(); ++p) {
       for (const auto& [okf, idx] : points[p]->observations) {
         if (okf->bad) continue;
         auto it = cam_index.find(okf);
         int c = it == cam_index.end() ? add_camera(okf, true) : it->second;
         if (c < 0) continue;
-        const FrameData& f = *okf->data;
         BaObservation o;
         o.camera = c;
         o.point = int(p);
-        o.uv = f.features.undistorted[idx];
-        o.u_right = f.u_right[idx];
-        o.inv_sigma2 = f.pyramid->inv_sigma2[f.features.keypoints[idx].octave];
+        o.uv.setZero();  // filled below
         prob.observations.push_back(o);
         obs_refs.emplace_back(okf, points[p].get());
+        keypoint.push_back(idx);
       }
+    }
+    // The keypoints' data in a second pass: each is a cache miss in its keyframe's arrays, and
+    // with the keyframe and keypoint known the next ones are fetched while one is read.
+    const std::size_t n = keypoint.size();
+    constexpr std::size_t kAhead = 8;
+    auto prefetch = [&](std::size_t i) {
+      const FrameData& f = *obs_refs[i].first->data;
+      const auto k = std::size_t(keypoint[i]);
+      __builtin_prefetch(&f.features.undistorted[k]);
+      __builtin_prefetch(&f.u_right[k]);
+      __builtin_prefetch(&f.features.keypoints[k].octave);
+    };
+    for (std::size_t i = 0; i < std::min(n, kAhead); ++i) prefetch(i);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i + kAhead < n) prefetch(i + kAhead);
+      const FrameData& f = *obs_refs[i].first->data;
+      const auto k = std::size_t(keypoint[i]);
+      BaObservation& o = prob.observations[i];
+      o.uv = f.features.undistorted[k];
+      o.u_right = f.u_right[k];
+      o.inv_sigma2 = f.pyramid->inv_sigma2[f.features.keypoints[k].octave];
     }
   }
   if (prob.observations.empty()) return;

@@ -227,12 +227,13 @@ int match_point_in_keyframe(const MapPoint& mp, const KeyFrame& kf, double th) {
   if (po.dot(mp.normal) < 0.5 * dist) return -1;
   const int level = mp.predict_level(dist, *f.pyramid);
   const double r = th * f.pyramid->scale[level];
-  const auto cands = f.grid.features_in_area(uv.x(), uv.y(), r);
+  // Levels level - 1 and level only, told apart by the grid's own copy of each keypoint's level
+  // (reading the keypoint itself is a cache miss).
+  const auto cands = f.grid.features_in_area(uv.x(), uv.y(), r, level - 1, level);
   const double ur = uv.x() - f.rgbd.bf / pc.z();
   int best = 256, best_idx = -1;
   for (int idx : cands) {
     const auto& kp = f.features.keypoints[idx];
-    if (kp.octave < level - 1 || kp.octave > level) continue;
     const double ex = uv.x() - f.features.undistorted[idx].x(), ey = uv.y() - f.features.undistorted[idx].y();
     double e2 = ex * ex + ey * ey;
     double th_chi2 = 5.99;
