@@ -152,23 +152,27 @@ void Vocabulary::save(const std::string& path) const {
   }
 }
 
+std::uint32_t Vocabulary::nearest_child(const Descriptor& d, std::uint32_t id) const {
+  const std::uint32_t first = first_child_[id], last = first + num_children_[id];
+  std::uint32_t best = first;
+  int best_dist = hamming_distance(d, descriptor_[first]);
+  for (std::uint32_t c = first + 1; c < last; ++c) {
+    const int dist = hamming_distance(d, descriptor_[c]);
+    if (dist < best_dist) {
+      best_dist = dist;
+      best = c;
+    }
+  }
+  return best;
+}
+
 WordId Vocabulary::word_of(const Descriptor& d, int levels_up, NodeId& node) const {
   if (num_children_.empty()) throw std::logic_error("Vocabulary::word_of: empty vocabulary");
   const int target = depth_ - levels_up;
   std::uint32_t id = 0;
   node = 0;
   while (num_children_[id] > 0) {
-    const std::uint32_t first = first_child_[id], last = first + num_children_[id];
-    std::uint32_t best = first;
-    int best_dist = hamming_distance(d, descriptor_[first]);
-    for (std::uint32_t c = first + 1; c < last; ++c) {
-      const int dist = hamming_distance(d, descriptor_[c]);
-      if (dist < best_dist) {
-        best_dist = dist;
-        best = c;
-      }
-    }
-    id = best;
+    id = nearest_child(d, id);
     if (level_[id] <= target) node = id;
   }
   if (target > level_[id]) node = id;
@@ -191,17 +195,7 @@ void Vocabulary::words_of(const Descriptor* d, std::size_t n, int levels_up, Wor
       active = 0;
       for (std::size_t k = 0; k < m; ++k) {
         if (num_children_[id[k]] == 0) continue;
-        const std::uint32_t first = first_child_[id[k]], last = first + num_children_[id[k]];
-        const Descriptor& q = d[start + k];
-        std::uint32_t best = first;
-        int best_dist = hamming_distance(q, descriptor_[first]);
-        for (std::uint32_t c = first + 1; c < last; ++c) {
-          const int dist = hamming_distance(q, descriptor_[c]);
-          if (dist < best_dist) {
-            best_dist = dist;
-            best = c;
-          }
-        }
+        const std::uint32_t best = nearest_child(d[start + k], id[k]);
         id[k] = best;
         if (level_[best] <= target) nodes[start + k] = best;
         if (num_children_[best] == 0) continue;

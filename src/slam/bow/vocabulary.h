@@ -82,6 +82,8 @@ class Vocabulary {
 
  private:
   friend class VocabularyBuilder;
+  // The child of inner node `id` nearest to `d` (the first of equally near ones).
+  std::uint32_t nearest_child(const Descriptor& d, std::uint32_t id) const;
   // Derives first_child_, level_, node_word_ and word_node_ from num_children_ (breadth-first).
   // Returns an error message, empty if the tree is consistent.
   std::string index_tree();
