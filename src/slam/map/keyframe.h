@@ -45,12 +45,12 @@ class MapPoint {
   std::shared_ptr<MapPoint> replaced;  // set when fused into another point
   cv::Vec3b color;
   std::uint32_t first_keyframe_seq = 0;
-  // The pyramid scale of the reference observation's keypoint and the pyramid's top scale, kept
-  // for that observation (keyframe id, keypoint): Map::update_map_point needs them on every
-  // update, and reading the keypoint is a cache miss.
+  // The pyramid scale of the reference observation's keypoint, kept for that observation
+  // (keyframe id, keypoint): Map::update_map_point needs it on every update, and reading the
+  // keypoint is a cache miss.
   KeyFrameId scale_keyframe;
   int scale_keypoint = -1;
-  double reference_scale = 1, top_scale = 1;
+  double reference_scale = 1;
 
   double found_ratio() const { return double(found) / double(visible); }
   bool in_keyframe(KeyFrame* kf) const { return observations.count(kf) > 0; }

@@ -233,16 +233,15 @@ void Map::update_map_point(MapPoint* mp) const {
     ref_it = mp->observations.begin();
     mp->reference = ref;
   }
+  const auto& pyr = *ref->data->pyramid;
   if (mp->scale_keypoint != ref_it->second || mp->scale_keyframe != ref->id) {
-    const auto& pyr = *ref->data->pyramid;
     mp->reference_scale = pyr.scale[ref->data->features.keypoints[ref_it->second].octave];
-    mp->top_scale = pyr.scale[pyr.num_levels - 1];
     mp->scale_keyframe = ref->id;
     mp->scale_keypoint = ref_it->second;
   }
   const double dist = (mp->position - ref->center()).norm();
   mp->max_distance = dist * mp->reference_scale;
-  mp->min_distance = mp->max_distance / mp->top_scale;
+  mp->min_distance = mp->max_distance / pyr.scale[pyr.num_levels - 1];
 
   // Distinctive descriptor: the one with the least median distance to the others. It depends on
   // the set of observations alone (keyframe descriptors never change).
