@@ -200,14 +200,7 @@ std::vector<cv::KeyPoint> OrbExtractor::detect_level(const cv::Mat& image, int b
   const int W = image.cols, H = image.rows;
   if (budget <= 0 || W <= 2 * b + 8 || H <= 2 * b + 8) return {};
   // Per ~cell_size cell, the corners scoring at least the initial threshold are kept if the cell
-  // has any, else all of its corners at the fallback threshold (the ORB-SLAM2 rule). OpenCV's
-  // FAST score of a corner is the highest threshold at which it is still detected, and its
-  // non-maximum suppression only compares detected neighbours' scores, so the corners of one
-  // pass at the initial threshold are exactly the strong ones a pass at the fallback threshold
-  // finds; the fallback pass runs only over the cells left without one, each with the 4 pixels
-  // around it that the corner test and the suppression of its border corners read. The result
-  // is identical to one fallback pass over the level, at a fraction of its cost on textured
-  // images (a low threshold lets most pixels past FAST's quick rejection test).
+  // has any, else all of its corners at the fallback threshold (the ORB-SLAM2 rule).
   // FAST runs on [b-3, W-b+3) so that corners are reported in [b, W-b).
   const cv::Rect region(b - 3, b - 3, W - 2 * b + 6, H - 2 * b + 6);
   const int inner_w = W - 2 * b, inner_h = H - 2 * b;
@@ -218,56 +211,28 @@ std::vector<cv::KeyPoint> OrbExtractor::detect_level(const cv::Mat& image, int b
     const int c = std::min(cols - 1, int((pt.x - b) / cell_w)), r = std::min(rows - 1, int((pt.y - b) / cell_h));
     return r * cols + c;
   };
-  // Corners of a FAST pass over `area` (inside `region`), in level coordinates, that lie in a
-  // cell accepted by `keep`.
-  std::vector<cv::KeyPoint> kps, found;
-  auto detect = [&](const cv::Rect& area, int threshold, const auto& keep) {
-    found.clear();
-    detect_fast_corners(image(area), threshold, found);  // cv::FAST's corners, faster where dense
-    for (cv::KeyPoint& kp : found) {
-      kp.pt.x += float(area.x);
-      kp.pt.y += float(area.y);
-      const int cell = cell_of(kp.pt);
-      if (cell >= 0 && keep(cell)) kps.push_back(kp);
-    }
-  };
+  // One FAST pass at the fallback threshold over the whole region finds both sets: a corner's
+  // score (the highest threshold at which it is detected) does not depend on the threshold, and a
+  // strong corner survives the non-maximum suppression among all corners exactly when it survives
+  // among the strong ones alone (a weaker neighbour never suppresses it). One pass costs less than
+  // a strong pass plus fallback passes over the weak cells: FAST rejects 32-pixel blocks, not
+  // pixels, and the weak cells' blocks that passed the strong test were scored twice.
+  std::vector<cv::KeyPoint> found;
+  detect_fast_corners(image(region), std::min(config_.min_fast_threshold, config_.ini_fast_threshold), found);
+  std::vector<int> cell(found.size());
   std::vector<std::uint8_t> strong(std::size_t(cols) * rows, 0);
-  detect(region, config_.ini_fast_threshold, [&](int cell) {
-    strong[cell] = 1;
-    return true;
-  });
-  if (config_.min_fast_threshold < config_.ini_fast_threshold) {
-    // One pass per horizontal run of such cells: the same corners as one pass per cell (each
-    // cell's surroundings are inside the run's area), without a FAST call per cell.
-    for (int r = 0; r < rows; ++r)
-      for (int c = 0; c < cols;) {
-        if (strong[r * cols + c]) {
-          ++c;
-          continue;
-        }
-        int end = c;
-        while (end < cols && !strong[r * cols + end]) ++end;
-        const int x0 = int(std::floor(b + c * cell_w)) - 4, y0 = int(std::floor(b + r * cell_h)) - 4;
-        const int x1 = end == cols ? W : int(std::ceil(b + end * cell_w)) + 4;
-        const int y1 = r + 1 == rows ? H : int(std::ceil(b + (r + 1) * cell_h)) + 4;
-        const cv::Rect area = cv::Rect(x0, y0, x1 - x0, y1 - y0) & region;
-        const int first = r * cols + c, last = r * cols + end;
-        if (area.width > 6 && area.height > 6)
-          detect(area, config_.min_fast_threshold, [&](int k) { return k >= first && k < last; });
-        c = end;
-      }
-    // The raster order of a single pass: the quadtree's choices depend on the order. Corners
-    // sit on whole pixels, one corner per pixel: bucketed by row, then each row by x.
-    std::vector<int> row_start(std::size_t(H) + 1, 0);
-    for (const cv::KeyPoint& kp : kps) ++row_start[std::size_t(kp.pt.y) + 1];
-    for (int y = 0; y < H; ++y) row_start[std::size_t(y) + 1] += row_start[std::size_t(y)];
-    found.resize(kps.size());
-    for (const cv::KeyPoint& kp : kps) found[std::size_t(row_start[std::size_t(kp.pt.y)]++)] = kp;
-    for (int y = 0, begin = 0; y < H; begin = row_start[std::size_t(y)], ++y)
-      std::sort(found.begin() + begin, found.begin() + row_start[std::size_t(y)],
-                [](const cv::KeyPoint& p, const cv::KeyPoint& q) { return p.pt.x < q.pt.x; });
-    kps.swap(found);
+  for (std::size_t i = 0; i < found.size(); ++i) {
+    cv::KeyPoint& kp = found[i];
+    kp.pt.x += float(region.x);
+    kp.pt.y += float(region.y);
+    cell[i] = cell_of(kp.pt);
+    if (cell[i] >= 0 && kp.response >= float(config_.ini_fast_threshold)) strong[std::size_t(cell[i])] = 1;
   }
+  std::vector<cv::KeyPoint> kps;
+  kps.reserve(found.size());
+  for (std::size_t i = 0; i < found.size(); ++i)
+    if (cell[i] >= 0 && (!strong[std::size_t(cell[i])] || found[i].response >= float(config_.ini_fast_threshold)))
+      kps.push_back(found[i]);
   return distribute_quadtree(kps, cv::Rect2f(float(b), float(b), float(inner_w), float(inner_h)), budget);
 }
 
