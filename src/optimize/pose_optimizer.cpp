@@ -45,34 +45,37 @@ class PoseProblem : public SmallLmProblem<6, PoseProblem> {
     return 0.5 * cost;
   }
 
+  // J^T W J and J^T W r summed in the camera frame's motion (camera_motion_jacobian: no rotation
+  // Jacobian per observation, the upper triangle only), then carried to the parameters once.
   bool linearize_at(const double* x, SmallLinearization<6>& lin) const {
     PoseLinearizationPoint T;
     T.set(x);
-    lin.H.setZero();
-    lin.g.setZero();
+    Matrix6d H = Matrix6d::Zero();
+    Vector6d g = Vector6d::Zero();
     double cost = 0;
-    Eigen::Vector3d uvr;
-    Matrix36d J;
-    Eigen::Matrix3d J_point;
     for (size_t i = 0; i < obs_.size(); ++i) {
       if (!inlier_[i]) continue;
       const PoseObservation& o = obs_[i];
-      project_with_jacobians(k_, T, o.p_world, uvr, J, J_point);
-      const WeightedResidual wr =
-          weighted_residual(uvr, o.uv, o.u_right, o.inv_sigma2, robust_, delta_mono_, delta_stereo_);
-      const bool stereo = wr.stereo;
-      const Eigen::Vector3d& r = wr.r;
-      const double w = wr.weight;
+      const Eigen::Vector3d pc = T.R * o.p_world + T.t;
+      const double iz = 1.0 / pc.z();
+      const WeightedResidual wr = weighted_residual(project_camera_point(k_, pc, iz), o.uv, o.u_right, o.inv_sigma2,
+                                                    robust_, delta_mono_, delta_stereo_);
       cost += wr.cost;
-      if (stereo) {
-        lin.H.noalias() += (w * J.transpose()) * J;
-        lin.g.noalias() += (w * J.transpose()) * r;
-      } else {
-        const auto J2 = J.topRows<2>();
-        lin.H.noalias() += (w * J2.transpose()) * J2;
-        lin.g.noalias() += (w * J2.transpose()) * r.head<2>();
+      const Matrix36d J = camera_motion_jacobian(k_, pc, iz);
+      const int rows = wr.stereo ? 3 : 2;
+      for (int r = 0; r < rows; ++r) {
+        const double wr_r = wr.weight * wr.r(r);
+        for (int a = 0; a < 6; ++a) {
+          const double wj = wr.weight * J(r, a);
+          g(a) += J(r, a) * wr_r;
+          for (int b = a; b < 6; ++b) H(a, b) += wj * J(r, b);
+        }
       }
     }
+    H.triangularView<Eigen::StrictlyLower>() = H.transpose();
+    const Matrix6d M = param_map(T);
+    lin.H.noalias() = M.transpose() * H * M;
+    lin.g.noalias() = M.transpose() * g;
     lin.cost = 0.5 * cost;
     return std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
   }

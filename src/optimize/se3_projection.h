@@ -99,6 +99,36 @@ inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLineariz
 // Huber kernel on a squared whitened error s (Ceres' HuberLoss(delta)): rho(s) = s inside
 // delta^2, 2 delta sqrt(s) - delta^2 beyond; weight = rho'(s). Ceres' residual correction for
 // this kernel (rho'' <= 0) scales residuals and Jacobians by sqrt(rho'), i.e. plain IRLS.
+// The pose Jacobian in two factors: d uvr / d param = camera_motion_jacobian(k, pc, iz) *
+// param_map(T). The first is the derivative by a small motion of the point in the camera frame
+// (pc + w x pc + dt: rotation w, then translation dt), cheap per observation; the second carries
+// that motion to the parameters [angle-axis, translation] and is the same for every observation
+// of one pose: with A = R Jr, M = [[A, 0], [[t]x A, I]] (from R [p]x = [R p]x R). A solver sums
+// J_motion^T W J_motion over a pose's observations and applies M once.
+inline Matrix36d camera_motion_jacobian(const StereoIntrinsics& k, const Eigen::Vector3d& pc, double iz) {
+  const double iz2 = iz * iz;
+  Eigen::Matrix3d d_pc;
+  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
+      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
+      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
+  Matrix36d J;
+  for (int r = 0; r < 3; ++r) {
+    const Eigen::Vector3d d = d_pc.row(r).transpose();
+    J.block<1, 3>(r, 0) = pc.cross(d).transpose();  // d^T (-[pc]x)
+    J.block<1, 3>(r, 3) = d.transpose();
+  }
+  return J;
+}
+
+inline Matrix6d param_map(const PoseLinearizationPoint& T) {
+  Matrix6d M = Matrix6d::Zero();
+  const Eigen::Matrix3d A = T.R * T.Jr;
+  M.topLeftCorner<3, 3>() = A;
+  M.bottomLeftCorner<3, 3>() = skew(T.t) * A;
+  M.bottomRightCorner<3, 3>().setIdentity();
+  return M;
+}
+
 struct HuberValue {
   double rho, weight;
 };
