@@ -95,8 +95,18 @@ int search_local_points(Frame& cur, const std::vector<const MapPointPtr*>& point
     if (mp) in_frame.insert(mp.get());
   std::vector<int> cands;
   int n = 0;
-  for (const MapPointPtr* slot : points) {
-    const MapPointPtr& mp = *slot;
+  // The local map's points are spread over the heap, and each is read once: their slots are
+  // fetched 2 * kAhead points ahead, the points themselves kAhead ahead, so that the misses
+  // overlap the work on the points before them.
+  constexpr std::size_t kAhead = 8;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (i + 2 * kAhead < points.size()) __builtin_prefetch(points[i + 2 * kAhead]);
+    if (i + kAhead < points.size())
+      if (const MapPoint* q = points[i + kAhead]->get()) {
+        __builtin_prefetch(&q->position);
+        __builtin_prefetch(&q->bad);
+      }
+    const MapPointPtr& mp = *points[i];
     if (!mp || mp->bad || in_frame.contains(mp.get())) continue;
     const ProjectedPoint p = project_map_point(*mp, cur.T_cam_world, f);
     if (!p.visible) continue;
