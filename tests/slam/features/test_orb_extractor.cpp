@@ -214,6 +214,59 @@ TEST(OrbExtractor, FastScoreSelectionEqualsDetectionAtTheInitialThreshold) {
   EXPECT_EQ(selected, expected);
 }
 
+TEST(OrbExtractor, LevelCornersFollowTheCellRuleOfTwoFastPasses) {
+  // ORB-SLAM2's rule written out with cv::FAST: per cell of the area inside the border, the
+  // corners of a pass at the initial threshold if the cell has any, else those of a pass at the
+  // fallback threshold. One level and a budget above the corner count, so the quadtree keeps all.
+  cv::Mat img = procedural_image(17);
+  // The left third at a fifth of its contrast: cells there have no strong corner.
+  cv::Mat left = img.colRange(0, img.cols / 3);
+  left.convertTo(left, CV_8U, 0.2, 0.8 * 128);
+  OrbConfig c;
+  c.num_levels = 1;
+  c.num_features = 1000000;
+  c.subpixel = false;
+  const OrbFeatures f = OrbExtractor(c).extract(img);
+
+  const int b = c.edge_threshold, W = img.cols, H = img.rows;
+  const cv::Rect region(b - 3, b - 3, W - 2 * b + 6, H - 2 * b + 6);
+  const int inner_w = W - 2 * b, inner_h = H - 2 * b;
+  const int cols = inner_w / c.cell_size, rows = inner_h / c.cell_size;
+  const float cell_w = float(inner_w) / cols, cell_h = float(inner_h) / rows;
+  auto cell_of = [&](const cv::Point2f& p) {
+    if (p.x < b || p.y < b || p.x >= W - b || p.y >= H - b) return -1;
+    return std::min(rows - 1, int((p.y - b) / cell_h)) * cols + std::min(cols - 1, int((p.x - b) / cell_w));
+  };
+  std::vector<cv::KeyPoint> strong, weak;
+  cv::FAST(img(region), strong, c.ini_fast_threshold, true);
+  cv::FAST(img(region), weak, c.min_fast_threshold, true);
+  std::vector<char> has_strong(std::size_t(cols * rows), 0);
+  std::set<std::pair<float, float>> expected;
+  for (const auto& k : strong) {
+    const cv::Point2f p = k.pt + cv::Point2f(float(region.x), float(region.y));
+    if (const int cell = cell_of(p); cell >= 0) {
+      has_strong[std::size_t(cell)] = 1;
+      expected.insert({p.x, p.y});
+    }
+  }
+  int weak_cells = 0, weak_corners = 0;
+  for (char h : has_strong) weak_cells += h ? 0 : 1;
+  for (const auto& k : weak) {
+    const cv::Point2f p = k.pt + cv::Point2f(float(region.x), float(region.y));
+    if (const int cell = cell_of(p); cell >= 0 && !has_strong[std::size_t(cell)]) {
+      expected.insert({p.x, p.y});
+      ++weak_corners;
+    }
+  }
+  ASSERT_GT(weak_cells, 20);
+  ASSERT_GT(weak_corners, 100);
+  ASSERT_GT(expected.size(), 1000u);
+  std::set<std::pair<float, float>> got;
+  for (const auto& k : f.keypoints) got.insert({k.pt.x, k.pt.y});
+  EXPECT_EQ(got.size(), f.keypoints.size());
+  EXPECT_EQ(got, expected);
+}
+
 TEST(OrbExtractor, ThreadSafeConstExtraction) {
   const OrbExtractor ex;
   const cv::Mat img = procedural_image(21);
