@@ -65,6 +65,16 @@ inline Eigen::Vector3d project_point(const StereoIntrinsics& k, const PoseLinear
   return project_camera_point(k, pc, 1.0 / pc.z());
 }
 
+// The derivative of (u, v, u_right) w.r.t. the point in camera coordinates pc (iz = 1 / pc.z()).
+inline Eigen::Matrix3d camera_point_jacobian(const StereoIntrinsics& k, const Eigen::Vector3d& pc, double iz) {
+  const double iz2 = iz * iz;
+  Eigen::Matrix3d d_pc;
+  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
+      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
+      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
+  return d_pc;
+}
+
 // (u, v, u_right) of p_world seen from the pose and its derivative w.r.t. the point (3x3); returns
 // the derivative of (u, v, u_right) w.r.t. the point in camera coordinates, which the pose
 // Jacobian needs. Alone it serves observations from cameras held fixed.
@@ -72,12 +82,9 @@ inline Eigen::Matrix3d project_with_point_jacobian(const StereoIntrinsics& k, co
                                                    const Eigen::Vector3d& pw, Eigen::Vector3d& uvr,
                                                    Eigen::Matrix3d& J_point) {
   const Eigen::Vector3d pc = T.R * pw + T.t;
-  const double iz = 1.0 / pc.z(), iz2 = iz * iz;
+  const double iz = 1.0 / pc.z();
   uvr = project_camera_point(k, pc, iz);
-  Eigen::Matrix3d d_pc;
-  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
-      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
-      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
+  const Eigen::Matrix3d d_pc = camera_point_jacobian(k, pc, iz);
   J_point.noalias() = d_pc * T.R;
   return d_pc;
 }
@@ -96,9 +103,6 @@ inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLineariz
   J_pose.rightCols<3>() = d_pc;
 }
 
-// Huber kernel on a squared whitened error s (Ceres' HuberLoss(delta)): rho(s) = s inside
-// delta^2, 2 delta sqrt(s) - delta^2 beyond; weight = rho'(s). Ceres' residual correction for
-// this kernel (rho'' <= 0) scales residuals and Jacobians by sqrt(rho'), i.e. plain IRLS.
 // The pose Jacobian in two factors: d uvr / d param = camera_motion_jacobian(k, pc, iz) *
 // param_map(T). The first is the derivative by a small motion of the point in the camera frame
 // (pc + w x pc + dt: rotation w, then translation dt), cheap per observation; the second carries
@@ -106,11 +110,7 @@ inline void project_with_jacobians(const StereoIntrinsics& k, const PoseLineariz
 // of one pose: with A = R Jr, M = [[A, 0], [[t]x A, I]] (from R [p]x = [R p]x R). A solver sums
 // J_motion^T W J_motion over a pose's observations and applies M once.
 inline Matrix36d camera_motion_jacobian(const StereoIntrinsics& k, const Eigen::Vector3d& pc, double iz) {
-  const double iz2 = iz * iz;
-  Eigen::Matrix3d d_pc;
-  d_pc << k.fx * iz, 0, -k.fx * pc.x() * iz2,  //
-      0, k.fy * iz, -k.fy * pc.y() * iz2,      //
-      k.fx * iz, 0, (k.bf - k.fx * pc.x()) * iz2;
+  const Eigen::Matrix3d d_pc = camera_point_jacobian(k, pc, iz);
   Matrix36d J;
   for (int r = 0; r < 3; ++r) {
     const Eigen::Vector3d d = d_pc.row(r).transpose();
@@ -129,6 +129,9 @@ inline Matrix6d param_map(const PoseLinearizationPoint& T) {
   return M;
 }
 
+// Huber kernel on a squared whitened error s (Ceres' HuberLoss(delta)): rho(s) = s inside
+// delta^2, 2 delta sqrt(s) - delta^2 beyond; weight = rho'(s). Ceres' residual correction for
+// this kernel (rho'' <= 0) scales residuals and Jacobians by sqrt(rho'), i.e. plain IRLS.
 struct HuberValue {
   double rho, weight;
 };

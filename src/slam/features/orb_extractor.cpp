@@ -218,7 +218,7 @@ std::vector<cv::KeyPoint> OrbExtractor::detect_level(const cv::Mat& image, int b
   // a strong pass plus fallback passes over the weak cells: FAST rejects 32-pixel blocks, not
   // pixels, and the weak cells' blocks that passed the strong test were scored twice.
   std::vector<cv::KeyPoint> found;
-  detect_fast_corners(image(region), std::min(config_.min_fast_threshold, config_.ini_fast_threshold), found);
+  detect_fast_corners(image(region), config_.min_fast_threshold, found);  // <= ini_fast_threshold (validated)
   std::vector<int> cell(found.size());
   std::vector<std::uint8_t> strong(std::size_t(cols) * rows, 0);
   for (std::size_t i = 0; i < found.size(); ++i) {

@@ -308,7 +308,9 @@ TEST(Sim3Refine, TakesTheStepsOfTheCeresReference) {
     EXPECT_EQ(own.converged, ref.converged) << "trial " << trial;
     EXPECT_NEAR(own.initial_cost, ref.initial_cost, 1e-9 * std::max(1.0, ref.initial_cost)) << "trial " << trial;
     EXPECT_NEAR(own.final_cost, ref.final_cost, 1e-9 * std::max(1.0, ref.final_cost)) << "trial " << trial;
-    if (fix_scale) EXPECT_EQ(own.S_12.scale(), start.scale());
+    if (fix_scale) {
+      EXPECT_EQ(own.S_12.scale(), start.scale());
+    }
     with_outliers_removed += own.num_inliers < n;
   }
   std::printf("largest difference to the Ceres reference: %.2e\n", worst);
